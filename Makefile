@@ -1,0 +1,65 @@
+# Two commands do everything on a fresh machine: `make demo` and `make test`.
+# Installs are stamped, so re-running does not reinstall unless pyproject.toml changed.
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+PIP := $(PY) -m pip install --quiet
+HOST ?= 127.0.0.1
+PORT ?= 8765
+
+.PHONY: demo test lint format bench bench-model bench-detector bench-service bench-setup test-keypoints clean
+
+$(VENV)/bin/python:
+	$(PYTHON) -m venv $(VENV)
+
+# Serving only: no torch.
+$(VENV)/.stamp-run: pyproject.toml | $(VENV)/bin/python
+	$(PIP) -e .
+	touch $@
+
+# Training + tests: torch==2.13.0 (CPU wheel), pytest, ruff, Chromium for the map-page test.
+$(VENV)/.stamp-dev: pyproject.toml | $(VENV)/bin/python
+	$(PIP) -e '.[train,dev]'
+	touch $(VENV)/.stamp-run $@
+
+demo: $(VENV)/.stamp-run
+	$(VENV)/bin/momloc demo --host $(HOST) --port $(PORT)
+
+test: $(VENV)/.stamp-dev
+	$(PY) -m pytest -q
+
+lint: $(VENV)/.stamp-dev
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
+
+format: $(VENV)/.stamp-dev
+	$(VENV)/bin/ruff check --fix .
+	$(VENV)/bin/ruff format .
+
+bench: bench-model bench-detector bench-service bench-setup
+
+bench-model: $(VENV)/.stamp-dev
+	$(PY) -m bench.model_accuracy
+	$(PY) -m bench.encoder_speed
+
+bench-detector: $(VENV)/.stamp-dev
+	$(PY) -m bench.detector_speed
+
+bench-service: $(VENV)/.stamp-dev
+	$(PY) -m bench.service_latency
+
+bench-setup: $(VENV)/.stamp-dev
+	$(PY) -m bench.setup_study
+
+# mediapipe pins numpy<2, so its keypoint tests run in an environment of their own.
+KP_VENV := .venv-keypoints
+$(KP_VENV)/.stamp: pyproject.toml
+	$(PYTHON) -m venv $(KP_VENV)
+	$(KP_VENV)/bin/python -m pip install --quiet -e '.[keypoints]' pytest pytest-timeout
+	touch $@
+
+test-keypoints: $(KP_VENV)/.stamp
+	MOMLOC_KEYPOINT_TESTS=1 $(KP_VENV)/bin/python -m pytest -q tests/models/test_keypoints.py
+
+clean:
+	rm -rf $(VENV) $(KP_VENV) .pytest_cache .ruff_cache

@@ -1,0 +1,53 @@
+"""The ``momloc`` command line.
+
+Each subcommand lives in ``service/commands/<name>.py`` and exposes ``register(subparsers)``, which
+adds its parser and sets ``func``. Modules are imported lazily only for ``--help`` listing cost, so
+``momloc demo`` never imports torch.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from models.errors import MomlocError
+
+COMMANDS = (
+    "demo",
+    "serve",
+    "cameras",
+    "detect",
+    "simulate",
+    "collect",
+    "train",
+    "eval",
+    "bridge",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="momloc",
+        description="Mean of Means human localization: calibration-free, tag-free, cheap webcams.",
+    )
+    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name in COMMANDS:
+        importlib.import_module(f"service.commands.{name}").register(subparsers)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except MomlocError as error:
+        print(f"momloc {args.command}: error: {error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"momloc {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
