@@ -1,0 +1,110 @@
+"""Camera-moved alert from the decoder's reprojection error.
+
+The MoM decoder maps each predicted floor position back to every camera's mean pixel through its
+learned matrix P̄_k. While the cameras stay where they were during collection, that reprojection
+error stays at its usual level. When a camera is bumped, the encoder's input from that camera shifts
+while P̄_k does not, so its error rises and stays high. The monitor therefore compares a rolling
+median of each camera's error with a baseline (given by the model, or learned during the first
+seconds of running) and raises an alert only when the median has stayed above
+``max(ratio * baseline, baseline + margin_px)`` for ``hold_s`` seconds: a single bad frame, a
+passing occlusion or one badly detected person does not trip it.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class CameraAlignment:
+    """One camera's state as shown in ``/v1/health`` and on the map."""
+
+    camera: int
+    error_px: float | None
+    baseline_px: float | None
+    moved: bool
+    message: str | None
+
+
+class CameraMotionMonitor:
+    """Rolling reprojection-error watch for K cameras (feed it every processed frame set)."""
+
+    def __init__(
+        self,
+        num_cameras: int,
+        baseline_px: Sequence[float] | None = None,
+        *,
+        window_s: float = 5.0,
+        hold_s: float = 3.0,
+        warmup_s: float = 10.0,
+        ratio: float = 2.5,
+        margin_px: float = 6.0,
+    ) -> None:
+        self.window_s, self.hold_s, self.warmup_s = window_s, hold_s, warmup_s
+        self.ratio, self.margin_px = ratio, margin_px
+        self._samples = [deque() for _ in range(num_cameras)]  # (t, error) per camera
+        self._warmup: list[list[float]] = [[] for _ in range(num_cameras)]
+        self._baseline = list(baseline_px) if baseline_px is not None else [None] * num_cameras
+        self._high_since: list[float | None] = [None] * num_cameras
+        self._low_since: list[float | None] = [None] * num_cameras
+        self._moved = [False] * num_cameras
+        self._start: float | None = None
+
+    def update(self, t: float, errors: np.ndarray) -> None:
+        """Add one frame set's errors, shape [P, K] in pixels (NaN where a camera saw nobody)."""
+        if self._start is None:
+            self._start = t
+        errors = np.asarray(errors, dtype=float).reshape(-1, len(self._samples))
+        for k, samples in enumerate(self._samples):
+            seen = errors[:, k][np.isfinite(errors[:, k])]
+            if seen.size:
+                value = float(np.median(seen))
+                samples.append((t, value))
+                if self._baseline[k] is None and t - self._start < self.warmup_s:
+                    self._warmup[k].append(value)
+            while samples and samples[0][0] < t - self.window_s:
+                samples.popleft()
+            if self._baseline[k] is None and t - self._start >= self.warmup_s and self._warmup[k]:
+                self._baseline[k] = float(np.median(self._warmup[k]))
+            self._update_state(k, t)
+
+    def _threshold(self, k: int) -> float | None:
+        base = self._baseline[k]
+        return None if base is None else max(self.ratio * base, base + self.margin_px)
+
+    def _update_state(self, k: int, t: float) -> None:
+        current, threshold = self._current(k), self._threshold(k)
+        if current is None or threshold is None:
+            return
+        if current > threshold:
+            self._low_since[k] = None
+            self._high_since[k] = self._high_since[k] if self._high_since[k] is not None else t
+            if t - self._high_since[k] >= self.hold_s:
+                self._moved[k] = True
+        else:
+            self._high_since[k] = None
+            self._low_since[k] = self._low_since[k] if self._low_since[k] is not None else t
+            if t - self._low_since[k] >= self.hold_s:
+                self._moved[k] = False
+
+    def _current(self, k: int) -> float | None:
+        samples = self._samples[k]
+        return float(np.median([e for _, e in samples])) if samples else None
+
+    def status(self) -> list[CameraAlignment]:
+        out = []
+        for k in range(len(self._samples)):
+            message = None
+            if self._moved[k]:
+                message = (
+                    f"camera {k} looks moved: reprojection error {self._current(k):.1f} px vs "
+                    f"{self._baseline[k]:.1f} px usual; re-collect floor marks and retrain"
+                )
+            out.append(
+                CameraAlignment(k, self._current(k), self._baseline[k], self._moved[k], message)
+            )
+        return out

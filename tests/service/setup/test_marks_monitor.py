@@ -1,0 +1,82 @@
+"""Floor marks parsing/grid and the camera-moved monitor's decision rule."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from models.errors import MomlocError
+from service.setup.camera_monitor import CameraMotionMonitor
+from service.setup.marks import FloorMark, grid_marks, load_marks, save_marks
+
+
+def test_grid_marks_are_cell_centres_in_snake_order() -> None:
+    marks = grid_marks("2x3", "6x4")
+    assert [m.name for m in marks] == ["A1", "A2", "A3", "B3", "B2", "B1"]
+    assert (marks[0].x, marks[0].y) == (1.0, 1.0)
+    assert (marks[3].x, marks[3].y) == (5.0, 3.0)
+
+
+@pytest.mark.parametrize(("grid", "room"), [("3", "4x5"), ("0x3", "4x5"), ("2.5x3", "4x5")])
+def test_grid_rejects_bad_specs(grid: str, room: str) -> None:
+    with pytest.raises(MomlocError, match="grid"):
+        grid_marks(grid, room)
+
+
+def test_marks_round_trip(tmp_path: Path) -> None:
+    marks = [FloorMark("door", 0.5, 1.0), FloorMark("sofa", 3.0, 2.25)]
+    save_marks(marks, tmp_path / "m.yaml")
+    assert load_marks(tmp_path / "m.yaml") == marks
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("marks: []", "non-empty list"),
+        ("marks:\n  - {name: a, x: 1}", "entry 0 needs x and y"),
+        ("marks:\n  - {name: a, x: one, y: 2}", "non-numeric"),
+        ("marks:\n  - {name: a, x: 1, y: 2}\n  - {name: a, x: 2, y: 2}", "duplicate mark name 'a'"),
+        ("marks: [", "not valid YAML"),
+    ],
+)
+def test_marks_file_errors_name_the_problem(tmp_path: Path, text: str, message: str) -> None:
+    path = tmp_path / "m.yaml"
+    path.write_text(text)
+    with pytest.raises(MomlocError, match=message):
+        load_marks(path)
+
+
+def _feed(monitor: CameraMotionMonitor, t0: float, seconds: float, errors: list[float]) -> float:
+    rng = np.random.default_rng(0)
+    t = t0
+    while t < t0 + seconds:
+        frame = np.array([errors]) * rng.uniform(0.7, 1.3, size=(1, len(errors)))
+        monitor.update(t, frame)
+        t += 1 / 30
+    return t
+
+
+def test_monitor_flags_only_the_bumped_camera_after_hold_time() -> None:
+    monitor = CameraMotionMonitor(2, warmup_s=5.0, hold_s=2.0, window_s=2.0)
+    t = _feed(monitor, 0.0, 8.0, [3.0, 4.0])
+    assert not any(s.moved for s in monitor.status())
+    assert monitor.status()[0].baseline_px == pytest.approx(3.0, rel=0.15)
+    t = _feed(monitor, t, 1.5, [3.0, 30.0])  # not long enough yet
+    assert not monitor.status()[1].moved
+    t = _feed(monitor, t, 4.0, [3.0, 30.0])
+    status = monitor.status()
+    assert status[1].moved and "camera 1" in status[1].message
+    assert not status[0].moved
+    _feed(monitor, t, 8.0, [3.0, 4.0])  # put back: the alert clears
+    assert not monitor.status()[1].moved
+
+
+def test_monitor_ignores_a_short_spike_and_unseen_frames() -> None:
+    monitor = CameraMotionMonitor(1, baseline_px=[3.0], hold_s=2.0, window_s=1.0)
+    t = _feed(monitor, 0.0, 3.0, [3.0])
+    t = _feed(monitor, t, 0.5, [50.0])
+    monitor.update(t, np.array([[np.nan]]))
+    t = _feed(monitor, t, 3.0, [3.0])
+    assert not monitor.status()[0].moved
