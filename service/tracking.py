@@ -1,0 +1,239 @@
+"""Multi-person tracking on the floor: persistent ids, Kalman smoothing, velocity.
+
+Design
+------
+Each track is a constant-velocity Kalman filter on the state ``[x, y, vx, vy]`` in metres and
+metres per second. The process noise is white acceleration (``accel_std`` m/s²), so uncertainty
+grows with the real time between updates: the filter is driven by capture timestamps, not frame
+counts, and copes with a pipeline that drops frames.
+
+Every update:
+
+1. all tracks are predicted to time ``t``;
+2. detections are assigned to tracks with the Hungarian algorithm (``scipy``) on the Euclidean
+   distance between the predicted and measured position; a pair farther apart than the gate is
+   never assigned. The gate is ``gate_m`` plus ``gate_growth_mps`` per second the track has been
+   unseen, because a coasting track's prediction drifts from where the person really went;
+3. matched tracks are corrected; unmatched detections start new *tentative* tracks;
+4. tracks unseen for more than ``max_missing_s`` are dropped.
+
+Output policy (documented for API users):
+
+- a track is reported once it has been seen ``confirm_s`` worth of frames (at least one frame;
+  3 frames at 30 fps) so that a single spurious association does not create an id;
+- while a person is unseen (occlusion, detector miss) the track *coasts* on its prediction and is
+  still reported, with ``coasting=True`` and a confidence that falls linearly to 0 at
+  ``max_missing_s``; the id is kept if the person reappears within the (growing) gate, so a 1 s
+  occlusion does not change the id;
+- ``confidence`` is a running detection rate (exponential average of seen / unseen frames) times
+  the coasting factor, in 0..1.
+
+``meta`` (one dict per detection) is passed through: ``cameras`` is copied onto the track and the
+whole dict is kept as ``Track.meta``.
+
+Example::
+
+    tracker = Tracker(fps_hint=30)
+    tracks = tracker.update(t, positions, [{"cameras": [0, 1]}] * len(positions))
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+_UNASSIGNED = 1e9
+
+
+@dataclass
+class Track:
+    """One person as reported to clients (positions in metres, velocities in m/s)."""
+
+    id: int
+    x: float
+    y: float
+    vx: float
+    vy: float
+    confidence: float
+    cameras: list[int] = field(default_factory=list)
+    coasting: bool = False
+    age_s: float = 0.0
+    meta: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class _State:
+    id: int
+    mean: np.ndarray  # [4]
+    cov: np.ndarray  # [4, 4]
+    born: float
+    last_seen: float
+    hits: int = 1
+    rate: float = 1.0
+    confirmed: bool = False
+    cameras: list[int] = field(default_factory=list)
+    meta: dict[str, Any] = field(default_factory=dict)
+
+
+class Tracker:
+    """Constant-velocity Kalman tracker with Hungarian assignment (see the module docstring)."""
+
+    def __init__(
+        self,
+        fps_hint: float = 30.0,
+        max_missing_s: float = 1.5,
+        *,
+        gate_m: float = 1.0,
+        gate_growth_mps: float = 1.0,
+        measurement_std_m: float = 0.12,
+        accel_std: float = 2.0,
+        confirm_s: float = 0.1,
+        rate_alpha: float = 0.1,
+    ) -> None:
+        if fps_hint <= 0 or max_missing_s <= 0 or gate_m <= 0:
+            raise ValueError("fps_hint, max_missing_s and gate_m must be positive")
+        self.fps_hint = float(fps_hint)
+        self.max_missing_s = float(max_missing_s)
+        self.gate_m = float(gate_m)
+        self.gate_growth_mps = float(gate_growth_mps)
+        self.measurement_var = float(measurement_std_m) ** 2
+        self.accel_var = float(accel_std) ** 2
+        self.min_hits = max(1, round(confirm_s * fps_hint))
+        self.rate_alpha = float(rate_alpha)
+        self._tracks: list[_State] = []
+        self._next_id = 1
+        self._time: float | None = None
+
+    @property
+    def time(self) -> float | None:
+        """Time of the last update (seconds), ``None`` before the first one."""
+        return self._time
+
+    def reset(self) -> None:
+        """Forget every track (ids keep increasing so clients never see an id reused)."""
+        self._tracks.clear()
+        self._time = None
+
+    def update(
+        self, t: float, positions: np.ndarray, meta: list[dict] | None = None
+    ) -> list[Track]:
+        """Fold the detections of time ``t`` (``positions`` [P, 2] metres) into the tracks."""
+        positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
+        keep = np.isfinite(positions).all(axis=1)
+        meta = list(meta) if meta is not None else [{} for _ in range(len(positions))]
+        if len(meta) != len(positions):
+            raise ValueError(f"meta has {len(meta)} entries for {len(positions)} positions")
+        positions = positions[keep]
+        meta = [m for m, k in zip(meta, keep, strict=True) if k]
+
+        dt = 1.0 / self.fps_hint if self._time is None else float(t) - self._time
+        if dt < 0:  # out-of-order frame set: treat as simultaneous rather than rewinding
+            dt = 0.0
+        self._time = float(t) if self._time is None else max(self._time, float(t))
+        for track in self._tracks:
+            self._predict(track, dt)
+
+        rows, cols = self._assign(positions, self._time)
+        matched_tracks = set(rows.tolist())
+        for r, c in zip(rows, cols, strict=True):
+            self._correct(self._tracks[r], positions[c], meta[c], self._time)
+        for i, track in enumerate(self._tracks):
+            if i not in matched_tracks:
+                track.rate *= 1.0 - self.rate_alpha
+        for c in sorted(set(range(len(positions))) - set(cols.tolist())):
+            self._tracks.append(self._spawn(positions[c], meta[c], self._time))
+
+        self._tracks = [
+            tr
+            for tr in self._tracks
+            if (self._time - tr.last_seen) <= self.max_missing_s
+            and (tr.confirmed or tr.last_seen == self._time)
+        ]
+        return self.tracks()
+
+    def tracks(self) -> list[Track]:
+        """The reportable tracks (confirmed ones, coasting included), sorted by id."""
+        now = self._time if self._time is not None else 0.0
+        out = []
+        for tr in sorted(self._tracks, key=lambda s: s.id):
+            if not tr.confirmed:
+                continue
+            missing = now - tr.last_seen
+            coast = max(0.0, 1.0 - missing / self.max_missing_s)
+            out.append(
+                Track(
+                    id=tr.id,
+                    x=float(tr.mean[0]),
+                    y=float(tr.mean[1]),
+                    vx=float(tr.mean[2]),
+                    vy=float(tr.mean[3]),
+                    confidence=float(np.clip(tr.rate * coast, 0.0, 1.0)),
+                    cameras=list(tr.cameras) if missing == 0 else [],
+                    coasting=missing > 0,
+                    age_s=float(now - tr.born),
+                    meta=dict(tr.meta),
+                )
+            )
+        return out
+
+    # -- Kalman filter -------------------------------------------------------------------------
+
+    def _predict(self, track: _State, dt: float) -> None:
+        if dt <= 0:
+            return
+        f = np.eye(4)
+        f[0, 2] = f[1, 3] = dt
+        q1 = np.array([[dt**4 / 4, dt**3 / 2], [dt**3 / 2, dt**2]]) * self.accel_var
+        q = np.zeros((4, 4))
+        q[np.ix_([0, 2], [0, 2])] = q1
+        q[np.ix_([1, 3], [1, 3])] = q1
+        track.mean = f @ track.mean
+        track.cov = f @ track.cov @ f.T + q
+
+    def _correct(self, track: _State, z: np.ndarray, meta: dict, t: float) -> None:
+        h = np.zeros((2, 4))
+        h[0, 0] = h[1, 1] = 1.0
+        s = h @ track.cov @ h.T + np.eye(2) * self.measurement_var
+        gain = track.cov @ h.T @ np.linalg.inv(s)
+        track.mean = track.mean + gain @ (z - h @ track.mean)
+        track.cov = (np.eye(4) - gain @ h) @ track.cov
+        track.last_seen = t
+        track.hits += 1
+        track.rate = track.rate * (1.0 - self.rate_alpha) + self.rate_alpha
+        track.confirmed = track.confirmed or track.hits >= self.min_hits
+        track.cameras = [int(k) for k in meta.get("cameras", [])]
+        track.meta = dict(meta)
+
+    def _spawn(self, z: np.ndarray, meta: dict, t: float) -> _State:
+        # Unknown velocity: a walking person is within ~2 m/s, so start with that spread.
+        cov = np.diag([self.measurement_var, self.measurement_var, 1.0, 1.0])
+        state = _State(
+            id=self._next_id,
+            mean=np.array([z[0], z[1], 0.0, 0.0]),
+            cov=cov,
+            born=t,
+            last_seen=t,
+            confirmed=self.min_hits <= 1,
+            cameras=[int(k) for k in meta.get("cameras", [])],
+            meta=dict(meta),
+        )
+        self._next_id += 1
+        return state
+
+    def _assign(self, positions: np.ndarray, now: float) -> tuple[np.ndarray, np.ndarray]:
+        empty = np.zeros(0, dtype=int)
+        if not self._tracks or not len(positions):
+            return empty, empty
+        predicted = np.stack([tr.mean[:2] for tr in self._tracks])
+        dist = np.linalg.norm(predicted[:, None, :] - positions[None, :, :], axis=2)
+        missing = np.array([now - tr.last_seen for tr in self._tracks])
+        gate = self.gate_m + self.gate_growth_mps * missing
+        # Tentative tracks lose ties to confirmed ones: a small penalty keeps ids stable.
+        penalty = np.array([0.0 if tr.confirmed else 0.05 for tr in self._tracks])
+        cost = np.where(dist <= gate[:, None], dist + penalty[:, None], _UNASSIGNED)
+        rows, cols = linear_sum_assignment(cost)
+        ok = cost[rows, cols] < _UNASSIGNED
+        return rows[ok], cols[ok]

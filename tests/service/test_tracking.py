@@ -1,0 +1,127 @@
+"""Tracker behaviour on scripted floor trajectories (metres, seconds)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from service.tracking import Tracker
+
+FPS = 30.0
+
+
+def run(tracker: Tracker, frames: list[np.ndarray], fps: float = FPS) -> list[list]:
+    return [
+        tracker.update(i / fps, p, [{"cameras": [0, 1]}] * len(p)) for i, p in enumerate(frames)
+    ]
+
+
+def test_straight_walk_gives_velocity_and_smooths() -> None:
+    rng = np.random.default_rng(0)
+    velocity = np.array([1.2, -0.5])
+    times = np.arange(90) / FPS
+    truth = np.array([1.0, 4.0]) + times[:, None] * velocity
+    noisy = truth + rng.normal(0, 0.05, truth.shape)
+    out = run(Tracker(fps_hint=FPS), [p[None] for p in noisy])
+    last = out[-1]
+    assert len(last) == 1 and last[0].id == 1
+    assert np.hypot(last[0].vx - velocity[0], last[0].vy - velocity[1]) < 0.15
+    assert last[0].cameras == [0, 1] and not last[0].coasting
+    assert last[0].confidence > 0.9
+    # Smoothing: over the last second the filtered track is closer to the truth than the input.
+    est = np.array([[o[0].x, o[0].y] for o in out[60:]])
+    assert (
+        np.linalg.norm(est - truth[60:], axis=1).mean()
+        < np.linalg.norm(noisy[60:] - truth[60:], axis=1).mean()
+    )
+
+
+def test_crossing_people_keep_ids() -> None:
+    rng = np.random.default_rng(1)
+    times = np.arange(120) / FPS  # 4 s, crossing at t = 2 s
+    a = np.stack([times * 1.2, times * 1.2], axis=1)  # (0,0) -> (4.8,4.8)
+    b = np.stack([times * 1.2, 4.8 - times * 1.2], axis=1)  # (0,4.8) -> (4.8,0)
+    frames = []
+    for i in range(len(times)):
+        pts = np.stack([a[i], b[i]]) + rng.normal(0, 0.04, (2, 2))
+        frames.append(pts[rng.permutation(2)])  # detection order carries no identity
+    out = run(Tracker(fps_hint=FPS), frames)
+    first = {int(tr.y > 2.4): tr.id for tr in out[10]}
+    assert len(first) == 2
+    final = out[-1]
+    assert len(final) == 2
+    by_id = {tr.id: tr for tr in final}
+    # The one that started at y=0 ends near y=4.8 and vice versa.
+    assert by_id[first[0]].y > 4.0
+    assert by_id[first[1]].y < 0.8
+
+
+def test_one_second_occlusion_keeps_id_and_coasts() -> None:
+    tracker = Tracker(fps_hint=FPS, max_missing_s=1.5)
+    velocity = np.array([1.0, 0.0])
+    ids = []
+    coasting_conf = []
+    for i in range(150):
+        t = i / FPS
+        hidden = 60 <= i < 90  # exactly 1 s without detections
+        pos = np.zeros((0, 2)) if hidden else (np.array([0.5, 2.0]) + t * velocity)[None]
+        tracks = tracker.update(t, pos, [{"cameras": [1]}] * len(pos))
+        if i < tracker.min_hits - 1:  # tentative until confirmed
+            assert tracks == []
+            continue
+        assert len(tracks) == 1
+        ids.append(tracks[0].id)
+        if hidden:
+            assert tracks[0].coasting and tracks[0].cameras == []
+            coasting_conf.append(tracks[0].confidence)
+            # Coasting follows the predicted walk, not the last seen point.
+            assert abs(tracks[0].x - (0.5 + t)) < 0.1
+    assert set(ids) == {1}
+    assert coasting_conf == sorted(coasting_conf, reverse=True)
+    assert coasting_conf[-1] < 0.5
+
+
+def test_new_person_gets_new_id_and_ids_never_reused() -> None:
+    tracker = Tracker(fps_hint=FPS, max_missing_s=0.5)
+    for i in range(30):
+        tracks = tracker.update(i / FPS, np.array([[1.0, 1.0]]), None)
+    assert [tr.id for tr in tracks] == [1]
+    for i in range(30, 60):
+        tracks = tracker.update(i / FPS, np.array([[1.0, 1.0], [4.0, 3.0]]), None)
+    assert sorted(tr.id for tr in tracks) == [1, 2]
+    # Person 1 leaves; after max_missing_s their track is gone.
+    for i in range(60, 90):
+        tracks = tracker.update(i / FPS, np.array([[4.0, 3.0]]), None)
+    assert [tr.id for tr in tracks] == [2]
+    # Someone appears where person 1 was: a fresh id, not 1 again.
+    for i in range(90, 100):
+        tracks = tracker.update(i / FPS, np.array([[1.0, 1.0], [4.0, 3.0]]), None)
+    assert sorted(tr.id for tr in tracks) == [2, 3]
+
+
+def test_stale_tracks_dropped_after_max_missing() -> None:
+    tracker = Tracker(fps_hint=10.0, max_missing_s=1.0)
+    for i in range(10):
+        tracker.update(i / 10, np.array([[2.0, 2.0]]), None)
+    assert len(tracker.update(1.4, np.zeros((0, 2)), [])) == 1  # 0.5 s unseen: coasting
+    assert len(tracker.update(1.85, np.zeros((0, 2)), [])) == 1  # 0.95 s
+    assert tracker.update(2.0, np.zeros((0, 2)), []) == []  # 1.1 s: dropped
+
+
+def test_single_spurious_detection_is_not_reported_and_gate_is_metres() -> None:
+    tracker = Tracker(fps_hint=FPS, gate_m=0.5)
+    for i in range(20):
+        tracks = tracker.update(i / FPS, np.array([[1.0, 1.0]]), None)
+    # A one-frame ghost 3 m away is neither reported nor allowed to steal the id.
+    tracks = tracker.update(20 / FPS, np.array([[4.0, 1.0]]), None)
+    assert [(tr.id, tr.coasting) for tr in tracks] == [(1, True)]
+    tracks = tracker.update(21 / FPS, np.array([[1.0, 1.0]]), None)
+    assert [(tr.id, tr.coasting) for tr in tracks] == [(1, False)]
+
+
+def test_nan_positions_are_ignored_and_meta_checked() -> None:
+    tracker = Tracker(fps_hint=FPS, confirm_s=0.0)
+    tracks = tracker.update(0.0, np.array([[np.nan, 1.0], [2.0, 2.0]]), [{}, {"cameras": [2]}])
+    assert [(tr.x, tr.y, tr.cameras) for tr in tracks] == [(2.0, 2.0, [2])]
+    with pytest.raises(ValueError, match="meta"):
+        tracker.update(0.1, np.array([[1.0, 1.0]]), [])
