@@ -1,0 +1,244 @@
+"""Calibration-free association of person boxes across cameras, scored by the MoM model itself.
+
+Problem: camera A sees boxes a1, a2, a3 and camera B sees b1, b2; which boxes are the same person?
+Classical systems answer with calibrated epipolar geometry. We have no calibration, but the trained
+MoM model carries the same information: the encoder maps a tuple of boxes (one per camera, or
+"unseen") to a floor point, and the decoder matrices P̄_k map that floor point back to the mean
+pixel each camera should observe. For a consistent tuple (all boxes of one person) the reprojection
+lands on every box's mean point; for an inconsistent one the encoder's compromise cannot satisfy
+all cameras at once (a floor point has 2 degrees of freedom, two boxes give 4 measurements).
+
+Cost of a tuple: reprojection error in pixels per seen camera (``MomRuntime.reprojection_error``,
+which compares against the same box mean point the decoder was trained to reproduce). The cost is
+the root mean square over the seen cameras; a tuple is admissible only if *every* camera's error is
+at most ``max_error_px``.
+
+Solver: when exactly two cameras have detections, the optimal gated bipartite assignment
+(``scipy.optimize.linear_sum_assignment`` on the pairwise cost matrix, one batched model call).
+With three or more, agglomerative merging: every detection starts as its own cluster, the cheapest
+admissible merge of two clusters on disjoint cameras is applied, and the merged cluster is
+re-scored against the others as a *whole* tuple (one batched call per merge). A pair that looks
+consistent in two views but contradicts a third camera is thereby refused, and a person missed by
+one camera is still joined across the others. A greedy camera-by-camera Hungarian extension was
+tried first and failed exactly there (an early wrong pair blocks the right one later).
+
+People seen by one camera only are kept: their cluster is localized with the other views masked
+(NaN), which the MoM encoder supports when trained with missing views. Clusters whose position
+the model cannot produce (non-finite output) are dropped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from models.errors import MomlocError
+
+DEFAULT_MAX_ERROR_PX = 40.0
+_BLOCKED = 1e9
+
+
+class LocalizationModel(Protocol):
+    """What association needs from ``models.mom_runtime.MomRuntime``."""
+
+    @property
+    def num_cameras(self) -> int: ...
+
+    def localize(self, boxes: np.ndarray) -> np.ndarray: ...
+
+    def reprojection_error(self, boxes: np.ndarray, world: np.ndarray) -> np.ndarray: ...
+
+
+@dataclass
+class Association:
+    """One person: a box (or NaN) per camera and the model's floor position for that tuple."""
+
+    boxes: np.ndarray  # [K, 4] pixels, NaN where camera k does not see the person
+    cameras: list[int]  # cameras that see the person
+    world: np.ndarray  # [2] metres
+    cost: float  # RMS reprojection error over the seen cameras, pixels
+    detection_index: list[int | None]  # per camera: index into that camera's detections
+    errors: np.ndarray = field(default_factory=lambda: np.zeros(0))  # [K] px, NaN where unseen
+
+
+def associate(
+    detections_per_camera: list[np.ndarray],
+    runtime: LocalizationModel,
+    max_error_px: float = DEFAULT_MAX_ERROR_PX,
+) -> list[Association]:
+    """Group the detections of all cameras into people (see the module docstring)."""
+    num_cameras = int(runtime.num_cameras)
+    if len(detections_per_camera) != num_cameras:
+        raise MomlocError(
+            f"association: got detections for {len(detections_per_camera)} cameras, "
+            f"the model was trained for {num_cameras}"
+        )
+    detections = [_as_boxes(d, k) for k, d in enumerate(detections_per_camera)]
+    seen_cameras = [k for k in range(num_cameras) if len(detections[k])]
+    if len(seen_cameras) == 2:
+        clusters = _match_two(detections, seen_cameras, runtime, max_error_px)
+    else:
+        clusters = _merge_greedy(detections, runtime, max_error_px)
+
+    if not clusters:
+        return []
+    tuples = np.stack(
+        [
+            _tuple_boxes({k: j for k, j in enumerate(c) if j is not None}, detections)
+            for c in clusters
+        ]
+    )
+    world = np.asarray(runtime.localize(tuples), dtype=np.float64).reshape(len(clusters), 2)
+    errors = np.asarray(runtime.reprojection_error(tuples, world), dtype=np.float64)
+    out = []
+    for i, cluster in enumerate(clusters):
+        if not np.isfinite(world[i]).all():
+            continue
+        seen = [k for k in range(num_cameras) if cluster[k] is not None]
+        out.append(
+            Association(
+                boxes=tuples[i].astype(np.float32),
+                cameras=seen,
+                world=world[i],
+                cost=_rms(errors[i, seen]),
+                detection_index=list(cluster),
+                errors=errors[i],
+            )
+        )
+    return out
+
+
+def _match_two(
+    detections: list[np.ndarray], cameras: list[int], runtime: LocalizationModel, gate: float
+) -> list[list[int | None]]:
+    """Optimal gated bipartite assignment between the only two cameras with detections."""
+    a, b = cameras
+    num_cameras = len(detections)
+    pairs = [(i, j) for i in range(len(detections[a])) for j in range(len(detections[b]))]
+    tuples = np.stack([_tuple_boxes({a: i, b: j}, detections) for i, j in pairs])
+    cost, worst = _score(tuples, runtime)
+    shape = (len(detections[a]), len(detections[b]))
+    gated = np.where(worst <= gate, cost, _BLOCKED).reshape(shape)
+    rows, cols = linear_sum_assignment(gated)
+    clusters: list[list[int | None]] = []
+    used_a, used_b = set(), set()
+    for r, c in zip(rows, cols, strict=True):
+        if gated[r, c] < _BLOCKED:
+            cluster: list[int | None] = [None] * num_cameras
+            cluster[a], cluster[b] = int(r), int(c)
+            clusters.append(cluster)
+            used_a.add(int(r))
+            used_b.add(int(c))
+    for k, used in ((a, used_a), (b, used_b)):
+        for j in range(len(detections[k])):
+            if j not in used:
+                cluster = [None] * num_cameras
+                cluster[k] = j
+                clusters.append(cluster)
+    return clusters
+
+
+def _merge_greedy(
+    detections: list[np.ndarray], runtime: LocalizationModel, gate: float
+) -> list[list[int | None]]:
+    """Agglomerative merging, cheapest admissible merge first, re-scoring each merged cluster.
+
+    Every merge is checked on the *whole* merged tuple, so a pair that looks consistent in two
+    views but contradicts a third camera is refused.
+    """
+    num_cameras = len(detections)
+    clusters: dict[int, dict[int, int]] = {}
+    for k, boxes in enumerate(detections):
+        for j in range(len(boxes)):
+            clusters[len(clusters)] = {k: j}
+    costs: dict[tuple[int, int], float] = {}
+    ids = sorted(clusters)
+    _score_pairs(
+        [(p, q) for i, p in enumerate(ids) for q in ids[i + 1 :]],
+        clusters,
+        detections,
+        runtime,
+        gate,
+        costs,
+    )
+    next_id = len(clusters)
+    while costs:
+        (p, q), _ = min(costs.items(), key=lambda item: item[1])
+        merged = {**clusters.pop(p), **clusters.pop(q)}
+        costs = {key: c for key, c in costs.items() if p not in key and q not in key}
+        clusters[next_id] = merged
+        _score_pairs(
+            [(other, next_id) for other in clusters if other != next_id],
+            clusters,
+            detections,
+            runtime,
+            gate,
+            costs,
+        )
+        next_id += 1
+    out = []
+    for cluster in clusters.values():
+        row: list[int | None] = [None] * num_cameras
+        for k, j in cluster.items():
+            row[k] = j
+        out.append(row)
+    return out
+
+
+def _score_pairs(
+    pairs: list[tuple[int, int]],
+    clusters: dict[int, dict[int, int]],
+    detections: list[np.ndarray],
+    runtime: LocalizationModel,
+    gate: float,
+    costs: dict[tuple[int, int], float],
+) -> None:
+    """Add the admissible merge costs of ``pairs`` (clusters on disjoint cameras) to ``costs``."""
+    pairs = [(p, q) for p, q in pairs if not clusters[p].keys() & clusters[q].keys()]
+    if not pairs:
+        return
+    tuples = np.stack([_tuple_boxes({**clusters[p], **clusters[q]}, detections) for p, q in pairs])
+    cost, worst = _score(tuples, runtime)
+    for pair, c, w in zip(pairs, cost, worst, strict=True):
+        if w <= gate:
+            costs[pair] = float(c)
+
+
+def _as_boxes(detections: np.ndarray, camera: int) -> np.ndarray:
+    boxes = np.asarray(detections, dtype=np.float32)
+    if boxes.size == 0:
+        return np.zeros((0, 4), dtype=np.float32)
+    if boxes.ndim != 2 or boxes.shape[1] != 4:
+        raise MomlocError(f"association: camera {camera} boxes must be [M, 4], got {boxes.shape}")
+    return boxes
+
+
+def _tuple_boxes(cluster: dict[int, int], detections: list[np.ndarray]) -> np.ndarray:
+    """Boxes [K, 4] of one candidate tuple ``{camera: detection index}``, NaN elsewhere."""
+    out = np.full((len(detections), 4), np.nan, dtype=np.float32)
+    for k, j in cluster.items():
+        out[k] = detections[k][j]
+    return out
+
+
+def _score(tuples: np.ndarray, runtime: LocalizationModel) -> tuple[np.ndarray, np.ndarray]:
+    """RMS and worst per-camera reprojection error of each tuple (inf when not computable)."""
+    world = np.asarray(runtime.localize(tuples), dtype=np.float64).reshape(len(tuples), 2)
+    errors = np.asarray(runtime.reprojection_error(tuples, world), dtype=np.float64)
+    seen = np.isfinite(tuples).all(axis=2)
+    masked = np.where(seen, errors, 0.0)
+    bad = ~np.isfinite(masked).all(axis=1) | ~np.isfinite(world).all(axis=1)
+    masked = np.where(np.isfinite(masked), masked, 0.0)
+    rms = np.sqrt((masked**2).sum(axis=1) / np.maximum(seen.sum(axis=1), 1))
+    worst = masked.max(axis=1)
+    rms[bad] = np.inf
+    worst[bad] = np.inf
+    return rms, worst
+
+
+def _rms(values: np.ndarray) -> float:
+    values = values[np.isfinite(values)]
+    return float(np.sqrt(np.mean(values**2))) if len(values) else float("nan")
