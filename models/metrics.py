@@ -117,6 +117,16 @@ def localization_metrics(
     return out
 
 
+_LABELS = {
+    "n": "Rows",
+    "mean": "Mean",
+    "median": "Median",
+    "std": "Std",
+    "ate": "ATE",
+    "rpe": "RPE",
+}
+
+
 def format_table(metrics: dict[str, float]) -> str:
     """A two-column, human-readable table of a metrics dict (errors in m, accuracies in %)."""
     lines = []
@@ -128,6 +138,6 @@ def format_table(metrics: dict[str, float]) -> str:
             text = f"{value:.2f} %"
         else:
             text = "n/a" if math.isnan(value) else f"{value:.3f} m"
-        label = f"Acc@{key[4:]} m" if key.startswith("acc@") else key.upper()
+        label = f"Acc@{key[4:]} m" if key.startswith("acc@") else _LABELS[key]
         lines.append(f"{label:<12}{text:>12}")
     return "\n".join(lines)
