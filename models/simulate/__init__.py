@@ -1,0 +1,30 @@
+"""Synthetic multi-camera scene: cameras, walking people, detector-like boxes, rendered frames.
+
+See ARCHITECTURE.md ("Synthetic scene simulator") and CONTRIBUTING.md (``models.simulate``)::
+
+    from models.simulate import simulate
+    result = simulate("indoor-2cam", frames=2000, seed=0)
+    result.dataset.save("room.npz"); result.projections  # [K, 3, 4] for the calibrated baseline
+"""
+
+from models.simulate.camera import PinholeCamera
+from models.simulate.noise import NoiseConfig
+from models.simulate.presets import PRESETS, get_config, ring_cameras, room_config
+from models.simulate.scene import CameraSpec, FrameObservation, Perturbation, Scene, SceneConfig
+from models.simulate.simulation import SimulationResult, simulate
+
+__all__ = [
+    "PRESETS",
+    "CameraSpec",
+    "FrameObservation",
+    "NoiseConfig",
+    "Perturbation",
+    "PinholeCamera",
+    "Scene",
+    "SceneConfig",
+    "SimulationResult",
+    "get_config",
+    "ring_cameras",
+    "room_config",
+    "simulate",
+]

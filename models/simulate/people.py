@@ -1,0 +1,116 @@
+"""Walking paths: people wander between random waypoints inside the room, pausing and turning.
+
+Each person steers toward a waypoint with a bounded turn rate (about 150°/s) and slows down in
+sharp turns, so paths are smooth curves rather than polylines. On arrival a new waypoint is drawn;
+with probability ``PAUSE_PROBABILITY`` the person first stands for 1-4 s and looks around (turns
+on the spot). Speeds are 0.8-1.5 m/s; the gait cadence follows the speed (stride length 0.8 H) so
+legs never slide. People keep about 0.5 m apart (a soft repulsion), and never leave the room.
+
+The state is integrated frame by frame at the scene's fps and cached, so ``states(a, b)`` is
+random-access and reproducible for a given seed regardless of the order of calls.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+MARGIN = 0.35  # metres kept from the walls
+PAUSE_PROBABILITY = 0.3
+TURN_RATE = 2.6  # rad/s
+ACCELERATION = 1.5  # m/s²
+SEPARATION = 0.5  # metres
+_CHUNK = 512
+
+
+@dataclass(frozen=True)
+class WalkerStates:
+    """Per frame and person: floor position [F,P,2] (mid-hip), heading, gait phase, amplitude."""
+
+    position: np.ndarray
+    heading: np.ndarray
+    phase: np.ndarray
+    amplitude: np.ndarray
+
+
+class Walkers:
+    """``count`` people in a ``room`` (width, depth metres), integrated at ``fps``."""
+
+    def __init__(
+        self, room: tuple[float, float], count: int, fps: float, rng: np.random.Generator
+    ) -> None:
+        self.room = (float(room[0]), float(room[1]))
+        self.count = count
+        self.dt = 1.0 / fps
+        self._rng = rng
+        self.heights = rng.uniform(1.5, 1.95, count)
+        self._cruise = rng.uniform(0.8, 1.5, count)
+        self._pos = self._random_points(count)
+        self._target = self._random_points(count)
+        self._heading = rng.uniform(-np.pi, np.pi, count)
+        self._speed = np.zeros(count)
+        self._phase = rng.uniform(0, 2 * np.pi, count)
+        self._pause = np.zeros(count)
+        self._look = self._heading.copy()
+        self._chunks: list[np.ndarray] = []  # each [CHUNK, P, 5]: x, y, heading, phase, amplitude
+
+    def _random_points(self, n: int) -> np.ndarray:
+        width, depth = self.room
+        lo = np.minimum(MARGIN, np.array([width, depth]) / 2)
+        return self._rng.uniform(lo, np.array([width, depth]) - lo, size=(n, 2))
+
+    def _step(self) -> np.ndarray:
+        rng, dt = self._rng, self.dt
+        to_target = self._target - self._pos
+        distance = np.linalg.norm(to_target, axis=1)
+        arrived = (distance < 0.3) & (self._pause <= 0)
+        if arrived.any():
+            n = int(arrived.sum())
+            self._target[arrived] = self._random_points(n)
+            pauses = rng.random(n) < PAUSE_PROBABILITY
+            self._pause[arrived] = np.where(pauses, rng.uniform(1.0, 4.0, n), 0.0)
+            self._look[arrived] = rng.uniform(-np.pi, np.pi, n)
+            to_target = self._target - self._pos
+        paused = self._pause > 0
+        desired = np.where(paused, self._look, np.arctan2(to_target[:, 1], to_target[:, 0]))
+        error = (desired - self._heading + np.pi) % (2 * np.pi) - np.pi
+        self._heading += np.clip(error, -TURN_RATE * dt, TURN_RATE * dt)
+        wanted = np.where(paused, 0.0, self._cruise * np.clip(np.cos(error), 0.15, 1.0))
+        self._speed += np.clip(wanted - self._speed, -ACCELERATION * dt, ACCELERATION * dt)
+        self._pause = np.maximum(self._pause - dt, 0.0)
+
+        step = (
+            self._speed[:, None] * dt * np.stack([np.cos(self._heading), np.sin(self._heading)], 1)
+        )
+        pos = self._pos + step
+        if self.count > 1:  # soft repulsion keeps people from walking through each other
+            diff = pos[:, None, :] - pos[None, :, :]
+            dist = np.linalg.norm(diff, axis=-1) + np.eye(self.count)
+            push = np.clip(SEPARATION - dist, 0.0, None) / dist * 0.25
+            pos += (diff * push[..., None]).sum(axis=1)
+        lo = np.minimum(MARGIN, np.array(self.room) / 2) * 0.5
+        self._pos = np.clip(pos, lo, np.array(self.room) - lo)
+
+        amplitude = np.clip(self._speed / 1.2, 0.0, 1.0)
+        # Turning on the spot still moves the legs a little.
+        amplitude = np.maximum(amplitude, 0.25 * (np.abs(error) > TURN_RATE * dt))
+        stride = 0.8 * self.heights
+        self._phase = (
+            self._phase + 2 * np.pi * np.maximum(self._speed, 0.3 * amplitude) / stride * dt
+        ) % (2 * np.pi)
+        return np.column_stack([self._pos, self._heading, self._phase, amplitude])
+
+    def _extend(self, frames: int) -> None:
+        while len(self._chunks) * _CHUNK < frames:
+            self._chunks.append(np.stack([self._step() for _ in range(_CHUNK)]))
+
+    def states(self, start: int, stop: int) -> WalkerStates:
+        """States of frames ``start`` .. ``stop - 1``."""
+        if start < 0 or stop <= start:
+            raise ValueError(f"bad frame range {start}..{stop}")
+        self._extend(stop)
+        first, last = start // _CHUNK, (stop - 1) // _CHUNK
+        block = np.concatenate(self._chunks[first : last + 1])
+        block = block[start - first * _CHUNK : stop - first * _CHUNK]
+        return WalkerStates(block[..., :2], block[..., 2], block[..., 3], block[..., 4])

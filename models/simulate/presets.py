@@ -1,0 +1,128 @@
+"""Named scenes and a helper that hangs 1-9 cameras around any room.
+
+``ring_cameras`` puts cameras on the walls, corners first (two adjacent corners for K = 2, like
+the paper's Indoor Walking setup), then wall centres, each 5 cm inside the wall at 1.8-2.6 m,
+looking at the room centre at waist height: the way people mount webcams on shelves and walls.
+
+==============  =========  =======  =========  ======  ===================================
+preset          room (m)   cameras  image      people  like
+==============  =========  =======  =========  ======  ===================================
+indoor-2cam     10 × 10    2        640×480    3       paper, Indoor Walking (adjacent corners)
+indoor-4cam     10 × 10    4        640×480    3       four corners
+outdoor-6cam    16 × 25    6        1920×1080  8       MultiviewX (corners and long walls)
+living-room     5 × 4      2        640×480    2       a home: wide-angle webcams, distortion
+office-3cam     8 × 6      3        640×480    4       a small office
+single-cam      6 × 5      1        640×480    2       one webcam (K = 1 tests)
+==============  =========  =======  =========  ======  ===================================
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from models.errors import MomlocError
+from models.simulate.scene import CameraSpec, SceneConfig
+
+INSET = 0.05
+_HEIGHTS = (2.3, 2.4, 2.2, 2.5, 2.35, 2.25, 2.45, 2.15, 2.55)
+
+
+def ring_cameras(
+    width: float,
+    depth: float,
+    count: int,
+    hfov_deg: float = 65.0,
+    image_size: tuple[int, int] = (640, 480),
+    distortion: tuple[float, float] = (0.0, 0.0),
+    heights: tuple[float, ...] = _HEIGHTS,
+    target_height: float = 0.9,
+) -> tuple[CameraSpec, ...]:
+    """``count`` (1-9) cameras on the walls of a width × depth room, looking at its centre."""
+    if not 1 <= count <= 9:
+        raise MomlocError(f"cameras: {count} is not between 1 and 9")
+    w, d, e = width, depth, INSET
+    spots = [
+        (e, e), (w - e, e), (w - e, d - e), (e, d - e),  # corners, adjacent first
+        (w / 2, e), (w - e, d / 2), (w / 2, d - e), (e, d / 2),  # wall centres
+        (w / 4, e),
+    ]  # fmt: skip
+    target = (w / 2, d / 2, target_height)
+    return tuple(
+        CameraSpec((x, y, heights[i % len(heights)]), target, hfov_deg, image_size, distortion)
+        for i, (x, y) in enumerate(spots[:count])
+    )
+
+
+def room_config(
+    name: str,
+    width: float,
+    depth: float,
+    cameras: int,
+    people: int = 3,
+    **camera_options: object,
+) -> SceneConfig:
+    """A scene of any size with 1-9 ring cameras (see :func:`ring_cameras` for the options)."""
+    return SceneConfig(
+        name, (width, depth), ring_cameras(width, depth, cameras, **camera_options), people=people
+    )
+
+
+PRESETS: dict[str, SceneConfig] = {
+    "indoor-2cam": room_config("indoor-2cam", 10.0, 10.0, 2, people=3),
+    "indoor-4cam": room_config("indoor-4cam", 10.0, 10.0, 4, people=3),
+    "outdoor-6cam": SceneConfig(
+        "outdoor-6cam",
+        (16.0, 25.0),
+        tuple(  # four corners and the middle of both long sides
+            CameraSpec((x, y, 2.6 if i % 2 == 0 else 2.5), (8.0, 12.5, 0.5), 70.0, (1920, 1080))
+            for i, (x, y) in enumerate(
+                [
+                    (0.05, 0.05),
+                    (15.95, 0.05),
+                    (15.95, 24.95),
+                    (0.05, 24.95),
+                    (0.05, 12.5),
+                    (15.95, 12.5),
+                ]
+            )
+        ),
+        people=8,
+    ),
+    "living-room": room_config(
+        "living-room",
+        5.0,
+        4.0,
+        2,
+        people=2,
+        hfov_deg=75.0,
+        distortion=(-0.08, 0.01),
+        heights=(2.0, 1.9),
+    ),
+    "office-3cam": room_config("office-3cam", 8.0, 6.0, 3, people=4, hfov_deg=70.0),
+    "single-cam": room_config("single-cam", 6.0, 5.0, 1, people=2, hfov_deg=70.0),
+}
+
+
+def get_config(
+    preset: str | SceneConfig,
+    people: int | None = None,
+    fps: float | None = None,
+    perturbations: tuple | None = None,
+) -> SceneConfig:
+    """A preset by name (or a config), with the people count, fps or perturbations overridden."""
+    if isinstance(preset, SceneConfig):
+        config = preset
+    elif preset in PRESETS:
+        config = PRESETS[preset]
+    else:
+        raise MomlocError(
+            f"unknown scene preset '{preset}' (available: {', '.join(sorted(PRESETS))})"
+        )
+    changes: dict[str, object] = {}
+    if people is not None:
+        changes["people"] = int(people)
+    if fps is not None:
+        changes["fps"] = float(fps)
+    if perturbations is not None:
+        changes["perturbations"] = tuple(perturbations)
+    return dataclasses.replace(config, **changes) if changes else config

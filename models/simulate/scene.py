@@ -1,0 +1,250 @@
+"""A synthetic room: cameras, walking people and what each camera's detector reports, per frame.
+
+``Scene(config, seed)`` is deterministic: the walking paths come from one generator seeded with
+``[seed, 0]``, the appearance (clothes) from ``[seed, 2]``, and the detector noise of frames
+``64 b .. 64 b + 63`` from ``[seed, 1, b]``, so ``observe(i)`` returns the same arrays whatever
+was observed before, and ``simulate`` (which observes whole blocks at once) agrees with it.
+
+Camera perturbations model a camera that was bumped at some frame: from ``start_frame`` on, that
+camera's image is shifted by (dx, dy) pixels and rolled by ``roll_deg`` about the principal point.
+``projection_matrices()`` keeps returning the true matrices of the *unperturbed* cameras (what a
+calibration made before the bump would hold); ``projection_matrices(frame)`` gives the ones in
+force at that frame.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections import OrderedDict
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from models.errors import MomlocError
+from models.simulate.camera import NEAR, PinholeCamera, project_points
+from models.simulate.noise import NoiseConfig, detect
+from models.simulate.people import Walkers
+from models.simulate.skeleton import HEAD, MID_HIP, RADII, body_points
+
+BLOCK = 64  # frames observed (and noised) together
+MAX_CAMERAS = 9
+
+
+@dataclass(frozen=True)
+class CameraSpec:
+    """Where a camera hangs and what it looks like (world metres, z up)."""
+
+    position: tuple[float, float, float]
+    target: tuple[float, float, float]
+    hfov_deg: float = 65.0
+    image_size: tuple[int, int] = (640, 480)
+    distortion: tuple[float, float] = (0.0, 0.0)
+
+    def camera(self) -> PinholeCamera:
+        return PinholeCamera.look_at(
+            self.position, self.target, self.hfov_deg, self.image_size, self.distortion
+        )
+
+
+@dataclass(frozen=True)
+class Perturbation:
+    """Camera ``camera`` bumped at ``start_frame``: image shift (dx, dy) px and roll in degrees."""
+
+    camera: int
+    start_frame: int = 0
+    dx: float = 0.0
+    dy: float = 0.0
+    roll_deg: float = 0.0
+
+
+@dataclass(frozen=True)
+class SceneConfig:
+    """A room of ``room`` = (width, depth) metres seen by ``cameras`` with ``people`` walking."""
+
+    name: str
+    room: tuple[float, float]
+    cameras: tuple[CameraSpec, ...]
+    people: int = 3
+    fps: float = 15.0
+    noise: NoiseConfig = field(default_factory=NoiseConfig)
+    perturbations: tuple[Perturbation, ...] = ()
+    wall_height: float = 2.8
+
+    def __post_init__(self) -> None:
+        if not 1 <= len(self.cameras) <= MAX_CAMERAS:
+            raise MomlocError(f"scene '{self.name}': {len(self.cameras)} cameras, expected 1 to 9")
+        if min(self.room) <= 1.0:
+            raise MomlocError(f"scene '{self.name}': room {self.room} must be over 1 m each way")
+        if self.people < 1:
+            raise MomlocError(f"scene '{self.name}': people must be at least 1, got {self.people}")
+        if not 1.0 <= self.fps <= 240.0:
+            raise MomlocError(f"scene '{self.name}': fps {self.fps} outside 1..240")
+        for p in self.perturbations:
+            if not 0 <= p.camera < len(self.cameras):
+                raise MomlocError(f"scene '{self.name}': perturbation of unknown camera {p.camera}")
+
+    @property
+    def num_cameras(self) -> int:
+        return len(self.cameras)
+
+
+@dataclass(frozen=True)
+class FrameObservation:
+    """One frame: ``track`` [P], ``world`` [P,2], ``joints`` [P,17,3] (world metres),
+    ``boxes`` [P,K,4] noisy (NaN: not detected), ``keypoints`` [P,K,17,3], ``true_boxes``
+    [P,K,4] (tight, unclipped box of the projected body; NaN behind the camera or off-image)."""
+
+    frame: int
+    track: np.ndarray
+    world: np.ndarray
+    joints: np.ndarray
+    boxes: np.ndarray
+    keypoints: np.ndarray
+    true_boxes: np.ndarray
+
+
+class Scene:
+    """Cameras, people and detections of a :class:`SceneConfig`, reproducible from ``seed``."""
+
+    def __init__(self, config: SceneConfig, seed: int = 0) -> None:
+        self.config = config
+        self.seed = int(seed)
+        self.cameras = [spec.camera() for spec in config.cameras]
+        self.walkers = Walkers(
+            config.room, config.people, config.fps, np.random.default_rng([self.seed, 0])
+        )
+        self.appearance_rng_seed = [self.seed, 2]
+        self._perturbed = {}
+        for p in sorted(config.perturbations, key=lambda q: q.start_frame):
+            base = self.cameras[p.camera]
+            self._perturbed.setdefault(p.camera, []).append(
+                (p.start_frame, base.perturbed(p.dx, p.dy, p.roll_deg))
+            )
+        self._blocks: OrderedDict[int, dict[str, np.ndarray]] = OrderedDict()
+        self._renderer = None
+
+    @property
+    def fps(self) -> float:
+        return self.config.fps
+
+    @property
+    def num_cameras(self) -> int:
+        return len(self.cameras)
+
+    @property
+    def image_sizes(self) -> np.ndarray:
+        """[K, 2] int32 width, height."""
+        return np.array([c.image_size for c in self.cameras], dtype=np.int32)
+
+    def cameras_at(self, frame_index: int) -> list[PinholeCamera]:
+        """The cameras in force at a frame (perturbed ones after their bump)."""
+        out = list(self.cameras)
+        for k, events in self._perturbed.items():
+            for start, camera in events:
+                if frame_index >= start:
+                    out[k] = camera
+        return out
+
+    def projection_matrices(self, frame_index: int | None = None) -> np.ndarray:
+        """[K, 3, 4]: the true unperturbed matrices, or those in force at ``frame_index``."""
+        cams = self.cameras if frame_index is None else self.cameras_at(frame_index)
+        return np.stack([c.projection_matrix for c in cams])
+
+    def observe(self, frame_index: int) -> FrameObservation:
+        """Ground truth and detections of one frame."""
+        if frame_index < 0:
+            raise MomlocError(f"frame index must be >= 0, got {frame_index}")
+        block = self.observe_block(frame_index // BLOCK)
+        i = frame_index % BLOCK
+        return FrameObservation(
+            frame=frame_index,
+            track=np.arange(self.config.people, dtype=np.int64),
+            **{
+                key: block[key][i]
+                for key in ("world", "joints", "boxes", "keypoints", "true_boxes")
+            },
+        )
+
+    def body_points(self, frame_index: int) -> np.ndarray:
+        """World points [P, NUM_POINTS, 3] of every body (joints, then auxiliary points)."""
+        states = self.walkers.states(frame_index, frame_index + 1)
+        return body_points(
+            states.position, states.heading, states.phase, states.amplitude, self.walkers.heights
+        )[0]
+
+    def observe_block(self, block: int) -> dict[str, np.ndarray]:
+        """Frames ``BLOCK * block`` .. ``BLOCK * (block + 1) - 1`` at once, arrays [F, P, ...]."""
+        if block in self._blocks:
+            self._blocks.move_to_end(block)
+            return self._blocks[block]
+        start = block * BLOCK
+        states = self.walkers.states(start, start + BLOCK)
+        points = body_points(
+            states.position, states.heading, states.phase, states.amplitude, self.walkers.heights
+        )  # [F, P, M, 3]
+        intr, rot, trans, dist = self._camera_arrays(start, start + BLOCK)
+        pixels, depth = project_points(
+            points[:, None],
+            intr[:, :, None, None],
+            rot[:, :, None, None],
+            trans[:, :, None, None],
+            dist[:, :, None, None],
+        )  # [F, K, P, M, 2], [F, K, P, M]
+        front = depth > NEAR
+        radius = RADII * self.walkers.heights[:, None]  # [P, M]
+        rho = intr[:, :, None, None, 0, 0] * radius / np.where(front, depth, 1.0)
+        volume = front & (radius > 0)
+        lo = np.where(volume[..., None], pixels - rho[..., None], np.inf).min(-2)
+        hi = np.where(volume[..., None], pixels + rho[..., None], -np.inf).max(-2)
+        true_boxes = np.concatenate([lo, hi], -1)
+        size = self.image_sizes.astype(float)
+        in_image = (hi[..., 0] > 0) & (lo[..., 0] < size[:, 0, None]) & (hi[..., 1] > 0)
+        in_image &= lo[..., 1] < size[:, 1, None]
+        seen = front[..., MID_HIP] & in_image
+        true_boxes = np.where(seen[..., None], true_boxes, np.nan)
+
+        joints_px = np.where(front[..., :17, None], pixels[..., :17, :], np.nan)
+        face_away = np.zeros(front[..., :17].shape, dtype=bool)
+        head = depth[..., HEAD]
+        face_away[..., 0:3] = (depth[..., 0] > head)[..., None]
+        face_away[..., 3] = depth[..., 3] > head
+        face_away[..., 4] = depth[..., 4] > head
+        rng = np.random.default_rng([self.seed, 1, block])
+        boxes, keypoints = detect(
+            true_boxes,
+            depth[..., MID_HIP],
+            joints_px,
+            face_away,
+            self.image_sizes,
+            self.config.noise,
+            rng,
+        )
+        out = {
+            "world": states.position,
+            "joints": points[:, :, :17],
+            "boxes": boxes.transpose(0, 2, 1, 3),
+            "keypoints": keypoints.transpose(0, 2, 1, 3, 4),
+            "true_boxes": true_boxes.transpose(0, 2, 1, 3),
+        }
+        self._blocks[block] = out
+        while len(self._blocks) > 2:
+            self._blocks.popitem(last=False)
+        return out
+
+    def _camera_arrays(self, start: int, stop: int) -> tuple[np.ndarray, ...]:
+        """Per frame and camera: K [F,K,3,3], R [F,K,3,3], t [F,K,3], distortion [F,K,2]."""
+        per_frame = []
+        changes = sorted(
+            {start, *(s for ev in self._perturbed.values() for s, _ in ev if start < s < stop)}
+        )
+        bounds = [*changes, stop]
+        for a, b in itertools.pairwise(bounds):
+            cams = self.cameras_at(a)
+            arrays = (
+                np.stack([c.K for c in cams]),
+                np.stack([c.R for c in cams]),
+                np.stack([c.t for c in cams]),
+                np.array([c.distortion for c in cams]),
+            )
+            per_frame.append([np.broadcast_to(x, (b - a, *x.shape)) for x in arrays])
+        return tuple(np.concatenate([seg[i] for seg in per_frame]) for i in range(4))
