@@ -182,5 +182,6 @@ def test_cli_writes_valid_file_and_prints_summary(tmp_path: Path) -> None:
     data = MomDataset.load(out)
     assert data.summary() in done.stdout and len(done.stdout.strip().splitlines()) == 1
     assert set(data.track.tolist()) == {0, 1}
-    bad = subprocess.run([*cmd[:4], "nope", *cmd[5:]], capture_output=True, text=True, check=False)
+    bad_cmd = [*cmd[:5], "nope", *cmd[6:]]
+    bad = subprocess.run(bad_cmd, capture_output=True, text=True, check=False)
     assert bad.returncode == 2 and "available:" in bad.stderr and "Traceback" not in bad.stderr
