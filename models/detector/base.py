@@ -1,0 +1,146 @@
+"""Person detector interface, result type, registry and the shared onnxruntime session set-up.
+
+Design (after Frigate's detector plugins): a detector type is one module implementing
+:class:`PersonDetector` and registering itself under a ``kind`` name; the service picks it by that
+name from settings through :func:`create_detector`. Every detector
+
+- takes a *batch* of BGR frames (one per camera, any sizes) and runs **one** onnxruntime call for
+  all of them, because per-call overhead dominates on 2 cores;
+- returns boxes in the **original frame's pixels** (xmin, ymin, xmax, ymax) with scores, so callers
+  never see the network's input geometry;
+- validates its model and runs a warm-up inference at load, so a wrong or corrupt file fails at
+  start with one :class:`~models.errors.MomlocError` line instead of on the first frame.
+
+Example::
+
+    from models.detector import create_detector
+    detector = create_detector("ssdlite", score_threshold=0.5)
+    detections = detector.detect([frame_cam0, frame_cam1])
+    detections[0].boxes  # [M, 4] float32 pixels of frame_cam0
+"""
+
+from __future__ import annotations
+
+import os
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from models.errors import MomlocError
+
+
+@dataclass(frozen=True)
+class Detections:
+    """People found in one frame.
+
+    ``boxes`` [M, 4] float32 xmin, ymin, xmax, ymax in the frame's pixels; ``scores`` [M] float32
+    in 0..1, sorted descending; ``keypoints`` [M, 17, 3] (x, y, confidence, COCO-17 order, NaN where
+    missing) or None when no keypoint model ran.
+    """
+
+    boxes: np.ndarray
+    scores: np.ndarray
+    keypoints: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return int(self.boxes.shape[0])
+
+    @staticmethod
+    def empty() -> Detections:
+        return Detections(np.zeros((0, 4), np.float32), np.zeros((0,), np.float32))
+
+
+class PersonDetector(ABC):
+    """Finds people in a batch of BGR frames with one batched inference call."""
+
+    kind: str = ""
+
+    @abstractmethod
+    def detect(self, frames: Sequence[np.ndarray]) -> list[Detections]:
+        """One :class:`Detections` per frame, in the same order, boxes in that frame's pixels."""
+
+    def describe(self) -> str:
+        """One line for logs and ``/v1/health``: type, model file, input geometry."""
+        return self.kind
+
+
+_REGISTRY: dict[str, Callable[..., PersonDetector]] = {}
+
+
+def register_detector(kind: str) -> Callable[[type[PersonDetector]], type[PersonDetector]]:
+    """Class decorator adding a detector type to the registry under ``kind``."""
+
+    def decorate(cls: type[PersonDetector]) -> type[PersonDetector]:
+        cls.kind = kind
+        _REGISTRY[kind] = cls
+        return cls
+
+    return decorate
+
+
+def available_detectors() -> list[str]:
+    _load_builtin_detectors()
+    return sorted(_REGISTRY)
+
+
+def create_detector(kind: str = "ssdlite", **options: object) -> PersonDetector:
+    """Build a detector by type name (``"ssdlite"`` default, ``"yolov8"``).
+
+    ``options`` go to the detector's constructor (``model_path``, ``score_threshold``,
+    ``letterbox``, ``threads``, ...). ``keypoints=True`` wraps it with the optional MediaPipe pose
+    estimator (``pip install momloc[keypoints]``) so each :class:`Detections` carries COCO-17
+    keypoints.
+    """
+    _load_builtin_detectors()
+    keypoints = bool(options.pop("keypoints", False))
+    try:
+        factory = _REGISTRY[kind]
+    except KeyError:
+        raise MomlocError(
+            f"detector type {kind!r} is unknown (choose one of: {', '.join(sorted(_REGISTRY))})"
+        ) from None
+    try:
+        detector = factory(**options)
+    except TypeError as error:
+        raise MomlocError(f"detector {kind!r}: bad option ({error})") from None
+    if keypoints:
+        from models.keypoints import KeypointDetector
+
+        detector = KeypointDetector(detector)
+    return detector
+
+
+def _load_builtin_detectors() -> None:
+    # Imported here, not at module top, so base.py has no import cycle with its plugins.
+    from models.detector import ssdlite, yolov8  # noqa: F401
+
+
+def open_session(path: str | Path, threads: int | None = None, what: str = "detector model"):
+    """An onnxruntime CPU session tuned for a small shared machine, or one clear error.
+
+    Threads: ``intra_op`` uses ``threads`` (default: the CPUs this process may use, at most 4);
+    ``inter_op`` is 1 and execution sequential because these graphs are chains, and thread
+    spinning is off so idle inference threads do not steal the CPU the camera workers need.
+    """
+    import onnxruntime as ort
+
+    path = Path(path)
+    if not path.is_file():
+        raise MomlocError(f"{what} {path}: file not found")
+    if threads is None:
+        threads = max(1, min(4, len(os.sched_getaffinity(0))))
+    options = ort.SessionOptions()
+    options.intra_op_num_threads = int(threads)
+    options.inter_op_num_threads = 1
+    options.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
+    options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
+    options.add_session_config_entry("session.intra_op.allow_spinning", "0")
+    options.log_severity_level = 3
+    try:
+        return ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
+    except Exception as error:  # onnxruntime raises its own Fail/InvalidProtobuf/... types
+        first_line = str(error).strip().splitlines()[0] if str(error).strip() else type(error)
+        raise MomlocError(f"{what} {path}: not a loadable ONNX model ({first_line})") from None

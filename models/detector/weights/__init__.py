@@ -1,0 +1,1 @@
+"""Shipped detector weights (package data: found by path relative to this file)."""
