@@ -87,6 +87,7 @@ PRESETS: dict[str, SceneConfig] = {
             )
         ),
         people=8,
+        outdoor=True,
     ),
     "living-room": room_config(
         "living-room",

@@ -69,6 +69,7 @@ class SceneConfig:
     noise: NoiseConfig = field(default_factory=NoiseConfig)
     perturbations: tuple[Perturbation, ...] = ()
     wall_height: float = 2.8
+    outdoor: bool = False  # rendering only: open ground and sky instead of walls and ceiling
 
     def __post_init__(self) -> None:
         if not 1 <= len(self.cameras) <= MAX_CAMERAS:
@@ -113,7 +114,6 @@ class Scene:
         self.walkers = Walkers(
             config.room, config.people, config.fps, np.random.default_rng([self.seed, 0])
         )
-        self.appearance_rng_seed = [self.seed, 2]
         self._perturbed = {}
         for p in sorted(config.perturbations, key=lambda q: q.start_frame):
             base = self.cameras[p.camera]
@@ -164,6 +164,20 @@ class Scene:
                 for key in ("world", "joints", "boxes", "keypoints", "true_boxes")
             },
         )
+
+    def render(self, frame_index: int, camera_index: int) -> np.ndarray:
+        """The image camera ``camera_index`` takes at ``frame_index``: uint8 BGR [H, W, 3]."""
+        from models.simulate.render import Renderer, appearance
+
+        if not 0 <= camera_index < self.num_cameras:
+            raise MomlocError(f"camera {camera_index} not in 0..{self.num_cameras - 1}")
+        if self._renderer is None:
+            looks = appearance(np.random.default_rng([self.seed, 2]), self.config.people)
+            self._renderer = Renderer(
+                self.config.room, self.config.wall_height, looks, self.config.outdoor
+            )
+        camera = self.cameras_at(frame_index)[camera_index]
+        return self._renderer.frame(camera, self.body_points(frame_index), self.walkers.heights)
 
     def body_points(self, frame_index: int) -> np.ndarray:
         """World points [P, NUM_POINTS, 3] of every body (joints, then auxiliary points)."""
