@@ -1,0 +1,252 @@
+"""Synthetic cameras: the simulator's scene rendered per camera in lock-step, with ground truth.
+
+Design: one clock drives every synthetic camera, so camera k and camera j always show the same
+scene frame (a real rig has skew; the simulator's frames are simultaneous by construction). The
+scene frame index is the frame's ``seq``; ``timestamp`` is the wall-clock time the frame was
+produced. Both let tests and the demo look up the exact ground truth (``observation(seq)``,
+``observation_at(t)``) of whatever the pipeline reports.
+
+Two ways in:
+
+- :class:`SyntheticRig` has the ``CameraRig`` interface (``start``/``stop``/``frame_set``/
+  ``states``) and renders all cameras of one tick in one thread: what ``momloc demo`` uses.
+- :class:`SyntheticSource` is a ``FrameSource`` for one camera (for ``CameraWorker``), sharing a
+  :class:`SceneClock` with its siblings.
+
+:class:`SimulatedDetections` is a detection stage returning the simulator's noisy boxes for the
+frames' scene indices, for when the real detector is not wanted (or cannot see the drawings).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import OrderedDict
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+try:
+    from capture import CameraState, Frame, FrameSet
+except ImportError:  # TEMPORARY until the capture core lands: same fields as its contract
+    from dataclasses import dataclass
+
+    @dataclass(frozen=True)
+    class Frame:  # type: ignore[no-redef]
+        camera: int
+        image: np.ndarray | None
+        timestamp: float
+        seq: int
+
+    @dataclass(frozen=True)
+    class FrameSet:  # type: ignore[no-redef]
+        frames: list
+        skew: float
+
+    @dataclass(frozen=True)
+    class CameraState:  # type: ignore[no-redef]
+        connected: bool
+        fps: float
+        last_frame_age: float | None
+        reconnects: int
+        error: str | None
+
+
+def make_scene(
+    preset: str, *, seed: int, people: int | None = None, fps: float | None = None
+) -> Any:
+    """A simulator scene from a preset name, with the people count and frame rate overridden."""
+    from models.simulate import Scene, get_config
+
+    return Scene(get_config(preset, people=people, fps=fps), seed=seed)
+
+
+class SceneClock:
+    """Maps wall-clock time to scene frame indices for every camera of one scene."""
+
+    def __init__(self, scene: Any, fps: float | None = None, *, cache: int = 64) -> None:
+        self.scene = scene
+        self.fps = float(fps or scene.fps)
+        self.t0 = time.time()
+        self._lock = threading.Lock()
+        self._observations: OrderedDict[int, Any] = OrderedDict()
+        self._images: OrderedDict[tuple[int, int], np.ndarray] = OrderedDict()
+        self._stamps: OrderedDict[int, float] = OrderedDict()
+        self._cache = cache
+
+    def index_now(self) -> int:
+        return int((time.time() - self.t0) * self.fps)
+
+    def tick_time(self, index: int) -> float:
+        return self.t0 + index / self.fps
+
+    def wait_for(self, index: int, stop: threading.Event | None = None) -> None:
+        delay = self.tick_time(index) - time.time()
+        if delay > 0:
+            if stop is not None:
+                stop.wait(delay)
+            else:
+                time.sleep(delay)
+
+    def stamp(self, index: int, timestamp: float) -> None:
+        with self._lock:
+            self._stamps.setdefault(index, timestamp)
+            _trim(self._stamps, self._cache * 8)
+
+    def observation(self, index: int) -> Any:
+        """Ground truth and simulated boxes of scene frame ``index`` (cached)."""
+        with self._lock:
+            if index in self._observations:
+                return self._observations[index]
+        obs = self.scene.observe(index)
+        with self._lock:
+            self._observations[index] = obs
+            _trim(self._observations, self._cache)
+        return obs
+
+    def observation_at(self, timestamp: float) -> Any:
+        """Ground truth for the frames captured at ``timestamp`` (a snapshot's ``t``)."""
+        with self._lock:
+            matches = [i for i, s in self._stamps.items() if abs(s - timestamp) < 1e-6]
+        index = matches[0] if matches else round((timestamp - self.t0) * self.fps)
+        return self.observation(index)
+
+    def render(self, index: int, camera: int) -> np.ndarray:
+        key = (index, camera)
+        with self._lock:
+            if key in self._images:
+                return self._images[key]
+        image = self.scene.render(index, camera)
+        with self._lock:
+            self._images[key] = image
+            _trim(self._images, self._cache)
+        return image
+
+    def floor_extent(self) -> dict[str, float] | None:
+        room = getattr(getattr(self.scene, "config", None), "room", None)
+        if room is None:
+            return None
+        width, depth = float(room[0]), float(room[1])
+        return {"xmin": 0.0, "xmax": width, "ymin": 0.0, "ymax": depth}
+
+
+def _trim(cache: OrderedDict, size: int) -> None:
+    while len(cache) > size:
+        cache.popitem(last=False)
+
+
+class SyntheticRig(SceneClock):
+    """All cameras of a scene, one render thread, newest frame set only (``CameraRig`` shape)."""
+
+    def __init__(
+        self,
+        scene: Any,
+        cameras: Sequence[int] | None = None,
+        *,
+        fps: float | None = None,
+        render: bool = True,
+    ) -> None:
+        super().__init__(scene, fps)
+        self.cameras = list(range(len(scene.cameras))) if cameras is None else list(cameras)
+        self.render_frames = render and hasattr(scene, "render")
+        self._latest: FrameSet | None = None
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._produced: list[float] = []
+
+    def start(self) -> None:
+        self._stop.clear()
+        self.t0 = time.time()
+        self._thread = threading.Thread(target=self._run, name="synthetic-rig", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+
+    def _run(self) -> None:
+        index = 0
+        while not self._stop.is_set():
+            index = max(index + 1, self.index_now())
+            self.wait_for(index, self._stop)
+            if self._stop.is_set():
+                break
+            self._latest = self.produce(index)
+
+    def produce(self, index: int) -> FrameSet:
+        """Render scene frame ``index`` for every camera (also usable without the thread)."""
+        timestamp = time.time()
+        self.stamp(index, timestamp)
+        frames = []
+        for k, camera in enumerate(self.cameras):
+            image = self.render(index, camera) if self.render_frames else None
+            frames.append(Frame(camera=k, image=image, timestamp=timestamp, seq=index))
+        self._produced = [*self._produced[-59:], timestamp]
+        return FrameSet(frames=frames, skew=0.0)
+
+    def frame_set(self) -> FrameSet | None:
+        return self._latest
+
+    def states(self) -> list[CameraState]:
+        now = time.time()
+        stamps = self._produced
+        fps = (len(stamps) - 1) / (stamps[-1] - stamps[0]) if len(stamps) > 1 else 0.0
+        age = now - stamps[-1] if stamps else None
+        alive = self._thread is not None and self._thread.is_alive()
+        return [
+            CameraState(
+                connected=alive and age is not None and age < 2.0,
+                fps=fps,
+                last_frame_age=age,
+                reconnects=0,
+                error=None,
+            )
+            for _ in self.cameras
+        ]
+
+
+class SyntheticSource:
+    """``FrameSource`` for one simulated camera; siblings share a :class:`SceneClock`."""
+
+    def __init__(self, clock: SceneClock, camera: int) -> None:
+        self.clock, self.camera = clock, camera
+        self.name = f"synthetic-{camera}"
+        self._next = 0
+        self._open = False
+
+    def open(self) -> None:
+        self._open = True
+        self._next = self.clock.index_now() + 1
+
+    def read(self) -> np.ndarray | None:
+        if not self._open:
+            return None
+        index = max(self._next, self.clock.index_now())
+        self.clock.wait_for(index)
+        self._next = index + 1
+        self.clock.stamp(index, time.time())
+        return self.clock.render(index, self.camera)
+
+    def close(self) -> None:
+        self._open = False
+
+
+class SimulatedDetections:
+    """Detection stage: the simulator's noisy boxes for each frame's scene index."""
+
+    def __init__(self, rig: SyntheticRig) -> None:
+        self.rig = rig
+
+    def __call__(self, frame_set: FrameSet) -> list[np.ndarray]:
+        out = []
+        for frame in frame_set.frames:
+            if frame is None:
+                out.append(np.zeros((0, 4), np.float32))
+                continue
+            boxes = np.asarray(self.rig.observation(frame.seq).boxes, np.float32)
+            camera = self.rig.cameras[frame.camera]
+            per_camera = boxes[:, camera, :] if boxes.size else np.zeros((0, 4), np.float32)
+            out.append(per_camera[np.all(np.isfinite(per_camera), axis=1)])
+        return out

@@ -1,0 +1,223 @@
+"""HTTP and WebSocket API (FastAPI): stream, positions, health, camera snapshots, metrics, map.
+
+Routes (version 1; OpenAPI at ``/docs``):
+
+- ``WS  /v1/stream?rate=HZ`` one snapshot JSON per message (see ``service.hub``), at most ``rate``
+  per second (default and ceiling: ``stream.rate``). Protocol pings keep idle links alive.
+- ``GET /v1/positions`` newest snapshot; ``GET /v1/health`` cameras, model, pipeline, clients.
+- ``GET /v1/cameras/{k}/snapshot.jpg`` newest frame of camera k with boxes and track ids drawn.
+- ``GET /v1/config`` what the map page needs (floor extent, camera names, stream rate).
+- ``POST /v1/model/reload`` hot-swap the MoM model (refused if it does not fit the cameras).
+- ``GET /metrics`` Prometheus text; ``GET /`` the live map.
+
+Authentication: with a token configured, every ``/v1`` route and ``/metrics`` needs it, as
+``Authorization: Bearer TOKEN`` or ``?token=TOKEN`` (browsers cannot set WebSocket headers).
+REST answers 401; the WebSocket is accepted and closed with code 4401 so that clients can tell an
+auth failure from a network error. A malformed ``rate`` refuses the WebSocket handshake with 400.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import math
+import secrets
+from contextlib import asynccontextmanager
+from pathlib import Path
+from typing import Annotated, Any
+
+from fastapi import (
+    Body,
+    Depends,
+    FastAPI,
+    HTTPException,
+    Query,
+    Request,
+    WebSocket,
+    WebSocketDisconnect,
+)
+from fastapi import Path as PathParam
+from fastapi.responses import FileResponse, JSONResponse, PlainTextResponse, Response
+from fastapi.staticfiles import StaticFiles
+from pydantic import BaseModel, Field
+
+from models.errors import MomlocError
+from service.daemon import Daemon
+from service.metrics import metrics_text
+from service.snapshot_image import render_camera_jpeg
+
+WEB_DIR = Path(__file__).resolve().parent / "web"
+WS_AUTH_CLOSE = 4401
+
+
+class ReloadRequest(BaseModel):
+    model_dir: str | None = Field(None, description="Model directory; default: the current one.")
+
+
+def _token_of(request_headers: Any, query: Any) -> str | None:
+    auth = request_headers.get("authorization", "")
+    if auth.lower().startswith("bearer "):
+        return auth[7:].strip()
+    return query.get("token")
+
+
+def create_app(daemon: Daemon, *, manage_pipeline: bool = True) -> FastAPI:
+    """Build the ASGI app; with ``manage_pipeline`` the lifespan starts and stops the pipeline."""
+    expected = daemon.token
+
+    def authorized(headers: Any, query: Any) -> bool:
+        if expected is None:
+            return True
+        given = _token_of(headers, query)
+        return given is not None and secrets.compare_digest(given.encode(), expected.encode())
+
+    def require_token(request: Request) -> None:
+        if not authorized(request.headers, request.query_params):
+            raise HTTPException(401, "missing or wrong token", {"WWW-Authenticate": "Bearer"})
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI):  # type: ignore[no-untyped-def]
+        daemon.hub.bind(asyncio.get_running_loop())
+        if manage_pipeline:
+            await asyncio.to_thread(daemon.pipeline.start)
+        try:
+            yield
+        finally:
+            if manage_pipeline:
+                await asyncio.to_thread(daemon.pipeline.stop)
+            daemon.hub.bind(None)
+
+    app = FastAPI(
+        title="MoM Localizer",
+        version="1",
+        description="Calibration-free human localization: live positions from cheap webcams.",
+        lifespan=lifespan,
+    )
+    secured = [Depends(require_token)]
+    app.mount("/web", StaticFiles(directory=WEB_DIR), name="web")
+
+    @app.get("/", include_in_schema=False)
+    def index() -> FileResponse:
+        return FileResponse(WEB_DIR / "index.html", headers={"Cache-Control": "no-cache"})
+
+    @app.get("/v1/positions", dependencies=secured, summary="Newest snapshot")
+    def positions() -> JSONResponse:
+        return JSONResponse(daemon.hub.latest().as_dict())
+
+    @app.get("/v1/health", dependencies=secured, summary="Cameras, model, pipeline, clients")
+    def health() -> dict[str, Any]:
+        return daemon.health()
+
+    @app.get("/v1/config", dependencies=secured, summary="Map extent, cameras, stream rate")
+    def config() -> dict[str, Any]:
+        return daemon.public_config()
+
+    @app.get(
+        "/v1/cameras/{k}/snapshot.jpg",
+        dependencies=secured,
+        summary="Newest frame of camera k with boxes and ids",
+        response_class=Response,
+        responses={200: {"content": {"image/jpeg": {}}}},
+    )
+    def snapshot_jpg(
+        k: Annotated[int, PathParam(ge=0, le=8, description="Camera index")],
+        quality: Annotated[int, Query(ge=10, le=100, description="JPEG quality")] = 75,
+        width: Annotated[int | None, Query(ge=32, le=4096, description="Resize width")] = None,
+    ) -> Response:
+        if k >= daemon.pipeline.num_cameras:
+            raise HTTPException(
+                404, f"no camera {k}; cameras are 0..{daemon.pipeline.num_cameras - 1}"
+            )
+        data = render_camera_jpeg(daemon.pipeline.view(k), quality=quality, width=width)
+        if data is None:
+            raise HTTPException(503, f"camera {k} has not delivered a frame yet")
+        return Response(data, media_type="image/jpeg", headers={"Cache-Control": "no-store"})
+
+    @app.post("/v1/model/reload", dependencies=secured, summary="Hot-swap the MoM model")
+    def reload_model(body: Annotated[ReloadRequest | None, Body()] = None) -> JSONResponse:
+        try:
+            info = daemon.pipeline.reload_model(body.model_dir if body else None)
+        except MomlocError as error:
+            return JSONResponse({"detail": str(error)}, status_code=409)
+        return JSONResponse(info)
+
+    @app.get("/metrics", dependencies=secured, summary="Prometheus metrics")
+    def metrics() -> PlainTextResponse:
+        body, content_type = metrics_text(daemon)
+        return PlainTextResponse(body, media_type=content_type)
+
+    @app.websocket("/v1/stream")
+    async def stream(websocket: WebSocket) -> None:
+        rate = _parse_rate(websocket.query_params.get("rate"), daemon.stream_rate)
+        if rate is None:
+            await websocket.send_denial_response(
+                JSONResponse({"detail": "rate must be a number of snapshots per second > 0"}, 400)
+            )
+            return
+        if not authorized(websocket.headers, websocket.query_params):
+            await websocket.accept()
+            await websocket.close(WS_AUTH_CLOSE, "missing or wrong token")
+            return
+        await websocket.accept()
+        await _serve_stream(websocket, daemon, rate)
+
+    return app
+
+
+def _parse_rate(raw: str | None, ceiling: float) -> float | None:
+    """``rate`` query value clamped to the configured ceiling; None when malformed."""
+    if raw is None:
+        return ceiling
+    try:
+        rate = float(raw)
+    except ValueError:
+        return None
+    if not math.isfinite(rate) or rate <= 0:
+        return None
+    return min(rate, ceiling)
+
+
+async def _serve_stream(websocket: WebSocket, daemon: Daemon, rate: float) -> None:
+    """Send from the client's latest-value slot, never faster than ``rate``."""
+    subscription = daemon.hub.subscribe()
+    interval = 1.0 / rate
+    loop = asyncio.get_running_loop()
+
+    async def sender() -> None:
+        next_time = 0.0
+        while True:
+            snapshot = await subscription.next()
+            delay = next_time - loop.time()
+            if delay > 0:
+                await asyncio.sleep(delay)
+                snapshot = _newest(subscription, snapshot)
+            await websocket.send_text(snapshot.text)
+            next_time = max(next_time + interval, loop.time())
+
+    async def receiver() -> None:  # notices a closed client even when nothing is being sent
+        while True:
+            message = await websocket.receive()
+            if message["type"] == "websocket.disconnect":
+                return
+
+    tasks = [asyncio.create_task(sender()), asyncio.create_task(receiver())]
+    try:
+        await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
+    finally:
+        for task in tasks:
+            task.cancel()
+        for task in tasks:
+            with contextlib.suppress(asyncio.CancelledError, WebSocketDisconnect, Exception):
+                await task
+        daemon.hub.unsubscribe(subscription)
+        with contextlib.suppress(Exception):
+            await websocket.close()
+
+
+def _newest(subscription: Any, fallback: Any) -> Any:
+    """After a rate-limit pause, take the value that arrived meanwhile (if any)."""
+    value = subscription.take_nowait()
+    if value is None:
+        return fallback
+    subscription.skipped += 1
+    return value

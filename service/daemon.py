@@ -1,0 +1,252 @@
+"""Assembles the daemon from settings: cameras, detector, MoM model, pipeline, hub; runs uvicorn.
+
+``momloc serve`` and ``momloc demo`` differ only in the settings they pass here, so the demo
+exercises exactly the code users run on real cameras.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import socket
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+from models.errors import MomlocError
+from service.hub import Hub
+from service.pipeline import DetectorStage, Pipeline
+from service.settings import FileCamera, Settings, SyntheticCamera, V4l2Camera
+
+log = logging.getLogger("momloc")
+
+
+@dataclass
+class Daemon:
+    """Everything the API reads: hub, pipeline and the static facts about the setup."""
+
+    hub: Hub
+    pipeline: Pipeline
+    camera_names: list[str]
+    token: str | None = None
+    stream_rate: float = 30.0
+    ping_interval: float = 20.0
+    ping_timeout: float = 20.0
+    floor: dict[str, float] | None = None
+    extras: dict[str, Any] = field(default_factory=dict)
+    started: float = field(default_factory=time.time)
+
+    def camera_states(self) -> list[dict[str, Any]]:
+        states = self.pipeline.rig.states()
+        out = []
+        for k, state in enumerate(states):
+            d = dataclasses.asdict(state) if dataclasses.is_dataclass(state) else dict(vars(state))
+            d = {
+                "index": k,
+                "name": self.camera_names[k] if k < len(self.camera_names) else f"camera-{k}",
+                "connected": bool(d.get("connected", False)),
+                "fps": _round(d.get("fps")),
+                "last_frame_age": _round(d.get("last_frame_age"), 3),
+                "reconnects": int(d.get("reconnects") or 0),
+                "error": d.get("error"),
+            }
+            out.append(d)
+        return out
+
+    def health(self) -> dict[str, Any]:
+        cameras = self.camera_states()
+        model = self.pipeline.model_info()
+        pipeline = self.pipeline.stats()
+        ok = (
+            all(c["connected"] for c in cameras)
+            and model["loaded"]
+            and model.get("compatible", False)
+            and pipeline["running"]
+            and pipeline["error"] is None
+        )
+        return {
+            "status": "ok" if ok else "degraded",
+            "uptime_s": round(time.time() - self.started, 1),
+            "cameras": cameras,
+            "model": model,
+            "pipeline": pipeline,
+            "clients": self.hub.subscriber_count,
+            "published": self.hub.published,
+            **self.extras,
+        }
+
+    def public_config(self) -> dict[str, Any]:
+        return {
+            "cameras": [{"index": k, "name": n} for k, n in enumerate(self.camera_names)],
+            "floor": self.floor,
+            "stream_rate": self.stream_rate,
+            "auth": self.token is not None,
+            **self.extras,
+        }
+
+
+def _round(value: Any, digits: int = 2) -> float | None:
+    return None if value is None else round(float(value), digits)
+
+
+def camera_name(camera: Any) -> str:
+    if camera.name:
+        return camera.name
+    if isinstance(camera, V4l2Camera):
+        return camera.device
+    if isinstance(camera, FileCamera):
+        return camera.path.name
+    return f"synthetic-{camera.index}"
+
+
+def build_rig(settings: Settings) -> tuple[Any, Any]:
+    """The camera rig for ``settings.cameras`` and, for synthetic scenes, the scene player."""
+    kinds = {type(c) for c in settings.cameras}
+    if SyntheticCamera in kinds:
+        if len(kinds) > 1:
+            raise MomlocError("cameras: synthetic cameras cannot be mixed with real ones")
+        from capture.synthetic import SyntheticRig, make_scene
+
+        syn = settings.synthetic
+        scene = make_scene(syn.preset, seed=syn.seed, people=syn.people, fps=syn.fps)
+        indices = [c.index for c in settings.cameras]
+        available = len(scene.cameras)
+        for position, index in enumerate(indices):
+            if index >= available:
+                raise MomlocError(
+                    f"cameras.{position}.index: scene '{syn.preset}' has cameras 0..{available - 1}"
+                )
+        render = syn.render or syn.detections == "rendered"
+        rig = SyntheticRig(scene, indices, fps=syn.fps, render=render)
+        return rig, rig
+    from capture import CameraRig, CameraWorker
+
+    workers = [CameraWorker(_open_source(c)) for c in settings.cameras]
+    return CameraRig(workers), None
+
+
+def _open_source(camera: Any) -> Any:
+    from capture import sources
+
+    if isinstance(camera, V4l2Camera):
+        return sources.V4l2Source(
+            camera.device, width=camera.width, height=camera.height, fps=camera.fps
+        )
+    if not camera.path.exists():
+        raise MomlocError(f"cameras: video file {camera.path} does not exist")
+    return sources.VideoFileSource(camera.path, loop=camera.loop, fps=camera.fps)
+
+
+def build_detect_stage(settings: Settings, player: Any) -> Any:
+    """The detector stage, or the simulator's boxes when the demo asks for them."""
+    if player is not None and settings.synthetic.detections == "simulated":
+        from capture.synthetic import SimulatedDetections
+
+        return SimulatedDetections(player)
+    from models.detector import create_detector
+
+    try:
+        detector = create_detector(settings.detector.kind, threads=settings.detector.threads)
+    except TypeError:
+        detector = create_detector(settings.detector.kind)
+    return DetectorStage(detector, settings.detector.score_threshold)
+
+
+def floor_extent(settings: Settings, runtime: Any, player: Any) -> dict[str, float] | None:
+    """Map extent: settings, else the synthetic room, else the model's training area."""
+    if settings.floor is not None:
+        return settings.floor.model_dump()
+    if player is not None:
+        return player.floor_extent()
+    bounds = getattr(runtime, "world_bounds", None)
+    if bounds is not None:
+        (xmin, ymin), (xmax, ymax) = bounds
+        return {"xmin": float(xmin), "xmax": float(xmax), "ymin": float(ymin), "ymax": float(ymax)}
+    return None
+
+
+def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
+    """Open cameras, load the detector and model, wire the pipeline (not started yet)."""
+    from models.mom_runtime import MomRuntime
+    from service.tracking import Tracker
+
+    runtime = None
+    try:
+        runtime = MomRuntime.load(settings.model_dir)
+    except MomlocError:
+        if require_model:
+            raise
+        log.warning("no usable model in %s; serving without positions", settings.model_dir)
+    rig, player = build_rig(settings)
+    detect = build_detect_stage(settings, player)
+    hub = Hub()
+    pipeline = Pipeline(
+        rig,
+        detect,
+        hub,
+        num_cameras=len(settings.cameras),
+        runtime=runtime,
+        model_dir=settings.model_dir,
+        tracker=Tracker(fps_hint=30.0, max_missing_s=settings.tracking.max_missing_s),
+        max_error_px=settings.tracking.max_error_px,
+    )
+    if runtime is not None and int(runtime.num_cameras) != len(settings.cameras):
+        raise MomlocError(
+            f"model_dir: {settings.model_dir} expects {runtime.num_cameras} cameras, "
+            f"{len(settings.cameras)} are configured"
+        )
+    extras = {}
+    if player is not None:
+        extras["source"] = {"synthetic": settings.synthetic.model_dump()}
+    return Daemon(
+        hub=hub,
+        pipeline=pipeline,
+        camera_names=[camera_name(c) for c in settings.cameras],
+        token=settings.token_value(),
+        stream_rate=settings.stream.rate,
+        ping_interval=settings.stream.ping_interval,
+        ping_timeout=settings.stream.ping_timeout,
+        floor=floor_extent(settings, runtime, player),
+        extras=extras,
+    )
+
+
+def bind_socket(host: str, port: int) -> socket.socket:
+    """Listen on host:port now, so a taken port is a one-line user error, not a traceback."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind((host, port))
+    except OSError as error:
+        sock.close()
+        raise MomlocError(f"cannot listen on {host}:{port} ({error.strerror})") from None
+    sock.set_inheritable(True)
+    return sock
+
+
+def make_server(daemon: Daemon, host: str, port: int) -> Any:
+    """A uvicorn server for ``daemon`` (run it with ``server.run(sockets=[sock])``)."""
+    import uvicorn
+
+    from service.app import create_app
+
+    config = uvicorn.Config(
+        create_app(daemon),
+        host=host,
+        port=port,
+        log_level="warning",
+        ws="websockets-sansio",
+        ws_ping_interval=daemon.ping_interval,
+        ws_ping_timeout=daemon.ping_timeout,
+    )
+    return uvicorn.Server(config)
+
+
+def run_server(daemon: Daemon, host: str, port: int, on_ready: Any = None) -> None:
+    """Bind, announce, and serve until interrupted (uvicorn owns signals and the loop)."""
+    sock = bind_socket(host, port)
+    server = make_server(daemon, host, port)
+    if on_ready is not None:
+        on_ready(sock.getsockname()[1])
+    server.run(sockets=[sock])

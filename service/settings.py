@@ -1,0 +1,250 @@
+"""Daemon settings: one schema, read from a YAML file and ``MOMLOC_*`` environment variables.
+
+Design (config as schema): pydantic models mirror the YAML tree, reject unknown keys and carry a
+description on every field, so a settings file validates itself at start and documents itself
+(`Settings.model_json_schema()`). Precedence, highest first: command-line overrides (``--host``,
+``--port``), environment (``MOMLOC_PORT=9000``, nested with ``__``:
+``MOMLOC_DETECTOR__SCORE_THRESHOLD=0.5``), the YAML file, then the defaults below.
+
+Error policy: every invalid setting becomes one line ``<field>: <problem>`` inside a single
+:class:`MomlocError`, so ``momloc serve`` prints them all at once and exits 2.
+
+Example ``momloc.yaml``::
+
+    cameras:
+      - {type: v4l2, device: /dev/video0}
+      - {type: v4l2, device: /dev/video1}
+    model_dir: ./my_model
+    token: change-me
+"""
+
+from __future__ import annotations
+
+import contextvars
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, SecretStr, ValidationError, model_validator
+from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict
+
+from models.errors import MomlocError
+
+DEMO_MODEL_DIR = Path(__file__).resolve().parent.parent / "models" / "demo_model"
+_STRICT = ConfigDict(extra="forbid")
+
+
+class V4l2Camera(BaseModel):
+    """A USB webcam read through V4L2."""
+
+    model_config = _STRICT
+    type: Literal["v4l2"] = Field(description="Source kind: a V4L2 webcam.")
+    device: str = Field(description="Device path (/dev/video0) or index (0).")
+    width: int = Field(640, ge=16, le=7680, description="Requested frame width in pixels.")
+    height: int = Field(480, ge=16, le=4320, description="Requested frame height in pixels.")
+    fps: float = Field(30.0, gt=0, le=240, description="Requested frame rate.")
+    name: str | None = Field(None, description="Display name; defaults to the device.")
+
+
+class FileCamera(BaseModel):
+    """A recorded video file, played at its own frame rate (for replays and tests)."""
+
+    model_config = _STRICT
+    type: Literal["file"] = Field(description="Source kind: a video file.")
+    path: Path = Field(description="Video file path (anything OpenCV can decode).")
+    loop: bool = Field(True, description="Start again at the end instead of disconnecting.")
+    fps: float | None = Field(None, gt=0, le=240, description="Playback rate; default: file's.")
+    name: str | None = Field(None, description="Display name; defaults to the file name.")
+
+
+class SyntheticCamera(BaseModel):
+    """Camera ``index`` of the simulated scene described in the ``synthetic`` section."""
+
+    model_config = _STRICT
+    type: Literal["synthetic"] = Field(description="Source kind: a simulated camera.")
+    index: int = Field(ge=0, le=8, description="Camera index inside the simulated scene.")
+    name: str | None = Field(None, description="Display name; defaults to synthetic-<index>.")
+
+
+CameraSettings = Annotated[V4l2Camera | FileCamera | SyntheticCamera, Field(discriminator="type")]
+
+
+class DetectorSettings(BaseModel):
+    """Person detector options (see ``models.detector.create_detector``)."""
+
+    model_config = _STRICT
+    kind: str = Field("ssdlite", description="Detector backend name in the detector registry.")
+    score_threshold: float = Field(
+        0.4, ge=0.0, le=1.0, description="Boxes scoring below this are ignored."
+    )
+    threads: int = Field(2, ge=1, le=64, description="onnxruntime intra-op threads.")
+
+
+class SyntheticSettings(BaseModel):
+    """The simulated scene used by ``synthetic`` cameras and ``momloc demo``."""
+
+    model_config = _STRICT
+    preset: str = Field("indoor-2cam", description="Simulator preset (models.simulate.PRESETS).")
+    seed: int = Field(7, description="Scene random seed: same seed, same people and paths.")
+    people: int = Field(3, ge=0, le=20, description="Number of walking people.")
+    fps: float = Field(30.0, gt=0, le=120, description="Scene frame rate (frames per second).")
+    detections: Literal["rendered", "simulated"] = Field(
+        "simulated",
+        description=(
+            "rendered: frames drawn by the simulator go through the real detector; "
+            "simulated: the simulator's noisy boxes enter the pipeline instead of detector output."
+        ),
+    )
+    render: bool = Field(
+        True, description="Draw frames (needed for 'rendered' and for camera previews)."
+    )
+
+
+class StreamSettings(BaseModel):
+    """WebSocket stream behaviour."""
+
+    model_config = _STRICT
+    rate: float = Field(30.0, gt=0, le=240, description="Default and maximum snapshots/s.")
+    ping_interval: float = Field(
+        20.0, gt=0, le=3600, description="Seconds between WebSocket keep-alive pings."
+    )
+    ping_timeout: float = Field(
+        20.0, gt=0, le=3600, description="Seconds to wait for a pong before closing."
+    )
+
+
+class TrackingSettings(BaseModel):
+    """Tracker and association options."""
+
+    model_config = _STRICT
+    max_missing_s: float = Field(
+        1.5, gt=0, le=60, description="Keep an unseen person's id this many seconds."
+    )
+    max_error_px: float = Field(
+        40.0, gt=0, description="Largest decoder reprojection error accepted when matching boxes."
+    )
+
+
+class FloorSettings(BaseModel):
+    """Floor area drawn on the live map, in metres (default: fitted to the model's data)."""
+
+    model_config = _STRICT
+    xmin: float = Field(description="Left edge of the map (m).")
+    xmax: float = Field(description="Right edge of the map (m).")
+    ymin: float = Field(description="Bottom edge of the map (m).")
+    ymax: float = Field(description="Top edge of the map (m).")
+
+    @model_validator(mode="after")
+    def _ordered(self) -> FloorSettings:
+        if self.xmax <= self.xmin or self.ymax <= self.ymin:
+            raise ValueError("xmax must exceed xmin and ymax must exceed ymin")
+        return self
+
+
+_yaml_data: contextvars.ContextVar[dict[str, Any] | None] = contextvars.ContextVar(
+    "yaml", default=None
+)
+
+
+class _YamlSource(PydanticBaseSettingsSource):
+    """Feeds the already-parsed YAML mapping in at the lowest precedence."""
+
+    def get_field_value(self, field: Any, field_name: str) -> tuple[Any, str, bool]:
+        return (_yaml_data.get() or {}).get(field_name), field_name, False
+
+    def __call__(self) -> dict[str, Any]:
+        return dict(_yaml_data.get() or {})
+
+
+class Settings(BaseSettings):
+    """Everything ``momloc serve`` needs; ``momloc demo`` builds one for the synthetic scene."""
+
+    model_config = SettingsConfigDict(
+        env_prefix="MOMLOC_", env_nested_delimiter="__", extra="forbid", validate_default=True
+    )
+    cameras: list[CameraSettings] = Field(
+        min_length=1, max_length=9, description="Cameras in model order (1 to 9)."
+    )
+    model_dir: Path = Field(
+        DEMO_MODEL_DIR, description="Directory with encoder.onnx and model.json (momloc train)."
+    )
+    detector: DetectorSettings = Field(
+        default_factory=DetectorSettings, description="Person detector options."
+    )
+    host: str = Field("127.0.0.1", min_length=1, description="Bind address (0.0.0.0: all).")
+    port: int = Field(8765, ge=1, le=65535, description="TCP port of the HTTP/WebSocket API.")
+    token: SecretStr | None = Field(
+        None, description="API token; when set, every request must carry it."
+    )
+    stream: StreamSettings = Field(
+        default_factory=StreamSettings, description="WebSocket stream options."
+    )
+    tracking: TrackingSettings = Field(
+        default_factory=TrackingSettings, description="Tracking and association options."
+    )
+    synthetic: SyntheticSettings = Field(
+        default_factory=SyntheticSettings, description="Simulated scene for synthetic cameras."
+    )
+    floor: FloorSettings | None = Field(None, description="Map extent; default from the model.")
+
+    @classmethod
+    def settings_customise_sources(
+        cls,
+        settings_cls: type[BaseSettings],
+        init_settings: PydanticBaseSettingsSource,
+        env_settings: PydanticBaseSettingsSource,
+        dotenv_settings: PydanticBaseSettingsSource,
+        file_secret_settings: PydanticBaseSettingsSource,
+    ) -> tuple[PydanticBaseSettingsSource, ...]:
+        return init_settings, env_settings, _YamlSource(settings_cls)
+
+    @model_validator(mode="after")
+    def _synthetic_indices_unique(self) -> Settings:
+        indices = [c.index for c in self.cameras if isinstance(c, SyntheticCamera)]
+        if len(indices) != len(set(indices)):
+            raise ValueError("cameras: a synthetic camera index appears twice")
+        return self
+
+    def token_value(self) -> str | None:
+        """The token as plain text (``None``: authentication off)."""
+        return self.token.get_secret_value() if self.token else None
+
+
+def format_validation_error(error: ValidationError, origin: str = "settings") -> str:
+    """One line per invalid field: ``<origin>: <dotted.field>: <problem>``."""
+    lines = []
+    for item in error.errors():
+        loc = ".".join(str(part) for part in item["loc"] if part not in _UNION_TAGS) or "(root)"
+        message = item["msg"].removeprefix("Value error, ")
+        lines.append(f"{origin}: {loc}: {message}")
+    return "\n".join(lines)
+
+
+_UNION_TAGS = {"v4l2", "file", "synthetic"}
+
+
+def load_settings(path: str | Path | None = None, **overrides: Any) -> Settings:
+    """Read ``path`` (YAML, optional) plus the environment; ``overrides`` win (None = not given)."""
+    data: dict[str, Any] = {}
+    origin = "settings"
+    if path is not None:
+        path = Path(path)
+        origin = str(path)
+        try:
+            loaded = yaml.safe_load(path.read_text())
+        except OSError as error:
+            raise MomlocError(f"{path}: cannot read settings file ({error.strerror})") from None
+        except yaml.YAMLError as error:
+            mark = getattr(error, "problem_mark", None)
+            where = f" at line {mark.line + 1}" if mark else ""
+            raise MomlocError(f"{path}: not valid YAML{where}") from None
+        if loaded is not None and not isinstance(loaded, dict):
+            raise MomlocError(f"{path}: the top level must be a mapping of settings")
+        data = loaded or {}
+    token = _yaml_data.set(data)
+    try:
+        return Settings(**{k: v for k, v in overrides.items() if v is not None})
+    except ValidationError as error:
+        raise MomlocError(format_validation_error(error, origin)) from None
+    finally:
+        _yaml_data.reset(token)

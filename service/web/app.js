@@ -1,0 +1,202 @@
+// Live map: one WebSocket for positions, REST for config/health, snapshot.jpg for previews.
+// window.momloc exposes the page state (people, seq, frames drawn) for tests and debugging.
+"use strict";
+
+const params = new URLSearchParams(location.search);
+const token = params.get("token");
+const TRAIL_S = 4.0;
+const state = { people: {}, seq: 0, t: 0, draws: 0, connected: false, floor: null, fitted: null };
+window.momloc = state;
+
+function withToken(path) {
+  if (!token) return path;
+  return path + (path.includes("?") ? "&" : "?") + "token=" + encodeURIComponent(token);
+}
+
+// Same colour per id as the camera previews (OpenCV hue = id * 47 mod 180, in degrees x2).
+function idColour(id, alpha = 1) {
+  return `hsla(${((id * 47) % 180) * 2}, 85%, 60%, ${alpha})`;
+}
+
+const trails = new Map(); // id -> [{t, x, y}]
+
+function onSnapshot(snap) {
+  state.seq = snap.seq;
+  state.t = snap.t;
+  const seen = {};
+  for (const p of snap.people) {
+    seen[p.id] = p;
+    const trail = trails.get(p.id) || [];
+    trail.push({ t: snap.t, x: p.x, y: p.y });
+    while (trail.length && snap.t - trail[0].t > TRAIL_S) trail.shift();
+    trails.set(p.id, trail);
+  }
+  for (const id of [...trails.keys()]) if (!(id in seen)) trails.delete(id);
+  state.people = seen;
+  document.getElementById("people-count").textContent = snap.people.length;
+  document.getElementById("seq").textContent = snap.seq;
+  renderList(snap.people);
+}
+
+function renderList(people) {
+  const list = document.getElementById("people-list");
+  list.replaceChildren(...people.map((p) => {
+    const li = document.createElement("li");
+    li.style.setProperty("--c", idColour(p.id));
+    li.dataset.id = p.id; li.dataset.x = p.x; li.dataset.y = p.y;
+    const speed = Math.hypot(p.vx, p.vy);
+    li.textContent = `#${p.id}  x ${p.x.toFixed(2)}  y ${p.y.toFixed(2)} m  ${speed.toFixed(2)} m/s  cams [${p.cameras.join(",")}]`;
+    return li;
+  }));
+}
+
+function extent() {
+  if (state.floor) return state.floor;
+  // No configured floor: grow a box around everything seen so far.
+  const f = state.fitted || { xmin: -1, xmax: 1, ymin: -1, ymax: 1 };
+  for (const p of Object.values(state.people)) {
+    f.xmin = Math.min(f.xmin, p.x - 1); f.xmax = Math.max(f.xmax, p.x + 1);
+    f.ymin = Math.min(f.ymin, p.y - 1); f.ymax = Math.max(f.ymax, p.y + 1);
+  }
+  state.fitted = f;
+  return f;
+}
+
+function draw() {
+  const canvas = document.getElementById("map");
+  const ctx = canvas.getContext("2d");
+  const W = canvas.width, H = canvas.height, pad = 40;
+  const f = extent();
+  const scale = Math.min((W - 2 * pad) / (f.xmax - f.xmin), (H - 2 * pad) / (f.ymax - f.ymin));
+  const ox = (W - scale * (f.xmax - f.xmin)) / 2, oy = (H - scale * (f.ymax - f.ymin)) / 2;
+  const px = (x) => ox + (x - f.xmin) * scale;
+  const py = (y) => H - oy - (y - f.ymin) * scale; // y up
+  ctx.clearRect(0, 0, W, H);
+  // floor and 1 m grid
+  ctx.fillStyle = "#161b22";
+  ctx.fillRect(px(f.xmin), py(f.ymax), scale * (f.xmax - f.xmin), scale * (f.ymax - f.ymin));
+  ctx.strokeStyle = "#263040"; ctx.lineWidth = 1; ctx.fillStyle = "#6b7687"; ctx.font = "11px system-ui";
+  for (let x = Math.ceil(f.xmin); x <= f.xmax; x++) {
+    ctx.beginPath(); ctx.moveTo(px(x), py(f.ymin)); ctx.lineTo(px(x), py(f.ymax)); ctx.stroke();
+    ctx.fillText(`${x}`, px(x) - 3, py(f.ymin) + 14);
+  }
+  for (let y = Math.ceil(f.ymin); y <= f.ymax; y++) {
+    ctx.beginPath(); ctx.moveTo(px(f.xmin), py(y)); ctx.lineTo(px(f.xmax), py(y)); ctx.stroke();
+    ctx.fillText(`${y}`, px(f.xmin) - 18, py(y) + 4);
+  }
+  ctx.strokeStyle = "#3b4657"; ctx.lineWidth = 2;
+  ctx.strokeRect(px(f.xmin), py(f.ymax), scale * (f.xmax - f.xmin), scale * (f.ymax - f.ymin));
+  // people: trail, velocity arrow (1 s ahead), dot, id
+  for (const p of Object.values(state.people)) {
+    const trail = trails.get(p.id) || [];
+    ctx.lineWidth = 3; ctx.lineCap = "round";
+    for (let i = 1; i < trail.length; i++) {
+      const a = (i / trail.length) * 0.8;
+      ctx.strokeStyle = idColour(p.id, a);
+      ctx.beginPath(); ctx.moveTo(px(trail[i - 1].x), py(trail[i - 1].y));
+      ctx.lineTo(px(trail[i].x), py(trail[i].y)); ctx.stroke();
+    }
+    const x = px(p.x), y = py(p.y), tx = px(p.x + p.vx), ty = py(p.y + p.vy);
+    if (Math.hypot(tx - x, ty - y) > 4) {
+      const ang = Math.atan2(ty - y, tx - x);
+      ctx.strokeStyle = idColour(p.id); ctx.fillStyle = idColour(p.id); ctx.lineWidth = 2;
+      ctx.beginPath(); ctx.moveTo(x, y); ctx.lineTo(tx, ty); ctx.stroke();
+      ctx.beginPath(); ctx.moveTo(tx, ty);
+      ctx.lineTo(tx - 9 * Math.cos(ang - 0.4), ty - 9 * Math.sin(ang - 0.4));
+      ctx.lineTo(tx - 9 * Math.cos(ang + 0.4), ty - 9 * Math.sin(ang + 0.4));
+      ctx.closePath(); ctx.fill();
+    }
+    ctx.globalAlpha = 0.35 + 0.65 * p.confidence;
+    ctx.fillStyle = idColour(p.id);
+    ctx.beginPath(); ctx.arc(x, y, 10, 0, 2 * Math.PI); ctx.fill();
+    ctx.globalAlpha = 1;
+    ctx.strokeStyle = "#0d1014"; ctx.lineWidth = 2; ctx.stroke();
+    ctx.fillStyle = "#e7ecf2"; ctx.font = "bold 13px system-ui";
+    ctx.fillText(`#${p.id}`, x + 13, y - 10);
+  }
+  state.draws++;
+  requestAnimationFrame(draw);
+}
+
+function setLink(ok, text) {
+  state.connected = ok;
+  const el = document.getElementById("link");
+  el.textContent = text; el.className = "pill " + (ok ? "ok" : "bad");
+}
+
+let backoff = 500;
+function connect() {
+  const scheme = location.protocol === "https:" ? "wss" : "ws";
+  const ws = new WebSocket(withToken(`${scheme}://${location.host}/v1/stream`));
+  ws.onopen = () => { backoff = 500; setLink(true, "live"); };
+  ws.onmessage = (ev) => onSnapshot(JSON.parse(ev.data));
+  ws.onclose = (ev) => {
+    setLink(false, ev.code === 4401 ? "token rejected" : "reconnecting…");
+    if (ev.code !== 4401) setTimeout(connect, backoff);
+    backoff = Math.min(backoff * 2, 5000);
+  };
+}
+
+async function getJSON(path) {
+  const r = await fetch(withToken(path));
+  if (!r.ok) throw new Error(`${path}: ${r.status}`);
+  return r.json();
+}
+
+function row(label, value, good) {
+  const tr = document.createElement("tr");
+  const a = document.createElement("td"); a.textContent = label;
+  const b = document.createElement("td"); b.textContent = value;
+  if (good !== undefined) b.className = good ? "good" : "warn";
+  tr.append(a, b);
+  return tr;
+}
+
+async function refreshHealth() {
+  try {
+    const h = await getJSON("/v1/health");
+    const p = h.pipeline;
+    document.getElementById("pipeline-fps").textContent = p.fps.toFixed(1);
+    document.getElementById("latency").textContent = p.latency_ms.p95 == null ? "–" : p.latency_ms.p95.toFixed(0);
+    const rows = [row("status", h.status, h.status === "ok"),
+      row("model", h.model.loaded ? (h.model.compatible ? "loaded" : h.model.problem) : "not loaded", h.model.loaded && h.model.compatible),
+      row("pipeline", `${p.fps.toFixed(1)} fps, p50 ${p.latency_ms.p50 ?? "–"} ms`, p.running && !p.error),
+      row("dropped frames", String(p.frames_dropped)), row("clients", String(h.clients))];
+    for (const c of h.cameras) {
+      rows.push(row(`cam ${c.index} ${c.name}`, c.connected ? `${(c.fps ?? 0).toFixed(1)} fps, age ${((c.last_frame_age ?? 0) * 1000).toFixed(0)} ms` : (c.error || "disconnected"), c.connected));
+    }
+    if (p.error) rows.push(row("error", p.error, false));
+    document.querySelector("#health tbody").replaceChildren(...rows);
+  } catch (e) { /* server restarting: the WebSocket pill already says so */ }
+}
+
+function refreshPreviews() {
+  for (const img of document.querySelectorAll("#cameras img")) {
+    if (img.dataset.loading === "1") continue; // skip a tick rather than queue requests
+    img.dataset.loading = "1";
+    const next = new Image();
+    next.onload = () => { img.src = next.src; img.dataset.loading = "0"; };
+    next.onerror = () => { img.dataset.loading = "0"; };
+    next.src = withToken(`/v1/cameras/${img.dataset.k}/snapshot.jpg?width=320&quality=70&n=${Date.now()}`);
+  }
+}
+
+async function init() {
+  try {
+    const cfg = await getJSON("/v1/config");
+    state.floor = cfg.floor;
+    document.getElementById("cameras").replaceChildren(...cfg.cameras.map((c) => {
+      const fig = document.createElement("figure");
+      const img = document.createElement("img"); img.dataset.k = c.index; img.alt = c.name;
+      const cap = document.createElement("figcaption"); cap.textContent = `camera ${c.index} · ${c.name}`;
+      fig.append(img, cap);
+      return fig;
+    }));
+  } catch (e) { setLink(false, "unauthorized or offline"); }
+  connect();
+  refreshHealth(); setInterval(refreshHealth, 1000);
+  refreshPreviews(); setInterval(refreshPreviews, 400);
+  requestAnimationFrame(draw);
+}
+
+init();

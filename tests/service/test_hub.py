@@ -1,0 +1,70 @@
+"""Hub: newest value for pollers, one latest-value slot per subscriber, thread-safe publish."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import threading
+
+from service.hub import Hub, Snapshot
+
+
+def snap(seq: int) -> Snapshot:
+    return Snapshot.build(seq, 1000.0 + seq, [{"id": 1, "x": seq * 0.1, "y": 0.0}])
+
+
+def test_snapshot_wire_format():
+    body = json.loads(snap(3).text)
+    assert body == {
+        "v": 1,
+        "seq": 3,
+        "t": 1003.0,
+        "people": [{"id": 1, "x": 0.30000000000000004, "y": 0.0}],
+    }
+    assert snap(3).as_dict() == body
+
+
+def test_slow_subscriber_skips_and_holds_one_value():
+    async def scenario() -> None:
+        hub = Hub()
+        hub.bind(asyncio.get_running_loop())
+        fast, slow = hub.subscribe(), hub.subscribe()
+        for seq in range(1, 101):
+            hub.publish(snap(seq))
+            await asyncio.sleep(0)  # run the fan-out callback
+            assert (await fast.next()).seq == seq
+        # the slow one never read: it gets only the newest, and 99 were skipped, not queued
+        assert (await slow.next()).seq == 100
+        assert slow.skipped == 99 and slow.take_nowait() is None
+        assert hub.latest().seq == 100
+        hub.unsubscribe(slow)
+        assert hub.subscriber_count == 1
+
+    asyncio.run(scenario())
+
+
+def test_publish_from_another_thread_and_prefill():
+    async def scenario() -> None:
+        hub = Hub()
+        hub.bind(asyncio.get_running_loop())
+        hub.publish(snap(1))
+        late = hub.subscribe()  # a new client gets the newest value at once
+        assert (await late.next()).seq == 1
+        thread = threading.Thread(target=lambda: [hub.publish(snap(s)) for s in range(2, 12)])
+        thread.start()
+        thread.join()
+        got = await asyncio.wait_for(late.next(), 2)
+        while (more := late.take_nowait()) is not None:
+            got = more
+        await asyncio.sleep(0.05)
+        while (more := late.take_nowait()) is not None:
+            got = more
+        assert got.seq == 11
+
+    asyncio.run(scenario())
+
+
+def test_publish_without_loop_keeps_latest():
+    hub = Hub()
+    hub.publish(snap(5))
+    assert hub.latest().seq == 5 and hub.published == 1

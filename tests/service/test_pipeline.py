@@ -1,0 +1,199 @@
+"""Pipeline: chain order, snapshot content, frame dropping, ids on boxes, model hot swap.
+
+Uses a fake rig, fake detector stage and a fake model so that the assertions are exact; the real
+detector, model, association and tracker run together in tests/e2e.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from models.errors import MomlocError
+from service.hub import Hub
+from service.pipeline import DetectorStage, Pipeline
+from service.tracking import Tracker
+
+
+@dataclass
+class FakeRig:
+    """Every frame_set() call returns a newer set, ``step`` scene frames ahead."""
+
+    step: int = 1
+    size: tuple[int, int] = (640, 480)
+    seq: int = 0
+    started: bool = False
+    calls: list[int] = field(default_factory=list)
+
+    def start(self) -> None:
+        self.started = True
+
+    def stop(self) -> None:
+        self.started = False
+
+    def frame_set(self):
+        self.seq += self.step
+        image = np.zeros((self.size[1], self.size[0], 3), np.uint8)
+        frames = [
+            SimpleNamespace(camera=k, image=image, timestamp=100.0 + self.seq / 30, seq=self.seq)
+            for k in range(2)
+        ]
+        return SimpleNamespace(frames=frames, skew=0.0)
+
+    def states(self):
+        return [
+            SimpleNamespace(connected=True, fps=30.0, last_frame_age=0.01, reconnects=0, error=None)
+        ] * 2
+
+
+class FakeRuntime:
+    def __init__(self, cameras: int = 2, size: tuple[int, int] = (640, 480)) -> None:
+        self.num_cameras = cameras
+        self.image_sizes = np.array([size] * cameras)
+
+
+def boxes_stage(frame_set):
+    """One person per camera whose box x encodes the scene frame (so positions move)."""
+    seq = frame_set.frames[0].seq
+    box = np.array([[100 + seq, 50, 160 + seq, 250]], np.float32)
+    return [box, box + 10]
+
+
+def fake_associate(detections, runtime, max_error_px):
+    a = SimpleNamespace(
+        boxes=np.stack([d[0] for d in detections]),
+        cameras=[0, 1],
+        world=np.array([detections[0][0, 0] / 100.0, 2.0]),
+        cost=1.0,
+        detection_index=[0, 0],
+    )
+    return [a]
+
+
+def make(rig=None, runtime=None, **kw) -> tuple[Pipeline, Hub]:
+    hub = Hub()
+    pipeline = Pipeline(
+        rig or FakeRig(),
+        kw.pop("detect", boxes_stage),
+        hub,
+        num_cameras=2,
+        runtime=runtime if runtime is not None else FakeRuntime(),
+        tracker=Tracker(fps_hint=30.0),
+        associate=fake_associate,
+        load_runtime=kw.pop("load_runtime", lambda path: FakeRuntime()),
+    )
+    return pipeline, hub
+
+
+def test_process_publishes_tracked_people_with_capture_time():
+    pipeline, hub = make()
+    snaps = [pipeline.process(pipeline.rig.frame_set()) for _ in range(10)]
+    assert [s.seq for s in snaps] == list(range(1, 11))
+    last = hub.latest()
+    assert last is snaps[-1]
+    assert last.t == pytest.approx(100.0 + 10 / 30)
+    (person,) = last.people
+    assert set(person) == {"id", "x", "y", "vx", "vy", "confidence", "cameras"}
+    assert person["x"] == pytest.approx(1.10, abs=0.02) and person["y"] == pytest.approx(2.0)
+    assert person["vx"] == pytest.approx(0.3, abs=0.1)  # 0.01 m per frame at 30 fps
+    assert person["cameras"] == [0, 1]
+    view = pipeline.view(1)
+    assert view.image is not None
+    ((box, track_id),) = view.boxes
+    assert track_id == person["id"] and box[0] == pytest.approx(120.0)
+
+
+def test_no_model_publishes_empty_snapshots():
+    pipeline, _hub = make()
+    pipeline.runtime = None
+    snapshot = pipeline.process(pipeline.rig.frame_set())
+    assert snapshot.people == [] and pipeline.model_info() == {"loaded": False, "path": None}
+
+
+def test_thread_skips_stale_frames_and_counts_drops():
+    rig = FakeRig(step=3)
+    pipeline, _hub = make(rig)
+    pipeline.start()
+    deadline = time.time() + 10
+    while pipeline.frames_processed < 5 and time.time() < deadline:
+        time.sleep(0.01)
+    pipeline.stop()
+    assert not rig.started and not pipeline.running
+    stats = pipeline.stats()
+    assert stats["frames_processed"] >= 5
+    # every processed set was 3 frames newer than the last: 2 frames per camera skipped each time
+    assert stats["frames_dropped"] == 2 * 2 * (stats["frames_processed"] - 1)
+    assert stats["latency_ms"]["p50"] is not None and stats["error"] is None
+
+
+def test_stage_failure_is_reported_not_fatal():
+    calls = {"n": 0}
+
+    def flaky(frame_set):
+        calls["n"] += 1
+        if calls["n"] == 1:
+            raise RuntimeError("detector exploded")
+        return boxes_stage(frame_set)
+
+    pipeline, _hub = make(detect=flaky)
+    pipeline.start()
+    deadline = time.time() + 10
+    while pipeline.frames_processed < 2 and time.time() < deadline:
+        time.sleep(0.01)
+    pipeline.stop()
+    assert pipeline.frames_processed >= 2
+    assert "detector exploded" in pipeline.stats()["error"]
+
+
+def test_reload_refuses_mismatched_models_and_keeps_the_old_one(tmp_path):
+    models = {
+        "three": FakeRuntime(cameras=3),
+        "small": FakeRuntime(size=(320, 240)),
+        "good": FakeRuntime(),
+    }
+    original = FakeRuntime()
+    pipeline, _ = make(runtime=original, load_runtime=lambda path: models[path.name])
+    pipeline.process(pipeline.rig.frame_set())  # learns the real image sizes
+    with pytest.raises(MomlocError, match="expects 3 cameras, 2 are configured"):
+        pipeline.reload_model(tmp_path / "three")
+    with pytest.raises(
+        MomlocError, match="320x240 images from camera 0, the camera delivers 640x480"
+    ):
+        pipeline.reload_model(tmp_path / "small")
+    assert pipeline.runtime is original
+    info = pipeline.reload_model(tmp_path / "good")
+    assert pipeline.runtime is models["good"]
+    assert info["loaded"] and info["compatible"] and info["num_cameras"] == 2
+
+
+def test_model_that_does_not_fit_the_frames_is_reported():
+    pipeline, _ = make(runtime=FakeRuntime(size=(1280, 720)))
+    snapshot = pipeline.process(pipeline.rig.frame_set())
+    assert snapshot.people == []
+    assert "1280x720" in pipeline.stats()["error"]
+    assert pipeline.model_info()["compatible"] is False
+
+
+def test_detector_stage_batches_and_filters_scores():
+    class Det:
+        def __init__(self) -> None:
+            self.batches = []
+
+        def detect(self, frames):
+            self.batches.append(len(frames))
+            boxes = np.array([[0, 0, 10, 20], [5, 5, 50, 90]], np.float32)
+            return [
+                SimpleNamespace(boxes=boxes, scores=np.array([0.9, 0.2]), keypoints=None)
+                for _ in frames
+            ]
+
+    det = Det()
+    stage = DetectorStage(det, score_threshold=0.4)
+    frame = SimpleNamespace(image=np.zeros((4, 4, 3), np.uint8))
+    out = stage(SimpleNamespace(frames=[frame, None, frame]))
+    assert det.batches == [2]
+    assert [o.shape for o in out] == [(1, 4), (0, 4), (1, 4)]
