@@ -1,0 +1,253 @@
+"""Guided collection at floor marks: the plan, the per-frame filter and a loss-free writer.
+
+The plan is a list of steps the user (or the simulated person) follows: move to a mark, a
+countdown, then hold still on it (swaying and turning in place) while frames are recorded; in walk
+mode the walk from one mark to the next is recorded too, labelled by linear interpolation along the
+straight line at a steady pace. Each recorded frame becomes one dataset row whose ``world`` is the
+mark (or the interpolated point).
+
+Frame filter: a frame is kept when no camera sees more than one person and at least one camera
+sees exactly one (``require_all_cameras`` asks for exactly one in *every* camera). Keeping frames
+where a camera sees nobody is deliberate: marks outside one camera's view still teach the model,
+and real missed detections are the missing views the model must cope with.
+
+Nothing is lost: rows are appended to the output file by rewriting it atomically (temporary file,
+fsync, rename) every couple of seconds and after every step, so a crash or Ctrl-C keeps all but
+the last moments. Re-running on the same file resumes: existing rows stay, marks already recorded
+are left out of the plan (:meth:`DatasetAppender.has_mark`), and new marks extend the data set.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal, Protocol
+
+import numpy as np
+
+from models.dataset import MomDataset
+from models.errors import MomlocError
+from service.setup.marks import FloorMark
+
+StepKind = Literal["move", "countdown", "record", "walk"]
+RECORDING: tuple[StepKind, ...] = ("record", "walk")
+WALK_SPEED_MPS = 0.6  # a slow, steady pace a person can keep while being recorded
+MOVE_SPEED_MPS = 1.0
+FLUSH_EVERY_S = 2.0
+MARK_TOLERANCE_M = 0.01
+_ROW_KEYS = ("world", "boxes", "keypoints", "frame", "track")
+
+
+@dataclass(frozen=True)
+class Step:
+    kind: StepKind
+    start: tuple[float, float]
+    end: tuple[float, float]
+    seconds: float
+    instruction: str
+    mark: FloorMark | None = None
+
+    def position(self, fraction: float) -> tuple[float, float]:
+        """Label at ``fraction`` of the step: the straight line from start to end."""
+        f = min(max(fraction, 0.0), 1.0)
+        return (
+            self.start[0] + f * (self.end[0] - self.start[0]),
+            self.start[1] + f * (self.end[1] - self.start[1]),
+        )
+
+
+def plan_steps(
+    marks: list[FloorMark],
+    seconds: float,
+    *,
+    start: tuple[float, float],
+    walk: bool = False,
+    move_s: float = 5.0,
+    countdown_s: float = 3.0,
+) -> list[Step]:
+    """The instructions for recording ``seconds`` on every mark (and the walks, in walk mode)."""
+    if seconds <= 0:
+        raise MomlocError(f"--seconds must be positive, got {seconds}")
+    steps: list[Step] = []
+    here = start
+    for i, mark in enumerate(marks):
+        there = (mark.x, mark.y)
+        distance = math.dist(here, there)
+        if walk and i > 0:
+            walk_s = max(distance / WALK_SPEED_MPS, 1.0)
+            steps.append(
+                Step("walk", here, there, walk_s, f"walk slowly and steadily to {mark.name}", mark)
+            )
+        else:
+            travel = max(move_s, distance / MOVE_SPEED_MPS)
+            steps.append(Step("move", here, there, travel, f"go to mark {mark.name}", mark))
+            steps.append(
+                Step("countdown", there, there, countdown_s, f"stand on {mark.name}", mark)
+            )
+        steps.append(
+            Step("record", there, there, seconds, f"stay on {mark.name}, sway and turn", mark)
+        )
+        here = there
+    return steps
+
+
+@dataclass(frozen=True)
+class FeedFrame:
+    """One frame set's detections: per camera boxes [M, 4] and keypoints [M, J, 3] or None."""
+
+    t: float
+    boxes: list[np.ndarray]
+    keypoints: list[np.ndarray | None] | None = None
+
+
+class DetectionFeed(Protocol):
+    """Where collection gets detections: live cameras + detector, or the synthetic scene."""
+
+    image_sizes: np.ndarray
+
+    def prepare(self, steps: list[Step]) -> None:
+        """Called once with the whole plan before the first step."""
+        ...
+
+    def frames(self, step: Step) -> Iterator[FeedFrame]:
+        """Frame sets for the duration of ``step`` (a simulated person follows it)."""
+        ...
+
+
+def frame_row(frame: FeedFrame, require_all_cameras: bool) -> tuple[np.ndarray, np.ndarray] | None:
+    """The frame as one row (boxes [K,4], keypoints [K,J,3]) or None when it must be dropped."""
+    counts = [len(b) for b in frame.boxes]
+    if max(counts) > 1 or max(counts) == 0 or (require_all_cameras and min(counts) < 1):
+        return None
+    boxes = np.full((len(counts), 4), np.nan, np.float32)
+    keypoints = None
+    if frame.keypoints is not None:
+        joints = next((kp.shape[1] for kp in frame.keypoints if kp is not None and len(kp)), 17)
+        keypoints = np.full((len(counts), joints, 3), np.nan, np.float32)
+    for k, camera_boxes in enumerate(frame.boxes):
+        if len(camera_boxes):
+            boxes[k] = camera_boxes[0]
+            if keypoints is not None and frame.keypoints[k] is not None:
+                keypoints[k] = frame.keypoints[k][0]
+    return boxes, keypoints
+
+
+@dataclass
+class DatasetAppender:
+    """Appends rows to a dataset v1 file, keeping what it already held."""
+
+    path: Path
+    image_sizes: np.ndarray
+    _existing: MomDataset | None = None
+    _rows: dict[str, list] = field(default_factory=lambda: {k: [] for k in _ROW_KEYS})
+    next_frame: int = 0
+    next_track: int = 0
+
+    def __post_init__(self) -> None:
+        self.path = Path(self.path)
+        if self.path.exists():
+            self._existing = MomDataset.load(self.path)
+            if not np.array_equal(self._existing.image_size, self.image_sizes):
+                raise MomlocError(
+                    f"{self.path}: recorded with cameras {self._existing.image_size.tolist()}, "
+                    f"now {self.image_sizes.tolist()}; use another --out file"
+                )
+            self.next_frame = int(self._existing.frame.max()) + 1
+            self.next_track = int(self._existing.track.max()) + 1
+
+    @property
+    def existing_rows(self) -> int:
+        return 0 if self._existing is None else self._existing.n
+
+    @property
+    def new_rows(self) -> int:
+        return len(self._rows["world"])
+
+    def has_mark(self, mark: FloorMark) -> bool:
+        """Whether the file already holds rows labelled exactly at this mark."""
+        if self._existing is None:
+            return False
+        offsets = np.abs(self._existing.world[:, :2] - np.array([mark.x, mark.y]))
+        return bool((offsets.max(axis=1) < MARK_TOLERANCE_M).any())
+
+    def new_track(self) -> int:
+        self.next_track += 1
+        return self.next_track - 1
+
+    def add(self, world, boxes: np.ndarray, keypoints: np.ndarray | None, track: int) -> None:
+        self._rows["world"].append(np.asarray(world, np.float32)[:2])
+        self._rows["boxes"].append(boxes)
+        self._rows["keypoints"].append(keypoints)
+        self._rows["frame"].append(self.next_frame)
+        self._rows["track"].append(track)
+        self.next_frame += 1
+
+    def flush(self) -> None:
+        """Rewrite the file atomically with the old and the new rows."""
+        if not self._rows["world"]:
+            return
+        new = {
+            "world": np.stack(self._rows["world"]),
+            "boxes": np.stack(self._rows["boxes"]),
+            "frame": np.array(self._rows["frame"], np.int64),
+            "track": np.array(self._rows["track"], np.int64),
+        }
+        keypoints = self._rows["keypoints"]
+        with_keypoints = all(k is not None for k in keypoints) and (
+            self._existing is None or self._existing.keypoints is not None
+        )
+        if with_keypoints:
+            new["keypoints"] = np.stack(keypoints)
+        if self._existing is not None:
+            old = self._existing.arrays()
+            old["world"] = old["world"][:, :2]
+            new = {key: np.concatenate([old[key], new[key]]) for key in new}
+        MomDataset(image_size=self.image_sizes, **new).save(self.path)
+
+
+@dataclass(frozen=True)
+class Progress:
+    """What a user interface shows: the step, how far it is, and what each camera sees."""
+
+    step_index: int
+    steps: int
+    step: Step
+    fraction: float
+    cameras_seeing: list[int]
+    kept_rows: int
+
+
+def collect(
+    feed: DetectionFeed,
+    steps: list[Step],
+    writer: DatasetAppender,
+    *,
+    require_all_cameras: bool = False,
+    on_progress: Callable[[Progress], None] | None = None,
+) -> DatasetAppender:
+    """Run the plan, appending kept frames through ``writer``; flushes on every exit path."""
+    try:
+        for index, step in enumerate(steps):
+            recording = step.kind in RECORDING
+            track = writer.new_track() if recording else -1
+            first_t = last_flush = None
+            for frame in feed.frames(step):
+                first_t = frame.t if first_t is None else first_t
+                fraction = (frame.t - first_t) / step.seconds
+                row = frame_row(frame, require_all_cameras) if recording else None
+                if row is not None:
+                    writer.add(step.position(fraction), row[0], row[1], track)
+                if recording and (last_flush is None or frame.t - last_flush >= FLUSH_EVERY_S):
+                    writer.flush()
+                    last_flush = frame.t
+                if on_progress is not None:
+                    seeing = [len(b) for b in frame.boxes]
+                    on_progress(
+                        Progress(index, len(steps), step, fraction, seeing, writer.new_rows)
+                    )
+            writer.flush()
+    finally:
+        writer.flush()
+    return writer

@@ -1,0 +1,117 @@
+"""Guided collection: plan, frame filter, nothing lost on interruption, resume, synthetic CLI."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from models.dataset import MomDataset
+from models.errors import MomlocError
+from service.setup.collector import (
+    DatasetAppender,
+    FeedFrame,
+    Step,
+    collect,
+    frame_row,
+    plan_steps,
+)
+from service.setup.marks import FloorMark, grid_marks
+
+SIZES = np.array([[640, 480], [640, 480]], np.int32)
+BOX = np.array([[100.0, 50.0, 160.0, 250.0]], np.float32)
+NONE = np.zeros((0, 4), np.float32)
+
+
+class ListFeed:
+    """A feed replaying fixed frames at 10 Hz; can fail after ``fail_after`` frames."""
+
+    image_sizes = SIZES
+
+    def __init__(self, frame: FeedFrame, fail_after: int | None = None) -> None:
+        self.frame, self.fail_after, self.sent = frame, fail_after, 0
+
+    def prepare(self, steps: list[Step]) -> None:
+        pass
+
+    def frames(self, step: Step) -> Iterator[FeedFrame]:
+        for _ in range(round(step.seconds * 10)):
+            if self.fail_after is not None and self.sent >= self.fail_after:
+                raise KeyboardInterrupt
+            self.sent += 1
+            yield FeedFrame(self.sent / 10, self.frame.boxes, None)
+
+
+def test_plan_has_move_countdown_record_and_walks() -> None:
+    marks = [FloorMark("a", 0, 0), FloorMark("b", 3, 0)]
+    steps = plan_steps(marks, 10, start=(0, 0), walk=True, move_s=5, countdown_s=2)
+    assert [s.kind for s in steps] == ["move", "countdown", "record", "walk", "record"]
+    walk = steps[3]
+    assert walk.seconds == pytest.approx(3 / 0.6)
+    assert walk.position(0.5) == (1.5, 0.0)
+    with pytest.raises(MomlocError, match="--seconds"):
+        plan_steps(marks, 0, start=(0, 0))
+
+
+def test_frame_filter_keeps_one_person_frames_only() -> None:
+    assert frame_row(FeedFrame(0, [BOX, BOX]), False) is not None
+    boxes, _ = frame_row(FeedFrame(0, [BOX, NONE]), False)
+    assert np.isnan(boxes[1]).all() and np.isfinite(boxes[0]).all()
+    assert frame_row(FeedFrame(0, [BOX, NONE]), True) is None
+    assert frame_row(FeedFrame(0, [np.concatenate([BOX, BOX]), BOX]), False) is None
+    assert frame_row(FeedFrame(0, [NONE, NONE]), False) is None
+
+
+def test_interrupted_collection_keeps_recorded_rows(tmp_path: Path) -> None:
+    out = tmp_path / "marks.npz"
+    steps = plan_steps([FloorMark("a", 1, 2)], 10, start=(1, 2), move_s=1, countdown_s=1)
+    feed = ListFeed(FeedFrame(0, [BOX, BOX]), fail_after=20 + 45)  # move+countdown, then 4.5 s
+    with pytest.raises(KeyboardInterrupt):
+        collect(feed, steps, DatasetAppender(out, SIZES))
+    data = MomDataset.load(out)
+    assert data.n == 45
+    np.testing.assert_allclose(data.world, [[1, 2]] * 45)
+
+
+def test_resume_appends_and_detects_recorded_marks(tmp_path: Path) -> None:
+    out = tmp_path / "marks.npz"
+    a, b = FloorMark("a", 1, 2), FloorMark("b", 3, 2)
+    feed = ListFeed(FeedFrame(0, [BOX, BOX]))
+    collect(feed, plan_steps([a], 2, start=(1, 2)), DatasetAppender(out, SIZES))
+    writer = DatasetAppender(out, SIZES)
+    assert writer.has_mark(a) and not writer.has_mark(b)
+    collect(feed, plan_steps([b], 2, start=(1, 2)), writer)
+    data = MomDataset.load(out)
+    assert data.n == 40 and len(np.unique(data.track)) == 2
+    assert (np.diff(data.frame) > 0).all()
+    with pytest.raises(MomlocError, match="recorded with cameras"):
+        DatasetAppender(out, np.array([[1280, 720]], np.int32))
+
+
+def _momloc(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "service.cli", *args], capture_output=True, text=True, check=False
+    )
+
+
+def test_synthetic_collect_cli_records_every_mark(tmp_path: Path) -> None:
+    out = tmp_path / "room.npz"
+    args = ["collect", "--source", "synthetic", "--preset", "indoor-2cam", "--seed", "3"]
+    result = _momloc(*args, "--grid", "2x2", "--seconds", "4", "--out", str(out))
+    assert result.returncode == 0, result.stderr
+    data = MomDataset.load(out)
+    marks = {(m.x, m.y) for m in grid_marks("2x2", "10x10")}
+    assert {tuple(p) for p in np.round(data.world.astype(float), 4)} == marks
+    assert data.n > 0.8 * 4 * 4 * 15  # 4 marks x 4 s x 15 fps, a few frames unseen
+    again = _momloc(*args, "--grid", "2x2", "--seconds", "4", "--out", str(out))
+    assert again.returncode == 0 and "already in" in again.stdout
+
+
+def test_collect_cli_errors_are_one_line(tmp_path: Path) -> None:
+    result = _momloc("collect", "--grid", "3x3", "--seconds", "5", "--out", str(tmp_path / "x"))
+    assert result.returncode == 2
+    assert result.stderr.strip().count("\n") == 0 and "--room" in result.stderr
