@@ -55,7 +55,7 @@ bench-setup: $(VENV)/.stamp-dev
 KP_VENV := .venv-keypoints
 $(KP_VENV)/.stamp: pyproject.toml
 	$(PYTHON) -m venv $(KP_VENV)
-	$(KP_VENV)/bin/python -m pip install --quiet -e '.[keypoints]' pytest pytest-timeout
+	$(KP_VENV)/bin/python -m pip install --quiet -e '.[keypoints]' pytest pytest-timeout scikit-image
 	touch $@
 
 test-keypoints: $(KP_VENV)/.stamp
