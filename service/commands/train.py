@@ -1,17 +1,59 @@
-"""`momloc train` (placeholder until its issue lands; the owner replaces this whole file)."""
+"""`momloc train DATA.npz --out MODEL_DIR`: fit a MoM model and write encoder.onnx + model.json.
+
+Torch is imported inside :func:`run` only, so the serving commands never load it.
+"""
 
 from __future__ import annotations
 
 import argparse
-
-from models.errors import MomlocError
+import json
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("train", help="(not yet available)")
-    parser.add_argument("rest", nargs=argparse.REMAINDER)
+    parser = subparsers.add_parser(
+        "train",
+        help="train a MoM model from a dataset file",
+        description="Train the MoM encoder (+ decoder) on a MoM dataset v1 file. Sizes, schedule "
+        "and early stopping adapt to the data; the progress bar shows the validation error.",
+    )
+    parser.add_argument("data", metavar="DATA.npz", help="MoM dataset v1 file")
+    parser.add_argument("--out", required=True, metavar="MODEL_DIR", help="output directory")
+    parser.add_argument(
+        "--observation",
+        choices=("bbox", "keypoints"),
+        default="bbox",
+        help="what the mean estimators are built from (default: bbox)",
+    )
+    parser.add_argument(
+        "--no-decoder",
+        dest="decoder",
+        action="store_false",
+        help="train without the decoder's reprojection loss (λ = 0)",
+    )
+    parser.add_argument(
+        "--epochs", type=int, default=None, help="maximum epochs (default: adaptive)"
+    )
+    parser.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    raise MomlocError("'momloc train' is not available yet")
+    from models.dataset import MomDataset
+    from models.train import train_model
+
+    data = MomDataset.load(args.data)
+    if not args.quiet:
+        print(f"momloc train: {args.data}: {data.summary()}")
+    metrics = train_model(
+        data,
+        args.out,
+        observation=args.observation,
+        decoder=args.decoder,
+        epochs=args.epochs,
+        seed=args.seed,
+        progress=not args.quiet,
+    )
+    summary = {k: v for k, v in metrics.items() if k != "val_history"}
+    print(json.dumps(summary))
+    return 0

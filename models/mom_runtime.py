@@ -1,0 +1,148 @@
+"""MoM serving runtime: onnxruntime + numpy only (no torch), loaded from a model directory.
+
+``localize`` builds the deterministic estimators (fixed draws from ``model.json``, see
+:mod:`models.sampling`) and runs the encoder once for the whole batch; the ONNX graph averages the
+D draws and returns metres. ``reproject`` applies the decoder's P̄_k (stored in pixel units) so
+association and camera-moved alerts need no torch either.
+
+Example::
+
+    runtime = MomRuntime.load("model/")
+    xy = runtime.localize(boxes)                       # [B, K, 4] pixels, NaN = unseen
+    err = runtime.reprojection_error(boxes, xy)        # [B, K] pixels
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from models.errors import MomlocError
+from models.sampling import InferenceSampler, SamplerConfig, draws_from_json, unit_mean
+
+MODEL_FORMAT = "mom-model-v1"  # same literal as models.export (which imports torch)
+
+
+class MomRuntime:
+    """A loaded model: encoder session, sampler, decoder matrices."""
+
+    def __init__(self, meta: dict, session, model_dir: Path) -> None:
+        self.meta = meta
+        self.model_dir = model_dir
+        self._session = session
+        self.num_cameras = int(meta["num_cameras"])
+        self.image_sizes = np.asarray(meta["image_sizes"], dtype=np.int32)
+        self.observation = str(meta["observation"])
+        self.sampler_config = SamplerConfig(**meta["sampler"])
+        self._sampler = InferenceSampler(self.sampler_config, draws_from_json(meta["draws"]))
+        self.decoder = np.asarray(meta["decoder"]["matrices"], dtype=np.float64)  # [K, 3, 4]
+
+    @classmethod
+    def load(cls, model_dir: str | os.PathLike[str], threads: int | None = None) -> MomRuntime:
+        """Read ``model.json`` and ``encoder.onnx``; any problem raises :class:`MomlocError`."""
+        import onnxruntime as ort
+
+        model_dir = Path(model_dir)
+        meta_path = model_dir / "model.json"
+        if not model_dir.is_dir():
+            raise MomlocError(f"{model_dir}: model directory does not exist")
+        if not meta_path.is_file():
+            raise MomlocError(f"{model_dir}: no model.json (not a trained model directory)")
+        try:
+            meta = json.loads(meta_path.read_text())
+        except (OSError, ValueError) as error:
+            raise MomlocError(f"{meta_path}: unreadable ({error})") from None
+        if not isinstance(meta, dict) or meta.get("format") != MODEL_FORMAT:
+            raise MomlocError(f"{meta_path}: not a MoM model description ({MODEL_FORMAT})")
+        onnx_path = model_dir / meta.get("encoder", {}).get("file", "encoder.onnx")
+        if not onnx_path.is_file():
+            raise MomlocError(f"{model_dir}: encoder file {onnx_path.name} is missing")
+        options = ort.SessionOptions()
+        if threads:
+            options.intra_op_num_threads = threads
+        try:
+            session = ort.InferenceSession(
+                str(onnx_path), options, providers=["CPUExecutionProvider"]
+            )
+        except Exception as error:  # onnxruntime raises its own exception types
+            raise MomlocError(f"{onnx_path}: cannot load the ONNX encoder ({error})") from None
+        try:
+            return cls(meta, session, model_dir)
+        except (KeyError, TypeError, ValueError) as error:
+            raise MomlocError(f"{meta_path}: malformed model description ({error})") from None
+
+    # ------------------------------------------------------------------ checks
+    def _check_boxes(self, boxes: np.ndarray) -> np.ndarray:
+        boxes = np.asarray(boxes, dtype=np.float32)
+        if boxes.ndim == 2:
+            boxes = boxes[None]
+        if boxes.ndim != 3 or boxes.shape[2] != 4:
+            raise MomlocError(f"boxes: shape {boxes.shape} is not [B, K, 4]")
+        if boxes.shape[1] != self.num_cameras:
+            raise MomlocError(
+                f"boxes have {boxes.shape[1]} cameras but the model was trained for "
+                f"{self.num_cameras} ({self.model_dir})"
+            )
+        return boxes
+
+    def encoder_inputs(
+        self, boxes: np.ndarray, keypoints: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The exact ONNX inputs: estimators [B, D, K, E, 2] and mask [B, K]."""
+        boxes = self._check_boxes(boxes)
+        if self.observation == "keypoints":
+            if keypoints is None:
+                raise MomlocError("this model uses keypoints: pass keypoints [B, K, J, 3]")
+            keypoints = np.asarray(keypoints, dtype=np.float32)
+            if keypoints.ndim == 3:
+                keypoints = keypoints[None]
+            if keypoints.shape[:2] != boxes.shape[:2] or keypoints.shape[-1] != 3:
+                raise MomlocError(f"keypoints: shape {keypoints.shape} is not [B, K, J, 3]")
+        return self._sampler(boxes, self.image_sizes, keypoints)
+
+    # ------------------------------------------------------------------ API
+    def localize(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
+        """Floor positions [B, 2] in metres; NaN for a row no camera sees."""
+        estimators, mask = self.encoder_inputs(boxes, keypoints)
+        if len(mask) == 0:
+            return np.zeros((0, 2), dtype=np.float32)
+        (world,) = self._session.run(None, {"estimators": estimators, "mask": mask})
+        world[mask.sum(axis=1) == 0] = np.nan
+        return world
+
+    def reproject(self, world: np.ndarray) -> np.ndarray:
+        """Pixels [B, K, 2] of the body's mean point for floor positions [B, 2] (decoder P̄_k)."""
+        world = np.asarray(world, dtype=np.float64).reshape(-1, 2)
+        homogeneous = np.c_[world, np.zeros(len(world)), np.ones(len(world))]
+        projected = np.einsum("kij,bj->bki", self.decoder, homogeneous)
+        denominator = projected[..., 2:]
+        denominator = np.where(np.abs(denominator) < 1e-9, 1e-9, denominator)
+        return (projected[..., :2] / denominator).astype(np.float32)
+
+    def observed_pixels(self, boxes: np.ndarray, keypoints: np.ndarray | None = None):
+        """Mean pixel per camera [B, K, 2] that the decoder predicts (NaN where unseen)."""
+        boxes = self._check_boxes(boxes)
+        if self.observation == "bbox":
+            return boxes[..., :2] + (boxes[..., 2:] - boxes[..., :2]) * unit_mean(
+                self.sampler_config
+            ).astype(np.float32)
+        from models.sampling import keypoint_visible
+
+        if keypoints is None:
+            raise MomlocError("this model uses keypoints: pass keypoints [B, K, J, 3]")
+        kp = np.asarray(keypoints, dtype=np.float32)
+        vis = keypoint_visible(kp)
+        total = np.where(vis[..., None], kp[..., :2], 0.0).sum(axis=-2)
+        mean = total / np.maximum(vis.sum(axis=-1, keepdims=True), 1)
+        return np.where(vis.any(-1)[..., None], mean, np.nan).astype(np.float32)
+
+    def reprojection_error(
+        self, boxes: np.ndarray, world: np.ndarray, keypoints: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Pixel distance [B, K] between each camera's observation and the reprojected world
+        point; NaN where the camera does not see the person."""
+        observed = self.observed_pixels(boxes, keypoints)
+        return np.linalg.norm(self.reproject(world) - observed, axis=-1)

@@ -1,0 +1,80 @@
+"""Serving runtime: localizes, reprojects, handles missing views and refuses wrong inputs."""
+
+import json
+import sys
+
+import numpy as np
+import pytest
+
+from models.errors import MomlocError
+from models.mom_runtime import MomRuntime
+from tests.models.mom_scene import make_dataset, trained_model
+
+
+def test_localize_and_reprojection_on_fresh_data():
+    out, _, _ = trained_model()
+    runtime = MomRuntime.load(out)
+    assert runtime.num_cameras == 2 and runtime.observation == "bbox"
+    assert runtime.image_sizes.tolist() == [[640, 480], [640, 480]]
+    data, _ = make_dataset(400, cameras=2, seed=21)
+    world = runtime.localize(data.boxes)
+    error = np.linalg.norm(world - data.world, axis=1)
+    assert np.median(error) < 0.25
+    # the decoder explains the observations: small error at the truth, large at a wrong place
+    good = runtime.reprojection_error(data.boxes, data.world)
+    bad = runtime.reprojection_error(data.boxes, data.world + 1.5)
+    assert np.isnan(good[~data.visible()]).all()
+    assert np.nanmedian(good) < 15 < np.nanmedian(bad)
+
+
+def test_results_do_not_depend_on_batch_composition():
+    out, _, _ = trained_model()
+    runtime = MomRuntime.load(out)
+    data, _ = make_dataset(64, cameras=2, seed=22)
+    full = runtime.localize(data.boxes)
+    one = np.stack([runtime.localize(data.boxes[i : i + 1])[0] for i in range(5)])
+    np.testing.assert_allclose(full[:5], one, atol=1e-6)
+    np.testing.assert_allclose(runtime.localize(data.boxes[::-1])[::-1], full, atol=1e-6)
+
+
+def test_missing_views():
+    out, _, _ = trained_model()
+    runtime = MomRuntime.load(out)
+    data, _ = make_dataset(300, cameras=2, seed=23)
+    boxes = data.boxes.copy()
+    boxes[:, 1] = np.nan
+    world = runtime.localize(boxes)
+    seen = np.isfinite(boxes[:, 0]).all(axis=1)
+    assert np.isfinite(world[seen]).all()
+    assert np.isnan(runtime.localize(np.full((1, 2, 4), np.nan))).all()
+
+
+def test_wrong_camera_count_and_bad_directories(tmp_path):
+    out, _, _ = trained_model()
+    runtime = MomRuntime.load(out)
+    with pytest.raises(MomlocError, match=r"3 cameras.*trained for 2"):
+        runtime.localize(np.zeros((1, 3, 4), np.float32))
+    with pytest.raises(MomlocError, match="does not exist"):
+        MomRuntime.load(tmp_path / "nothing")
+    with pytest.raises(MomlocError, match=r"no model\.json"):
+        MomRuntime.load(tmp_path)
+    (tmp_path / "model.json").write_text(json.dumps({"format": "other"}))
+    with pytest.raises(MomlocError, match="not a MoM model"):
+        MomRuntime.load(tmp_path)
+
+
+def test_keypoint_model_round_trip():
+    out, data, _ = trained_model("keypoints")
+    runtime = MomRuntime.load(out)
+    assert runtime.observation == "keypoints"
+    world = runtime.localize(data.boxes[:100], data.keypoints[:100])
+    assert np.median(np.linalg.norm(world - data.world[:100], axis=1)) < 0.3
+    with pytest.raises(MomlocError, match="keypoints"):
+        runtime.localize(data.boxes[:2])
+
+
+def test_runtime_does_not_import_torch():
+    import subprocess
+
+    code = "import sys, models.mom_runtime; sys.exit('torch' in sys.modules)"
+    assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0

@@ -1,0 +1,77 @@
+"""Training: it learns, splits without leakage, is reproducible, refuses bad inputs."""
+
+import json
+
+import numpy as np
+import pytest
+
+from models.errors import MomlocError
+from models.train import adaptive_settings, split_rows, train_model
+from service.cli import main
+from tests.models.mom_scene import make_dataset, trained_model
+
+
+def test_training_learns_the_scene():
+    out, data, metrics = trained_model()
+    spread = np.linalg.norm(data.world - data.world.mean(axis=0), axis=1).mean()
+    assert metrics["val_mean_m"] < 0.25 < spread  # far better than guessing the centre
+    meta = json.loads((out / "model.json").read_text())
+    assert meta["metrics"]["val_mean_m"] == metrics["val_mean_m"]
+    assert (out / "encoder.onnx").is_file() and (out / "model.pt").is_file()
+
+
+def test_split_keeps_runs_together_and_sizes_sane():
+    data, _ = make_dataset(1000, seed=2)
+    train, val = split_rows(data, 0.15, seed=0)
+    assert len(np.intersect1d(train, val)) == 0 and len(train) + len(val) == data.n
+    assert 0.08 < len(val) / data.n < 0.3
+    # validation rows come in runs of consecutive frames of one track
+    order = np.lexsort((data.frame[val], data.track[val]))
+    gaps = np.diff(data.frame[val][order])[np.diff(data.track[val][order]) == 0]
+    assert (gaps == 1).mean() > 0.8
+
+
+def test_adaptive_sizes_grow_with_data():
+    small, large = adaptive_settings(500, 2), adaptive_settings(80000, 9)
+    assert small.batch_size < large.batch_size and small.global_width < large.global_width
+    assert small.max_epochs >= large.max_epochs
+
+
+def test_same_seed_same_model(tmp_path):
+    data, _ = make_dataset(300, seed=5)
+    a = train_model(data, tmp_path / "a", epochs=3, seed=7, progress=False)
+    b = train_model(data, tmp_path / "b", epochs=3, seed=7, progress=False)
+    assert a["val_history"] == b["val_history"]
+
+
+def test_user_errors(tmp_path):
+    data, _ = make_dataset(300, seed=5)
+    with pytest.raises(MomlocError, match="keypoints"):
+        train_model(data, tmp_path / "k", observation="keypoints", progress=False)
+    with pytest.raises(MomlocError, match="at least"):
+        train_model(data.subset(np.arange(10)), tmp_path / "s", progress=False)
+
+
+def test_cli_train_writes_a_model(tmp_path, capsys):
+    data, _ = make_dataset(300, seed=6)
+    path = data.save(tmp_path / "data.npz")
+    code = main(["train", str(path), "--out", str(tmp_path / "m"), "--epochs", "2", "--quiet"])
+    assert code == 0
+    assert "val_mean_m" in json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    bad = tmp_path / "bad.npz"
+    bad.write_text("not a zip")
+    assert main(["train", str(bad), "--out", str(tmp_path / "x"), "--quiet"]) == 2
+    assert (
+        main(
+            [
+                "train",
+                str(path),
+                "--out",
+                str(tmp_path / "y"),
+                "--observation",
+                "keypoints",
+                "--quiet",
+            ]
+        )
+        == 2
+    )
