@@ -23,8 +23,8 @@ from models.simulate.skeleton import HEAD, MID_HIP, RADII, P
 _SHIRTS = [(40, 40, 200), (200, 90, 30), (40, 150, 40), (30, 160, 220), (150, 40, 150),
            (230, 230, 230), (60, 60, 60), (140, 100, 40), (90, 40, 180), (20, 110, 200),
            (180, 160, 60), (110, 60, 30)]  # fmt: skip
-_TROUSERS = [(90, 50, 30), (40, 40, 40), (110, 110, 110), (120, 160, 180), (70, 60, 50),
-             (130, 80, 40)]  # fmt: skip
+_TROUSERS = [(90, 50, 30), (40, 40, 40), (80, 80, 80), (60, 40, 25), (50, 45, 40),
+             (110, 70, 40)]  # fmt: skip
 _SKIN = [(170, 200, 240), (140, 175, 225), (110, 145, 200), (80, 110, 160), (60, 80, 120)]
 _HAIR = [(20, 20, 25), (30, 45, 70), (60, 100, 150), (120, 120, 130), (40, 30, 30)]
 _SHOES = [(25, 25, 25), (240, 240, 240), (30, 50, 90)]
@@ -160,8 +160,13 @@ def draw_people(
             colour = look[part] * shade
             poly = _hull(px[idx], r[idx])
             cv2.fillConvexPoly(image, poly, colour.tolist(), cv2.LINE_AA, 4)
-            if part in ("shirt", "trousers") and r[idx].max() > 3:
+            if r[idx].max() > 2.5:
                 cv2.polylines(image, [poly], True, (colour * 0.55).tolist(), 1, cv2.LINE_AA, 4)
+            if r[idx].max() > 4:  # a lit stripe toward the lamp gives the part some roundness
+                lit = _hull(px[idx] - [0.25, 0.35] * r[idx][:, None], r[idx] * 0.45)
+                cv2.fillConvexPoly(
+                    image, lit, np.clip(colour * 1.18 + 12, 0, 255).tolist(), cv2.LINE_AA, 4
+                )
         _head(image, px, r, d, look)
 
 
@@ -178,7 +183,7 @@ def _head(image: np.ndarray, px: np.ndarray, r: np.ndarray, d: np.ndarray,
     if d[P["nose"]] < d[HEAD]:  # facing the camera
         disc(centre, radius, hair)
         disc(crown, r[P["crown"]] * 1.1, hair)
-        face = 0.65 * centre + 0.35 * px[P["nose"]]
+        face = 0.75 * centre + 0.25 * px[P["nose"]]
         disc(face, radius * 0.85, look["skin"].tolist())
         eyes = [P["left_eye"], P["right_eye"]]
         if radius > 6 and (d[eyes] < d[HEAD]).all():
@@ -193,7 +198,7 @@ def _head(image: np.ndarray, px: np.ndarray, r: np.ndarray, d: np.ndarray,
 def _shadow(image: np.ndarray, camera: PinholeCamera, floor: np.ndarray, height: float) -> None:
     """A soft dark ellipse on the floor under the person (darkens, does not paint)."""
     ring = np.zeros((12, 3))
-    ring[:, :2] = floor[:2] + 0.17 * height * _CIRCLE
+    ring[:, :2] = floor[:2] + 0.14 * height * _CIRCLE
     pixels, depth = camera.project_depth(ring)
     if (depth <= NEAR).any():
         return
@@ -205,7 +210,7 @@ def _shadow(image: np.ndarray, camera: PinholeCamera, floor: np.ndarray, height:
     mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
     cv2.fillConvexPoly(mask, poly - [x0, y0], 1)
     roi = image[y0:y1, x0:x1]
-    roi[mask > 0] = (roi[mask > 0] * 0.7).astype(np.uint8)
+    roi[mask > 0] = (roi[mask > 0] * 0.8).astype(np.uint8)
 
 
 class Renderer:
