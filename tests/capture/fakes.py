@@ -1,0 +1,86 @@
+"""Test doubles for camera faults, and real MJPG files written with OpenCV."""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from models.errors import MomlocError
+
+
+def write_mjpg(path: Path, frames: int = 12, size=(640, 480), fps: float = 30.0) -> Path:
+    """An MJPG AVI whose frame i is a uniform grey of level 10 + 20 * i (readable after JPEG)."""
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*"MJPG"), fps, size)
+    assert writer.isOpened(), "OpenCV cannot write MJPG AVI here"
+    for i in range(frames):
+        writer.write(np.full((size[1], size[0], 3), 10 + 20 * i, np.uint8))
+    writer.release()
+    return path
+
+
+def frame_number(image: np.ndarray) -> int:
+    return round((float(image.mean()) - 10) / 20)
+
+
+class FaultySource:
+    """A camera at ``fps`` whose faults tests switch on and off from outside.
+
+    - ``paused``: stops delivering; ``read()`` waits up to ``read_timeout`` then returns None,
+      like a V4L2 select timeout;
+    - ``fail_reads``: the next N reads raise;
+    - ``gone``: unplugged: ``read()`` returns None at once and ``open()`` raises.
+    """
+
+    def __init__(self, name: str = "fake", fps: float = 100.0, read_timeout: float = 0.2):
+        self.name, self.fps, self.read_timeout = name, fps, read_timeout
+        self.paused = threading.Event()
+        self.gone = threading.Event()
+        self.fail_reads = 0
+        self.reads = 0  # frames delivered
+        self.opens = 0  # open attempts, failed ones included
+        self.is_open = False
+        self._next = time.monotonic()
+
+    def open(self) -> None:
+        self.opens += 1
+        if self.gone.is_set():
+            raise MomlocError(f"camera {self.name}: no such device")
+        self.is_open = True
+        self._next = time.monotonic()
+
+    def read(self) -> np.ndarray | None:
+        assert self.is_open, "read() on a closed source"
+        if self.gone.is_set():
+            return None
+        if self.fail_reads > 0:
+            self.fail_reads -= 1
+            raise RuntimeError("boom")
+        if self.paused.is_set():
+            time.sleep(self.read_timeout)
+            if self.paused.is_set():
+                return None
+        self._next += 1.0 / self.fps
+        delay = self._next - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+        else:
+            self._next = time.monotonic()
+        self.reads += 1
+        return np.full((4, 4, 3), self.reads % 256, np.uint8)
+
+    def close(self) -> None:
+        self.is_open = False
+
+
+def wait_until(predicate, timeout: float = 10.0, step: float = 0.005) -> bool:
+    """Poll ``predicate`` until true or ``timeout`` (a liveness bound, not a timing test)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(step)
+    return bool(predicate())

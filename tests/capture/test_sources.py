@@ -1,0 +1,71 @@
+"""Video-file and V4L2 sources through the real OpenCV decoding path (no webcam needed)."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from capture import FrameSource, V4L2Source, VideoFileSource, open_source
+from models.errors import MomlocError
+from tests.capture.fakes import FaultySource, frame_number, write_mjpg
+
+
+def test_video_file_decodes_every_frame_in_order_and_loops(tmp_path):
+    source = VideoFileSource(write_mjpg(tmp_path / "cam.avi", frames=12), pace=False)
+    assert isinstance(source, FrameSource)
+    source.open()
+    images = [source.read() for _ in range(30)]
+    source.close()
+    assert all(image.shape == (480, 640, 3) and image.dtype == np.uint8 for image in images)
+    assert [frame_number(image) for image in images] == [i % 12 for i in range(30)]
+    assert source.fps == 30.0 and source.last_seq == 29
+
+
+def test_video_file_without_loop_ends_with_none(tmp_path):
+    source = VideoFileSource(write_mjpg(tmp_path / "cam.avi", frames=3), loop=False, pace=False)
+    source.open()
+    assert [frame_number(source.read()) for _ in range(3)] == [0, 1, 2]
+    assert source.read() is None
+    source.close()
+    source.close()  # idempotent
+
+
+def test_video_file_is_paced_to_real_time(tmp_path):
+    source = VideoFileSource(write_mjpg(tmp_path / "cam.avi", frames=12), fps=50.0)
+    source.open()
+    start = time.monotonic()
+    for _ in range(11):
+        source.read()
+    elapsed = time.monotonic() - start
+    source.close()
+    assert elapsed >= 10 / 50.0 - 0.005  # never faster than the frame rate (lower bound only)
+
+
+def test_file_errors_are_one_line(tmp_path):
+    with pytest.raises(MomlocError, match="not found"):
+        VideoFileSource(tmp_path / "absent.avi").open()
+    garbage = tmp_path / "garbage.avi"
+    garbage.write_bytes(b"this is not a video" * 100)
+    source = VideoFileSource(garbage)
+    with pytest.raises(MomlocError, match="cannot be opened"):
+        source.open()
+    assert source.read() is None
+
+
+def test_v4l2_source_reports_missing_devices(tmp_path):
+    with pytest.raises(MomlocError, match="no such device"):
+        V4L2Source(str(tmp_path / "video9")).open()
+    source = V4L2Source(63)  # this machine (and CI) has no /dev/video63
+    with pytest.raises(MomlocError, match="cannot open"):
+        source.open()
+    assert source.read() is None and source.name == "video63"
+
+
+def test_open_source_picks_the_kind(tmp_path):
+    assert isinstance(open_source(0), V4L2Source)
+    assert isinstance(open_source("2"), V4L2Source)
+    assert isinstance(open_source("/dev/v4l/by-id/usb-cam-index0"), V4L2Source)
+    assert isinstance(open_source(str(tmp_path / "a.avi")), VideoFileSource)
+    assert isinstance(FaultySource(), FrameSource)

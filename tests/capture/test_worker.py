@@ -1,0 +1,125 @@
+"""CameraWorker: newest-frame slot, real decoding path, watchdog, reconnect with back-off."""
+
+from __future__ import annotations
+
+import itertools
+import time
+
+import pytest
+
+from capture import CameraWorker, VideoFileSource
+from tests.capture.fakes import FaultySource, frame_number, wait_until, write_mjpg
+
+
+@pytest.fixture
+def workers():
+    started: list[CameraWorker] = []
+
+    def make(source, **options) -> CameraWorker:
+        worker = CameraWorker(source, camera=len(started), **options)
+        started.append(worker)
+        worker.start()
+        return worker
+
+    yield make
+    for worker in started:
+        worker.stop()
+
+
+def test_mjpg_file_frames_flow_through_the_worker(tmp_path, workers):
+    worker = workers(VideoFileSource(write_mjpg(tmp_path / "cam.avi"), fps=100.0))
+    seen = []
+    frame = None
+    while len(seen) < 20:
+        frame = worker.wait_for_frame(frame.seq if frame else -1, timeout=10.0)
+        assert frame is not None, "no frame within 10 s"
+        seen.append(frame)
+    assert all(f.image.shape == (480, 640, 3) for f in seen)
+    assert all(b.seq > a.seq and b.timestamp >= a.timestamp for a, b in itertools.pairwise(seen))
+    # Decoded content follows the file (frames may be skipped, never reordered within a loop).
+    numbers = [frame_number(f.image) for f in seen]
+    assert all(0 <= n < 12 for n in numbers)
+    state = worker.state()
+    assert state.connected and state.error is None and state.fps > 0 and state.frames >= 20
+    assert abs(time.time() - seen[-1].timestamp) < 60  # wall clock, not monotonic
+
+
+def test_slow_consumer_gets_the_newest_frame_never_a_queue(workers):
+    source = FaultySource(fps=200.0)
+    worker = workers(source)
+    assert worker.wait_for_frame(timeout=10.0) is not None
+    for _ in range(3):
+        time.sleep(0.3)  # a consumer far slower than the camera
+        produced = source.reads
+        frame = worker.latest()
+        assert frame.seq >= produced - 2  # the newest (or the one being published), not old
+    assert worker.state().frames > 3 * 10
+
+
+def test_stall_is_reported_within_two_intervals_and_recovers(workers):
+    source = FaultySource(fps=50.0, read_timeout=0.3)
+    worker = workers(source, min_stall=0.0)
+    assert wait_until(lambda: worker.state().frames > 30)
+    assert worker.stall_timeout() == pytest.approx(2 / worker.state().fps, rel=1e-6)
+    source.paused.set()
+    assert wait_until(lambda: not worker.state().connected)
+    state = worker.state()
+    # Whenever it says disconnected, the last frame is older than two intervals (and vice versa).
+    assert state.last_frame_age > worker.stall_timeout() * 0.999
+    assert "stalled" in state.error or "no frame" in state.error
+    assert wait_until(lambda: worker.state().stalls >= 1)
+    assert wait_until(lambda: source.opens >= 2)  # the read timed out: closed and reopened
+    source.paused.clear()
+    assert wait_until(lambda: worker.state().connected)
+    assert worker.state().reconnects >= 1
+
+
+def test_connected_always_means_a_fresh_frame(workers):
+    source = FaultySource(fps=100.0, read_timeout=0.05)
+    worker = workers(source)
+    deadline = time.monotonic() + 1.0
+    while time.monotonic() < deadline:
+        source.paused.set() if int(time.monotonic() * 10) % 3 == 0 else source.paused.clear()
+        state = worker.state()
+        if state.connected:
+            assert state.last_frame_age <= max(worker.stall_timeout(), 0.1) + 1e-6
+        time.sleep(0.003)
+
+
+def test_read_errors_reopen_the_source(workers):
+    source = FaultySource(fps=100.0)
+    worker = workers(source)
+    first = worker.wait_for_frame(timeout=10.0)
+    source.fail_reads = 3
+    assert wait_until(lambda: worker.state().reconnects >= 3)
+    frame = worker.wait_for_frame(first.seq + 5, timeout=10.0)
+    assert frame is not None and worker.state().connected
+    assert source.opens >= 4
+
+
+def test_vanished_camera_comes_back_and_others_keep_running(workers):
+    flaky, steady = FaultySource("flaky"), FaultySource("steady")
+    a = workers(flaky, backoff=0.05, max_backoff=0.2)
+    b = workers(steady)
+    assert a.wait_for_frame(timeout=10.0) and b.wait_for_frame(timeout=10.0)
+    flaky.gone.set()
+    assert wait_until(lambda: "open failed" in (a.state().error or ""))
+    before = b.latest().seq
+    time.sleep(0.6)
+    assert b.latest().seq > before + 10 and b.state().connected  # unaffected
+    assert not a.state().connected
+    attempts = flaky.opens
+    assert 2 <= attempts <= 12  # retried with back-off, not in a busy loop
+    flaky.gone.clear()
+    last = a.latest().seq
+    assert a.wait_for_frame(last, timeout=10.0) is not None
+    assert a.state().connected and a.state().reconnects == 1 and a.state().error is None
+
+
+def test_stop_closes_the_source(workers):
+    source = FaultySource()
+    worker = workers(source)
+    assert worker.wait_for_frame(timeout=10.0)
+    worker.stop()
+    assert not source.is_open
+    assert not any(t.is_alive() for t in worker._threads)
