@@ -1,0 +1,48 @@
+"""`momloc detect` on real photographs, through the real CLI entry point."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+
+from models.detector.preprocessing import box_iou
+from models.detector.validation import background, person_frame
+from service.cli import main
+
+
+def test_detect_prints_boxes_and_writes_annotated_copies(tmp_path, capsys):
+    frame, truth = person_frame("camera", 300, (0.3, 1.0))
+    person = tmp_path / "snapshot.png"
+    empty = tmp_path / "empty.png"
+    cv2.imwrite(str(person), frame)
+    cv2.imwrite(str(empty), background())
+    assert main(["detect", str(person), str(empty)]) == 0
+    out = capsys.readouterr().out
+    assert f"{person}: 1 person (640x480)" in out and f"{empty}: 0 people" in out
+    annotated = cv2.imread(str(tmp_path / "snapshot.detections.jpg"))
+    assert annotated.shape == frame.shape
+    assert np.abs(annotated.astype(int) - frame).max() > 100  # the box was drawn
+    assert (tmp_path / "empty.detections.jpg").is_file()
+
+    out_dir = tmp_path / "out"
+    assert main(["detect", "--json", "--out-dir", str(out_dir), str(person)]) == 0
+    record = json.loads(capsys.readouterr().out)
+    assert record["width"] == 640 and len(record["boxes"]) == 1
+    assert box_iou(truth, np.array(record["boxes"]))[0, 0] > 0.6
+    assert record["annotated"] == str(out_dir / "snapshot.detections.jpg")
+    assert (out_dir / "snapshot.detections.jpg").is_file()
+
+
+def test_detect_errors_are_one_line(tmp_path, capsys):
+    bad = tmp_path / "bad.jpg"
+    bad.write_bytes(b"no jpeg here")
+    assert main(["detect", str(bad)]) == 2
+    assert "not a readable image" in capsys.readouterr().err
+    assert main(["detect", str(tmp_path / "absent.jpg")]) == 2
+    assert "not found" in capsys.readouterr().err
+    frame = tmp_path / "f.png"
+    cv2.imwrite(str(frame), background())
+    assert main(["detect", "--detector", "yolov8", str(frame)]) == 2
+    assert "model_path" in capsys.readouterr().err
