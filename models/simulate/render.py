@@ -233,6 +233,11 @@ class Renderer:
         return cached[1]
 
     def frame(self, camera: PinholeCamera, points: np.ndarray, heights: np.ndarray) -> np.ndarray:
-        image = self.background(camera).copy()
+        return self.draw(self.background(camera), camera, points, heights)
+
+    def draw(self, background: np.ndarray, camera: PinholeCamera, points: np.ndarray,
+             heights: np.ndarray) -> np.ndarray:  # fmt: skip
+        """A copy of ``background`` with the people painted in."""
+        image = background.copy()
         draw_people(image, camera, points, heights, self.looks)
         return image

@@ -15,6 +15,7 @@ force at that frame.
 from __future__ import annotations
 
 import itertools
+import threading
 from collections import OrderedDict
 from dataclasses import dataclass, field
 
@@ -122,6 +123,9 @@ class Scene:
             )
         self._blocks: OrderedDict[int, dict[str, np.ndarray]] = OrderedDict()
         self._renderer = None
+        # Camera workers of a live demo may share one scene: the walker cache and block cache
+        # are filled lazily, so those fills are serialised.
+        self._lock = threading.RLock()
 
     @property
     def fps(self) -> float:
@@ -171,26 +175,38 @@ class Scene:
 
         if not 0 <= camera_index < self.num_cameras:
             raise MomlocError(f"camera {camera_index} not in 0..{self.num_cameras - 1}")
-        if self._renderer is None:
-            looks = appearance(np.random.default_rng([self.seed, 2]), self.config.people)
-            self._renderer = Renderer(
-                self.config.room, self.config.wall_height, looks, self.config.outdoor
-            )
-        camera = self.cameras_at(frame_index)[camera_index]
-        return self._renderer.frame(camera, self.body_points(frame_index), self.walkers.heights)
+        with self._lock:
+            if self._renderer is None:
+                looks = appearance(np.random.default_rng([self.seed, 2]), self.config.people)
+                self._renderer = Renderer(
+                    self.config.room, self.config.wall_height, looks, self.config.outdoor
+                )
+            camera = self.cameras_at(frame_index)[camera_index]
+            points = self.body_points(frame_index)
+            background = self._renderer.background(camera)
+        return self._renderer.draw(background, camera, points, self.walkers.heights)
 
     def body_points(self, frame_index: int) -> np.ndarray:
         """World points [P, NUM_POINTS, 3] of every body (joints, then auxiliary points)."""
-        states = self.walkers.states(frame_index, frame_index + 1)
+        with self._lock:
+            states = self.walkers.states(frame_index, frame_index + 1)
         return body_points(
             states.position, states.heading, states.phase, states.amplitude, self.walkers.heights
         )[0]
 
     def observe_block(self, block: int) -> dict[str, np.ndarray]:
         """Frames ``BLOCK * block`` .. ``BLOCK * (block + 1) - 1`` at once, arrays [F, P, ...]."""
-        if block in self._blocks:
-            self._blocks.move_to_end(block)
-            return self._blocks[block]
+        with self._lock:
+            if block in self._blocks:
+                self._blocks.move_to_end(block)
+                return self._blocks[block]
+            out = self._compute_block(block)
+            self._blocks[block] = out
+            while len(self._blocks) > 2:
+                self._blocks.popitem(last=False)
+            return out
+
+    def _compute_block(self, block: int) -> dict[str, np.ndarray]:
         start = block * BLOCK
         states = self.walkers.states(start, start + BLOCK)
         points = body_points(
@@ -233,17 +249,13 @@ class Scene:
             self.config.noise,
             rng,
         )
-        out = {
+        return {
             "world": states.position,
             "joints": points[:, :, :17],
             "boxes": boxes.transpose(0, 2, 1, 3),
             "keypoints": keypoints.transpose(0, 2, 1, 3, 4),
             "true_boxes": true_boxes.transpose(0, 2, 1, 3),
         }
-        self._blocks[block] = out
-        while len(self._blocks) > 2:
-            self._blocks.popitem(last=False)
-        return out
 
     def _camera_arrays(self, start: int, stop: int) -> tuple[np.ndarray, ...]:
         """Per frame and camera: K [F,K,3,3], R [F,K,3,3], t [F,K,3], distortion [F,K,2]."""
