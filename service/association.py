@@ -122,7 +122,19 @@ def _match_two(
     cost, worst = _score(tuples, runtime)
     shape = (len(detections[a]), len(detections[b]))
     gated = np.where(worst <= gate, cost, _BLOCKED).reshape(shape)
-    rows, cols = linear_sum_assignment(gated)
+    # Leaving a detection unmatched (a single-view person) costs gate / 2, so a pair is only
+    # worth matching when its RMS error is below the gate, and two marginal wrong pairs never
+    # beat one good pair plus two single-view people (a plain rectangular assignment would
+    # maximise the number of pairs instead).
+    n, m = shape
+    square = np.full((n + m, m + n), _BLOCKED)
+    square[:n, :m] = gated
+    square[np.arange(n), m + np.arange(n)] = gate / 2
+    square[n + np.arange(m), np.arange(m)] = gate / 2
+    square[n:, m:] = 0.0
+    rows, cols = linear_sum_assignment(square)
+    keep = (rows < n) & (cols < m)
+    rows, cols = rows[keep], cols[keep]
     clusters: list[list[int | None]] = []
     used_a, used_b = set(), set()
     for r, c in zip(rows, cols, strict=True):
