@@ -9,9 +9,10 @@ newest. Policies, in one place:
 - **Timestamps** are wall-clock (``time.time()``) at capture: the source's ``last_timestamp`` if
   it has one (V4L2 stamps after ``grab()``, before MJPG decoding), else when ``read()`` returned.
 - **Watchdog.** The expected frame interval is measured (nominal ``source.fps`` until enough
-  frames came). A camera with no frame for ``stall_intervals`` (2) intervals, but at least
-  ``min_stall`` seconds (scheduling jitter on a busy 2-core machine), is reported stalled at once
-  by :meth:`CameraWorker.state` and counted by the watchdog thread.
+  frames came). A camera with no frame for ``stall_intervals`` (2) intervals (but at least
+  ``min_stall`` = 50 ms, so a 60 fps camera is not flagged by scheduling jitter) is reported
+  stalled at once by :meth:`CameraWorker.state` and counted by the watchdog thread. Being
+  flagged does not by itself reopen the camera: a late frame is still a good frame.
 - **Reconnect with back-off.** When ``read()`` returns ``None`` or raises (device unplugged,
   stream over, read timeout), the worker closes the source and reopens it: first at once, then
   after ``backoff`` seconds doubling up to ``max_backoff`` while it keeps failing. A failing
@@ -74,7 +75,7 @@ class CameraWorker:
         camera: int = 0,
         *,
         stall_intervals: float = 2.0,
-        min_stall: float = 0.1,
+        min_stall: float = 0.05,
         backoff: float = 0.1,
         max_backoff: float = 1.0,
     ) -> None:
