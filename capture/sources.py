@@ -49,8 +49,11 @@ class V4L2Source:
     one-frame driver buffer (``CAP_PROP_BUFFERSIZE`` 1) keeps the frame we get the newest one.
     ``device`` is an index, ``/dev/videoN`` or, better for rigs, a stable
     ``/dev/v4l/by-id/...`` path (indices can change when a camera is replugged).
-    Reads time out after ``read_timeout`` seconds (OpenCV's select timeout) so a camera that
-    stops delivering is noticed rather than blocking forever.
+    Reads time out after ``read_timeout`` seconds so a camera that stops delivering makes
+    ``read()`` return None (and the worker reopen it) instead of blocking: OpenCV's V4L2 backend
+    ignores ``CAP_PROP_READ_TIMEOUT_MSEC`` and waits ``OPENCV_VIDEOIO_V4L_SELECT_TIMEOUT`` whole
+    seconds (default 10), read once per process, so we set that variable (if unset) before the
+    first capture opens.
     """
 
     def __init__(
@@ -90,9 +93,6 @@ class V4L2Source:
         capture.set(cv2.CAP_PROP_FRAME_HEIGHT, self.height)
         capture.set(cv2.CAP_PROP_FPS, self.fps)
         capture.set(cv2.CAP_PROP_BUFFERSIZE, 1)
-        timeout = getattr(cv2, "CAP_PROP_READ_TIMEOUT_MSEC", None)
-        if timeout is not None:
-            capture.set(timeout, self.read_timeout * 1000.0)
         code = int(capture.get(cv2.CAP_PROP_FOURCC))
         self.negotiated = {
             "fourcc": "".join(chr((code >> (8 * i)) & 0xFF) for i in range(4)),
