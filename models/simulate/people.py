@@ -12,6 +12,7 @@ random-access and reproducible for a given seed regardless of the order of calls
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,6 +23,7 @@ TURN_RATE = 2.6  # rad/s
 ACCELERATION = 1.5  # m/s²
 SEPARATION = 0.5  # metres
 _CHUNK = 512
+_KEEP = 128  # chunks kept in memory (65536 frames)
 
 
 @dataclass(frozen=True)
@@ -53,7 +55,11 @@ class Walkers:
         self._phase = rng.uniform(0, 2 * np.pi, count)
         self._pause = np.zeros(count)
         self._look = self._heading.copy()
-        self._chunks: list[np.ndarray] = []  # each [CHUNK, P, 5]: x, y, heading, phase, amplitude
+        # Chunks of [CHUNK, P, 5] (x, y, heading, phase, amplitude). A long-running demo would
+        # grow them without bound, so only the newest _KEEP stay in memory; older ones are
+        # replayed from the state saved at their start (a few hundred bytes each).
+        self._chunks: dict[int, np.ndarray] = {}
+        self._checkpoints: list[tuple] = []
 
     def _random_points(self, n: int) -> np.ndarray:
         width, depth = self.room
@@ -101,16 +107,40 @@ class Walkers:
         ) % (2 * np.pi)
         return np.column_stack([self._pos, self._heading, self._phase, amplitude])
 
-    def _extend(self, frames: int) -> None:
-        while len(self._chunks) * _CHUNK < frames:
-            self._chunks.append(np.stack([self._step() for _ in range(_CHUNK)]))
+    def _save(self) -> tuple:
+        arrays = (self._pos, self._target, self._heading, self._speed, self._phase, self._pause,
+                  self._look)  # fmt: skip
+        return (*(a.copy() for a in arrays), copy.deepcopy(self._rng.bit_generator.state))
+
+    def _restore(self, saved: tuple) -> None:
+        (self._pos, self._target, self._heading, self._speed, self._phase, self._pause,
+         self._look) = (a.copy() for a in saved[:-1])  # fmt: skip
+        self._rng.bit_generator.state = copy.deepcopy(saved[-1])
+
+    def _integrate(self) -> np.ndarray:
+        return np.stack([self._step() for _ in range(_CHUNK)])
+
+    def _chunk(self, index: int) -> np.ndarray:
+        if index in self._chunks:
+            return self._chunks[index]
+        if index < len(self._checkpoints):  # evicted: replay it, then resume where we were
+            live = self._save()
+            self._restore(self._checkpoints[index])
+            data = self._integrate()
+            self._restore(live)
+            return data
+        while len(self._checkpoints) <= index:
+            self._checkpoints.append(self._save())
+            self._chunks[len(self._checkpoints) - 1] = self._integrate()
+            if len(self._chunks) > _KEEP:
+                del self._chunks[min(self._chunks)]
+        return self._chunks[index]
 
     def states(self, start: int, stop: int) -> WalkerStates:
         """States of frames ``start`` .. ``stop - 1``."""
         if start < 0 or stop <= start:
             raise ValueError(f"bad frame range {start}..{stop}")
-        self._extend(stop)
         first, last = start // _CHUNK, (stop - 1) // _CHUNK
-        block = np.concatenate(self._chunks[first : last + 1])
+        block = np.concatenate([self._chunk(i) for i in range(first, last + 1)])
         block = block[start - first * _CHUNK : stop - first * _CHUNK]
         return WalkerStates(block[..., :2], block[..., 2], block[..., 3], block[..., 4])

@@ -185,3 +185,23 @@ def test_cli_writes_valid_file_and_prints_summary(tmp_path: Path) -> None:
     bad_cmd = [*cmd[:5], "nope", *cmd[6:]]
     bad = subprocess.run(bad_cmd, capture_output=True, text=True, check=False)
     assert bad.returncode == 2 and "available:" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def test_walker_cache_is_bounded_and_replays_evicted_frames(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import models.simulate.people as people
+
+    monkeypatch.setattr(people, "_KEEP", 2)
+    reference = people.Walkers((10, 10), 3, 15.0, np.random.default_rng(1)).states(0, 3000)
+    walkers = people.Walkers((10, 10), 3, 15.0, np.random.default_rng(1))
+    late = walkers.states(2500, 3000)  # integrates chunks 0..5, keeps only 4 and 5
+    assert len(walkers._chunks) == 2
+    early = walkers.states(100, 700)  # chunks 0 and 1 are replayed from their checkpoints
+    again = walkers.states(2999, 3000)
+    np.testing.assert_array_equal(late.position, reference.position[2500:])
+    np.testing.assert_array_equal(early.phase, reference.phase[100:700])
+    np.testing.assert_array_equal(again.heading, reference.heading[2999:])
+    speed = np.linalg.norm(np.diff(reference.position, axis=0), axis=-1) * 15.0
+    assert speed.max() < 2.0 and 0.5 < np.median(speed) < 1.6  # walking, no jumps
+    assert (reference.position > 0).all() and (reference.position < 10).all()
