@@ -46,6 +46,8 @@ class CameraRig:
         self, workers: Sequence[CameraWorker], max_skew: float = 0.05, max_age: float = 1.0
     ) -> None:
         self.workers = list(workers)
+        for index, worker in enumerate(self.workers):
+            worker.camera = index  # frames carry their position in the rig
         self.max_skew, self.max_age = float(max_skew), float(max_age)
 
     def start(self) -> None:

@@ -238,7 +238,9 @@ class CameraWorker:
 
     def _measured_fps(self, now: float | None = None) -> float:
         now = time.time() if now is None else now
-        recent = [t for t in list(self._stamps) if now - t <= FPS_WINDOW]
+        with self._cond:
+            stamps = list(self._stamps)
+        recent = [t for t in stamps if now - t <= FPS_WINDOW]
         if len(recent) < 3:
             return 0.0
         span = recent[-1] - recent[0]

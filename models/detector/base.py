@@ -21,6 +21,7 @@ Example::
 
 from __future__ import annotations
 
+import inspect
 import os
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
@@ -32,7 +33,7 @@ import numpy as np
 from models.errors import MomlocError
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Detections:
     """People found in one frame.
 
@@ -103,9 +104,10 @@ def create_detector(kind: str = "ssdlite", **options: object) -> PersonDetector:
             f"detector type {kind!r} is unknown (choose one of: {', '.join(sorted(_REGISTRY))})"
         ) from None
     try:
-        detector = factory(**options)
+        inspect.signature(factory).bind(**options)
     except TypeError as error:
         raise MomlocError(f"detector {kind!r}: bad option ({error})") from None
+    detector = factory(**options)
     if keypoints:
         from models.keypoints import KeypointDetector
 
