@@ -55,11 +55,14 @@ def project_points(
     rotation: np.ndarray,
     translation: np.ndarray,
     distortion: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
+    with_scale: bool = False,
+) -> tuple[np.ndarray, ...]:
     """Vectorised projection; camera arrays broadcast against the points' leading dimensions.
 
     ``points`` [..., 3]; ``intrinsics`` and ``rotation`` [..., 3, 3]; ``translation`` [..., 3];
-    ``distortion`` [..., 2]. Returns pixels [..., 2] and depth [...] (camera z, metres).
+    ``distortion`` [..., 2]. Returns pixels [..., 2] and depth [...] (camera z, metres), and with
+    ``with_scale`` the local distortion magnification [...] (1 + k1 r² + k2 r⁴), which scales the
+    projected size of a small sphere at the point.
     """
     cam = np.einsum("...ij,...j->...i", rotation, points) + translation
     depth = cam[..., 2]
@@ -67,11 +70,14 @@ def project_points(
     normalised = cam[..., :2] / safe[..., None]
     r2 = (normalised**2).sum(-1)
     k1, k2 = distortion[..., 0], distortion[..., 1]
-    normalised = normalised * (1.0 + k1 * r2 + k2 * r2 * r2)[..., None]
+    magnification = 1.0 + k1 * r2 + k2 * r2 * r2
+    normalised = normalised * magnification[..., None]
     fx, fy = intrinsics[..., 0, 0], intrinsics[..., 1, 1]
     cx, cy, skew = intrinsics[..., 0, 2], intrinsics[..., 1, 2], intrinsics[..., 0, 1]
     u = fx * normalised[..., 0] + skew * normalised[..., 1] + cx
     v = fy * normalised[..., 1] + cy
+    if with_scale:
+        return np.stack([u, v], axis=-1), depth, magnification
     return np.stack([u, v], axis=-1), depth
 
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from models.simulate.camera import NEAR, PinholeCamera
+from models.simulate.camera import NEAR, PinholeCamera, project_points
 from models.simulate.skeleton import HEAD, MID_HIP, RADII, P
 
 _SHIRTS = [(40, 40, 200), (200, 90, 30), (40, 150, 40), (30, 160, 220), (150, 40, 150),
@@ -139,8 +139,10 @@ def draw_people(
     looks: list[dict[str, np.ndarray]],
 ) -> None:
     """Paint people [P, M, 3] (world points) into ``image`` in place, far to near."""
-    pixels, depth = camera.project_depth(points)
-    radius = camera.K[0, 0] * RADII[None, :] * heights[:, None] / np.maximum(depth, NEAR)
+    pixels, depth, magnification = project_points(
+        points, camera.K, camera.R, camera.t, np.asarray(camera.distortion), with_scale=True
+    )
+    radius = camera.K[0, 0] * RADII * heights[:, None] * magnification / np.maximum(depth, NEAR)
     order = np.argsort(-depth[:, MID_HIP])
     h, w = image.shape[:2]
     for person in order:

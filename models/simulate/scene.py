@@ -213,16 +213,17 @@ class Scene:
             states.position, states.heading, states.phase, states.amplitude, self.walkers.heights
         )  # [F, P, M, 3]
         intr, rot, trans, dist = self._camera_arrays(start, start + BLOCK)
-        pixels, depth = project_points(
+        pixels, depth, magnification = project_points(
             points[:, None],
             intr[:, :, None, None],
             rot[:, :, None, None],
             trans[:, :, None, None],
             dist[:, :, None, None],
-        )  # [F, K, P, M, 2], [F, K, P, M]
+            with_scale=True,
+        )  # [F, K, P, M, 2], [F, K, P, M], [F, K, P, M]
         front = depth > NEAR
         radius = RADII * self.walkers.heights[:, None]  # [P, M]
-        rho = intr[:, :, None, None, 0, 0] * radius / np.where(front, depth, 1.0)
+        rho = intr[:, :, None, None, 0, 0] * radius * magnification / np.where(front, depth, 1.0)
         volume = front & (radius > 0)
         lo = np.where(volume[..., None], pixels - rho[..., None], np.inf).min(-2)
         hi = np.where(volume[..., None], pixels + rho[..., None], -np.inf).max(-2)

@@ -62,8 +62,11 @@ def test_webcam_cameras_are_mounted_high_and_look_into_the_room() -> None:
             assert in_front and 0 < pixel[0] < camera.image_size[0]
 
 
-def test_true_boxes_contain_projected_joints_and_world_is_under_mid_hip() -> None:
-    scene = Scene(room_config("t", 8, 6, 3, people=4), seed=3)
+@pytest.mark.parametrize("distortion", [(0.0, 0.0), (-0.12, 0.02)])
+def test_true_boxes_contain_projected_joints_and_world_is_under_mid_hip(
+    distortion: tuple[float, float],
+) -> None:
+    scene = Scene(room_config("t", 8, 6, 3, people=4, distortion=distortion), seed=3)
     checked = 0
     for frame in range(0, 200, 7):
         obs = scene.observe(frame)
