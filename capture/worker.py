@@ -139,25 +139,27 @@ class CameraWorker:
             frame = self._latest
         return frame if frame is not None and frame.seq > after_seq else None
 
-    def frame_interval(self) -> float:
+    def frame_interval(self, fps: float | None = None) -> float:
         """Expected seconds between frames: measured when possible, else the nominal rate."""
-        fps = self._measured_fps()
+        fps = self._measured_fps() if fps is None else fps
         return 1.0 / fps if fps > 0 else self._nominal_interval
 
-    def stall_timeout(self) -> float:
-        return max(self.stall_intervals * self.frame_interval(), self.min_stall)
+    def stall_timeout(self, fps: float | None = None) -> float:
+        """Seconds without a frame after which the camera counts as stalled."""
+        return max(self.stall_intervals * self.frame_interval(fps), self.min_stall)
 
     def state(self) -> CameraState:
         now = time.time()
         frame = self._latest
+        fps = self._measured_fps(now)
         age = now - frame.timestamp if frame is not None else None
-        fresh = age is not None and age <= self.stall_timeout()
+        fresh = age is not None and age <= self.stall_timeout(fps)
         error = self._error
         if self._open and age is not None and not fresh:
             error = f"stalled: no frame for {age * 1000:.0f} ms"
         return CameraState(
             connected=self._open and fresh,
-            fps=self._measured_fps(now),
+            fps=fps,
             last_frame_age=age,
             reconnects=self._reconnects,
             error=None if (self._open and fresh) else error,
