@@ -22,13 +22,17 @@ frame, independently, in this order:
    box height before noise. The box is then clipped to the image again (detectors never report
    boxes outside the frame) and kept at least one pixel wide and tall.
 
+Scale error and jitter are correlated in time like a real detector's (the same pose and
+background give the same mistake in consecutive frames): per camera, person and edge an AR(1)
+sequence with correlation ``exp(-Δt / correlation_time)``, ``correlation_time`` = 0.2 s (0.72
+from frame to frame at 15 fps), so temporal smoothing cannot average the noise away faster than
+it could on real video. Misses, occlusion blending and keypoint noise are drawn independently per
+frame.
+
 Keypoints (COCO-17) are the projected joints plus ``N(0, keypoint_sigma · h + keypoint_pixels)``
 pixel noise, with confidence U(0.55, 0.95). A joint inside a nearer person's body region, or a
 face point turned away from the camera, is occluded: confidence U(0.05, 0.35) and three times the
 noise. Joints outside the image, and every joint of a missed detection, are NaN.
-
-Noise is drawn independently per frame (real detector noise is partly correlated over time, so
-temporal smoothing gains a little more here than it would on real video).
 """
 
 from __future__ import annotations
@@ -51,6 +55,7 @@ class NoiseConfig:
     miss_rate: float = 0.03
     min_visible_fraction: float = 0.3
     min_box_height: float = 16.0
+    correlation_time: float = 0.2
     occlusion_miss: float = 0.7
     occlusion_shrink: float = 0.15
     keypoint_sigma: float = 0.015
@@ -60,6 +65,29 @@ class NoiseConfig:
     def exact(cls) -> NoiseConfig:
         """No random noise (still truncation and occlusion): for debugging and geometry tests."""
         return cls(jitter=0.0, scale=0.0, miss_rate=0.0, keypoint_sigma=0.0, keypoint_pixels=0.0)
+
+
+def correlated_normals(
+    white: np.ndarray, history: np.ndarray, fps: float, correlation_time: float
+) -> np.ndarray:
+    """Unit-variance normals with autocorrelation exp(-|Δt| / correlation_time), along axis 0.
+
+    ``white`` [F, ...] are this block's i.i.d. draws and ``history`` [H, ...] the previous
+    block's, so the filtered sequence runs on smoothly across block boundaries while every block
+    stays computable on its own (a truncated AR(1) filter).
+    """
+    if correlation_time <= 0:
+        return white
+    rho = float(np.exp(-1.0 / (fps * correlation_time)))
+    taps = min(len(history) + 1, int(np.ceil(np.log(1e-3) / np.log(rho))) + 1)
+    kernel = rho ** np.arange(taps)
+    kernel /= np.sqrt((kernel**2).sum())  # unit variance despite the truncation
+    series = np.concatenate([history, white])
+    offset = len(history)
+    out = np.zeros_like(white)
+    for lag, weight in enumerate(kernel):
+        out += weight * series[offset - lag : offset - lag + len(white)]
+    return out
 
 
 def _area(boxes: np.ndarray) -> np.ndarray:
@@ -103,8 +131,12 @@ def detect(
     image_size: np.ndarray,
     config: NoiseConfig,
     rng: np.random.Generator,
+    normals: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Noisy boxes [F,K,P,4] and keypoints [F,K,P,17,3] from the true geometry.
+
+    ``normals`` [F,K,P,5]: standard normal draws for the scale error and the four edge jitters
+    (temporally correlated ones from :func:`correlated_normals`); drawn i.i.d. when None.
 
     ``true_boxes`` [F,K,P,4] unclipped (NaN: behind the camera), ``depth`` [F,K,P] of the mid-hip,
     ``joints`` [F,K,P,17,2] projected joints (NaN behind the camera), ``face_away`` [F,K,P,17]
@@ -149,9 +181,11 @@ def detect(
     height = boxes[..., 3] - boxes[..., 1]
     centre = (boxes[..., :2] + boxes[..., 2:]) / 2
     half = (boxes[..., 2:] - boxes[..., :2]) / 2
-    scale = 1.0 + np.clip(rng.normal(0.0, 1.0, (f, k, p)) * config.scale, -0.15, 0.15)
+    if normals is None:
+        normals = rng.standard_normal((f, k, p, 5))
+    scale = 1.0 + np.clip(normals[..., 0] * config.scale, -0.15, 0.15)
     boxes = np.concatenate([centre - half * scale[..., None], centre + half * scale[..., None]], -1)
-    boxes = boxes + rng.normal(0.0, 1.0, (f, k, p, 4)) * (config.jitter * height)[..., None]
+    boxes = boxes + normals[..., 1:] * (config.jitter * height)[..., None]
     boxes = _clip(boxes, image_size)
     boxes[..., 2:] = np.maximum(boxes[..., 2:], boxes[..., :2] + 1.0)
     boxes = np.where(found[..., None], boxes, np.nan)

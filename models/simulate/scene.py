@@ -23,7 +23,7 @@ import numpy as np
 
 from models.errors import MomlocError
 from models.simulate.camera import NEAR, PinholeCamera, project_points
-from models.simulate.noise import NoiseConfig, detect
+from models.simulate.noise import NoiseConfig, correlated_normals, detect
 from models.simulate.people import Walkers
 from models.simulate.skeleton import HEAD, MID_HIP, RADII, body_points
 
@@ -241,6 +241,13 @@ class Scene:
         face_away[..., 3] = depth[..., 3] > head
         face_away[..., 4] = depth[..., 4] > head
         rng = np.random.default_rng([self.seed, 1, block])
+        shape = (BLOCK, self.num_cameras, self.config.people, 5)
+        normals = correlated_normals(
+            np.random.default_rng([self.seed, 3, block + 1]).standard_normal(shape),
+            np.random.default_rng([self.seed, 3, block]).standard_normal(shape),
+            self.config.fps,
+            self.config.noise.correlation_time,
+        )
         boxes, keypoints = detect(
             true_boxes,
             depth[..., MID_HIP],
@@ -249,6 +256,7 @@ class Scene:
             self.image_sizes,
             self.config.noise,
             rng,
+            normals,
         )
         return {
             "world": states.position,

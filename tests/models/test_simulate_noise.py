@@ -145,3 +145,37 @@ def test_simulate_accepts_a_perturbation() -> None:
     np.testing.assert_array_equal(
         result.projections, Scene(get_config("indoor-2cam")).projection_matrices()
     )
+
+
+def test_box_noise_is_correlated_in_time_like_a_detector() -> None:
+    from models.simulate.noise import correlated_normals
+
+    rng = np.random.default_rng(0)
+    history, white = rng.standard_normal((64, 4000)), rng.standard_normal((64, 4000))
+    series = correlated_normals(white, history, fps=15.0, correlation_time=0.2)
+    rho = np.exp(-1 / 3)
+    assert abs(series.std() - 1) < 0.02
+    lag1 = (series[1:] * series[:-1]).mean()
+    assert abs(lag1 - rho) < 0.03
+    assert correlated_normals(white, history, 15.0, 0.0) is white
+
+    # In a scene: consecutive frames share most of their error, also across a block boundary.
+    camera = CameraSpec((0.05, 4.0, 2.3), (8.0, 4.0, 0.9), 60.0)
+    noise = NoiseConfig(miss_rate=0.0)
+    scene = Scene(SceneConfig("c", (12.0, 8.0), (camera,), people=1, noise=noise), seed=1)
+    err = []
+    for block in range(8):
+        obs = scene.observe_block(block)
+        b, t = obs["boxes"][:, 0, 0], obs["true_boxes"][:, 0, 0]
+        err.append((b[:, 0] + b[:, 2] - t[:, 0] - t[:, 2]) / 2 / (t[:, 3] - t[:, 1]))
+    err = np.concatenate(err)
+    pairs = np.isfinite(err[1:]) & np.isfinite(err[:-1])
+    corr = np.corrcoef(err[1:][pairs], err[:-1][pairs])[0, 1]
+    assert 0.55 < corr < 0.9
+    # Blocks filtered one at a time chain into one stationary sequence (no jump at boundaries).
+    w0, w1, w2 = (rng.standard_normal((64, 3)) for _ in range(3))
+    first = correlated_normals(w1, w0, 15.0, 0.2)
+    second = correlated_normals(w2, w1, 15.0, 0.2)
+    joined = np.concatenate([first, second])
+    full = correlated_normals(np.concatenate([w1, w2]), w0, 15.0, 0.2)
+    np.testing.assert_allclose(joined, full, atol=1e-12)
