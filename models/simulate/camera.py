@@ -81,7 +81,7 @@ def project_points(
     return np.stack([u, v], axis=-1), depth
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # arrays inside: identity equality, hashable
 class PinholeCamera:
     """A calibrated pinhole camera: ``K`` [3,3], ``R`` [3,3], ``t`` [3], ``image_size`` (w, h)."""
 

@@ -2,8 +2,9 @@
 
 ``Scene(config, seed)`` is deterministic: the walking paths come from one generator seeded with
 ``[seed, 0]``, the appearance (clothes) from ``[seed, 2]``, and the detector noise of frames
-``64 b .. 64 b + 63`` from ``[seed, 1, b]``, so ``observe(i)`` returns the same arrays whatever
-was observed before, and ``simulate`` (which observes whole blocks at once) agrees with it.
+``64 b .. 64 b + 63`` from ``[seed, 1, b]`` (plus ``[seed, 3, b]`` and ``[seed, 3, b + 1]`` for
+the temporally correlated part), so ``observe(i)`` returns the same arrays whatever was observed
+before, and ``simulate`` (which observes whole blocks at once) agrees with it.
 
 Camera perturbations model a camera that was bumped at some frame: from ``start_frame`` on, that
 camera's image is shifted by (dx, dy) pixels and rolled by ``roll_deg`` about the principal point.
@@ -164,7 +165,7 @@ class Scene:
             frame=frame_index,
             track=np.arange(self.config.people, dtype=np.int64),
             **{
-                key: block[key][i]
+                key: block[key][i].copy()
                 for key in ("world", "joints", "boxes", "keypoints", "true_boxes")
             },
         )
