@@ -27,30 +27,8 @@ from typing import Any
 
 import numpy as np
 
-try:
-    from capture import CameraState, Frame, FrameSet
-except ImportError:  # TEMPORARY until the capture core lands: same fields as its contract
-    from dataclasses import dataclass
-
-    @dataclass(frozen=True)
-    class Frame:  # type: ignore[no-redef]
-        camera: int
-        image: np.ndarray | None
-        timestamp: float
-        seq: int
-
-    @dataclass(frozen=True)
-    class FrameSet:  # type: ignore[no-redef]
-        frames: list
-        skew: float
-
-    @dataclass(frozen=True)
-    class CameraState:  # type: ignore[no-redef]
-        connected: bool
-        fps: float
-        last_frame_age: float | None
-        reconnects: int
-        error: str | None
+from capture.rig import FrameSet
+from capture.worker import CameraState, Frame
 
 
 def make_scene(
@@ -137,7 +115,11 @@ def _trim(cache: OrderedDict, size: int) -> None:
 
 
 class SyntheticRig(SceneClock):
-    """All cameras of a scene, one render thread, newest frame set only (``CameraRig`` shape)."""
+    """All cameras of a scene, one render thread, newest frame set only (``CameraRig`` shape).
+
+    ``render_every=n`` draws every n-th scene frame only (others carry ``image=None``): drawing
+    costs ~15 ms per camera, so with simulated detections the previews are drawn at a few Hz.
+    """
 
     def __init__(
         self,
@@ -145,12 +127,13 @@ class SyntheticRig(SceneClock):
         cameras: Sequence[int] | None = None,
         *,
         fps: float | None = None,
-        render: bool = True,
+        render_every: int = 1,
     ) -> None:
         super().__init__(scene, fps)
         self.cameras = list(range(len(scene.cameras))) if cameras is None else list(cameras)
-        self.render_frames = render and hasattr(scene, "render")
+        self.render_every = render_every if hasattr(scene, "render") else 0
         self._latest: FrameSet | None = None
+        self._new_frames = threading.Condition()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._produced: list[float] = []
@@ -173,7 +156,10 @@ class SyntheticRig(SceneClock):
             self.wait_for(index, self._stop)
             if self._stop.is_set():
                 break
-            self._latest = self.produce(index)
+            frame_set = self.produce(index)
+            with self._new_frames:
+                self._latest = frame_set
+                self._new_frames.notify_all()
 
     def produce(self, index: int) -> FrameSet:
         """Render scene frame ``index`` for every camera (also usable without the thread)."""
@@ -181,13 +167,18 @@ class SyntheticRig(SceneClock):
         self.stamp(index, timestamp)
         frames = []
         for k, camera in enumerate(self.cameras):
-            image = self.render(index, camera) if self.render_frames else None
+            drawn = self.render_every > 0 and index % self.render_every == 0
+            image = self.render(index, camera) if drawn else None
             frames.append(Frame(camera=k, image=image, timestamp=timestamp, seq=index))
         self._produced = [*self._produced[-59:], timestamp]
         return FrameSet(frames=frames, skew=0.0)
 
-    def frame_set(self) -> FrameSet | None:
-        return self._latest
+    def frame_set(self, after: FrameSet | None = None, timeout: float = 0.0) -> FrameSet | None:
+        """Newest frame set; with ``after``, wait up to ``timeout`` s for a newer one."""
+        with self._new_frames:
+            if after is not None and timeout > 0:
+                self._new_frames.wait_for(lambda: self._latest is not after, timeout)
+            return self._latest
 
     def states(self) -> list[CameraState]:
         now = time.time()
@@ -202,8 +193,9 @@ class SyntheticRig(SceneClock):
                 last_frame_age=age,
                 reconnects=0,
                 error=None,
+                name=f"synthetic-{camera}",
             )
-            for _ in self.cameras
+            for camera in self.cameras
         ]
 
 

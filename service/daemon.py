@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import socket
+import threading
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -116,25 +117,30 @@ def build_rig(settings: Settings) -> tuple[Any, Any]:
                 raise MomlocError(
                     f"cameras.{position}.index: scene '{syn.preset}' has cameras 0..{available - 1}"
                 )
-        render = syn.render or syn.detections == "rendered"
-        rig = SyntheticRig(scene, indices, fps=syn.fps, render=render)
+        if syn.detections == "rendered":
+            render_every = 1
+        elif syn.preview_fps > 0:
+            render_every = max(1, round(syn.fps / syn.preview_fps))
+        else:
+            render_every = 0
+        rig = SyntheticRig(scene, indices, fps=syn.fps, render_every=render_every)
         return rig, rig
-    from capture import CameraRig, CameraWorker
+    from capture.rig import CameraRig
+    from capture.worker import CameraWorker
 
-    workers = [CameraWorker(_open_source(c)) for c in settings.cameras]
+    workers = [CameraWorker(_open_source(c), camera=k) for k, c in enumerate(settings.cameras)]
     return CameraRig(workers), None
 
 
 def _open_source(camera: Any) -> Any:
-    from capture import sources
+    from capture.sources import V4L2Source, VideoFileSource
 
     if isinstance(camera, V4l2Camera):
-        return sources.V4l2Source(
-            camera.device, width=camera.width, height=camera.height, fps=camera.fps
-        )
-    if not camera.path.exists():
+        device: int | str = int(camera.device) if camera.device.isdigit() else camera.device
+        return V4L2Source(device, width=camera.width, height=camera.height, fps=camera.fps)
+    if not camera.path.is_file():
         raise MomlocError(f"cameras: video file {camera.path} does not exist")
-    return sources.VideoFileSource(camera.path, loop=camera.loop, fps=camera.fps)
+    return VideoFileSource(camera.path, fps=camera.fps, loop=camera.loop)
 
 
 def build_detect_stage(settings: Settings, player: Any) -> Any:
@@ -145,10 +151,11 @@ def build_detect_stage(settings: Settings, player: Any) -> Any:
         return SimulatedDetections(player)
     from models.detector import create_detector
 
-    try:
-        detector = create_detector(settings.detector.kind, threads=settings.detector.threads)
-    except TypeError:
-        detector = create_detector(settings.detector.kind)
+    detector = create_detector(
+        settings.detector.kind,
+        score_threshold=settings.detector.score_threshold,
+        threads=settings.detector.threads,
+    )
     return DetectorStage(detector, settings.detector.score_threshold)
 
 
@@ -250,3 +257,36 @@ def run_server(daemon: Daemon, host: str, port: int, on_ready: Any = None) -> No
     if on_ready is not None:
         on_ready(sock.getsockname()[1])
     server.run(sockets=[sock])
+
+
+@dataclass
+class BackgroundServer:
+    """A daemon served by uvicorn in a thread (tests and benchmarks)."""
+
+    daemon: Daemon
+    port: int
+    server: Any
+    thread: threading.Thread
+    sock: socket.socket
+
+    def stop(self) -> None:
+        self.server.should_exit = True
+        self.thread.join(timeout=15)
+        self.sock.close()
+
+
+def serve_in_thread(daemon: Daemon, host: str = "127.0.0.1", port: int = 0) -> BackgroundServer:
+    """Start serving ``daemon`` on host:port (0: any free port); returns once it accepts."""
+    sock = bind_socket(host, port)
+    server = make_server(daemon, host, sock.getsockname()[1])
+    thread = threading.Thread(
+        target=server.run, kwargs={"sockets": [sock]}, name="uvicorn", daemon=True
+    )
+    thread.start()
+    deadline = time.time() + 60
+    while not server.started:
+        if time.time() > deadline or not thread.is_alive():
+            sock.close()
+            raise MomlocError("the HTTP server did not start")
+        time.sleep(0.02)
+    return BackgroundServer(daemon, sock.getsockname()[1], server, thread, sock)

@@ -43,7 +43,7 @@ class Rig(Protocol):
 
     def start(self) -> None: ...
     def stop(self) -> None: ...
-    def frame_set(self) -> Any: ...
+    def frame_set(self, after: Any = None, timeout: float = 0.0) -> Any: ...
     def states(self) -> list[Any]: ...
 
 
@@ -143,12 +143,15 @@ class Pipeline:
         return self._thread is not None and self._thread.is_alive()
 
     def _run(self) -> None:
+        previous = None
         while not self._stop.is_set():
-            frame_set = self.rig.frame_set()
+            # waits (briefly) for frames newer than the last set instead of spinning
+            frame_set = self.rig.frame_set(after=previous, timeout=0.1)
             seqs = self._frame_seqs(frame_set)
             if seqs is None or seqs == self._last_frame_seqs:
                 self._stop.wait(0.002)
                 continue
+            previous = frame_set
             if self._last_frame_seqs is not None:
                 self.frames_dropped += sum(
                     max(0, new - old - 1)
@@ -231,15 +234,11 @@ class Pipeline:
             for k, j in enumerate(a.detection_index):
                 if j is not None:
                     ids[(k, int(j))] = int(tr.id)
-        views = [
-            CameraView(
-                None if f is None else f.image,
-                [(box, ids.get((k, j))) for j, box in enumerate(detections[k])],
-            )
-            for k, f in enumerate(frames)
-        ]
         with self._view_lock:
-            self._views = views
+            for k, f in enumerate(frames):
+                if f is not None and f.image is not None:  # frames without pixels keep the last
+                    boxes = [(box, ids.get((k, j))) for j, box in enumerate(detections[k])]
+                    self._views[k] = CameraView(f.image, boxes)
         self.frames_processed += 1
         self._done.append(now)
         self._latency.append(now - t_capture)

@@ -95,8 +95,14 @@ class SyntheticSettings(BaseModel):
             "simulated: the simulator's noisy boxes enter the pipeline instead of detector output."
         ),
     )
-    render: bool = Field(
-        True, description="Draw frames (needed for 'rendered' and for camera previews)."
+    preview_fps: float = Field(
+        5.0,
+        ge=0,
+        le=120,
+        description=(
+            "With simulated detections, draw frames for the camera previews this often "
+            "(0: never); rendered detections draw every frame."
+        ),
     )
 
 

@@ -35,7 +35,7 @@ class FakeRig:
     def stop(self) -> None:
         self.started = False
 
-    def frame_set(self):
+    def frame_set(self, after=None, timeout=0.0):
         self.seq += self.step
         image = np.zeros((self.size[1], self.size[0], 3), np.uint8)
         frames = [

@@ -1,0 +1,76 @@
+"""Pieces of the API that need no server: rate parsing, preview drawing, metrics text."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import cv2
+import numpy as np
+import pytest
+
+from service.app import _parse_rate
+from service.hub import Hub, Snapshot
+from service.metrics import metrics_text
+from service.pipeline import CameraView
+from service.snapshot_image import id_colour, render_camera_jpeg
+
+
+@pytest.mark.parametrize(
+    ("raw", "expected"),
+    [
+        (None, 30.0),
+        ("10", 10.0),
+        ("2.5", 2.5),
+        ("1000", 30.0),
+        ("0", None),
+        ("-1", None),
+        ("abc", None),
+        ("nan", None),
+        ("inf", None),
+        ("", None),
+    ],
+)
+def test_parse_rate(raw, expected):
+    assert _parse_rate(raw, 30.0) == expected
+
+
+def test_preview_draws_boxes_in_the_id_colour():
+    image = np.full((120, 160, 3), 255, np.uint8)
+    view = CameraView(
+        image,
+        [(np.array([20, 30, 80, 110], np.float32), 4), (np.array([np.nan] * 4, np.float32), None)],
+    )
+    data = render_camera_jpeg(view, quality=95)
+    decoded = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    edge = decoded[70, 20].astype(int)  # left edge of the box, below the label
+    assert np.abs(edge - np.array(id_colour(4))).max() < 40
+    assert decoded[70, 50].min() > 230  # inside the box stays white
+    assert image.min() == 255  # the pipeline's frame is never drawn on
+    small = render_camera_jpeg(view, width=80)
+    assert cv2.imdecode(np.frombuffer(small, np.uint8), cv2.IMREAD_COLOR).shape == (60, 80, 3)
+    assert render_camera_jpeg(CameraView(None)) is None
+
+
+def test_metrics_text_reads_live_state():
+    hub = Hub()
+    hub.publish(Snapshot.build(3, 1.0, [{"id": 1}, {"id": 2}]))
+    pipeline = SimpleNamespace(
+        stats=lambda: {
+            "fps": 29.5,
+            "latency_ms": {"p50": 20.0, "p95": 35.0},
+            "stage_ms": {"detect": 21.0},
+            "frames_processed": 100,
+            "frames_dropped": 4,
+        },
+        runtime=object(),
+    )
+    states = [{"connected": True, "fps": 30.0, "last_frame_age": 0.01}]
+    daemon = SimpleNamespace(pipeline=pipeline, hub=hub, camera_states=lambda: states)
+    body, content_type = metrics_text(daemon)
+    text = body.decode()
+    assert content_type.startswith("text/plain")
+    assert "momloc_pipeline_fps 29.5" in text
+    assert 'momloc_pipeline_latency_seconds{quantile="95"} 0.035' in text
+    assert "momloc_people 2.0" in text
+    assert 'momloc_camera_connected{camera="0"} 1.0' in text
+    assert "momloc_frames_dropped_total 4.0" in text
