@@ -87,7 +87,7 @@ def write_model_dir(
     """Write all three files; ``model.json`` last and atomically, so a reader (the daemon's
     hot reload) never sees a half-written model."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    export_encoder(encoder, centre, scale, out_dir / ONNX_NAME, sampler.num_estimators)
+    export_encoder(encoder, centre, scale, out_dir / ONNX_NAME, sampler.rows)
     torch.save(checkpoint, out_dir / CHECKPOINT_NAME)
     meta = {
         "format": MODEL_FORMAT,

@@ -41,8 +41,12 @@ class MomRuntime:
         self.decoder = np.asarray(meta["decoder"]["matrices"], dtype=np.float64)  # [K, 3, 4]
 
     @classmethod
-    def load(cls, model_dir: str | os.PathLike[str], threads: int | None = None) -> MomRuntime:
-        """Read ``model.json`` and ``encoder.onnx``; any problem raises :class:`MomlocError`."""
+    def load(cls, model_dir: str | os.PathLike[str], threads: int = 1) -> MomRuntime:
+        """Read ``model.json`` and ``encoder.onnx``; any problem raises :class:`MomlocError`.
+
+        One non-spinning thread by default: serving batches are a handful of people, and the
+        daemon shares a small CPU with the detector (see bench/results/encoder_speed.md).
+        """
         import onnxruntime as ort
 
         model_dir = Path(model_dir)
@@ -61,8 +65,9 @@ class MomRuntime:
         if not onnx_path.is_file():
             raise MomlocError(f"{model_dir}: encoder file {onnx_path.name} is missing")
         options = ort.SessionOptions()
-        if threads:
-            options.intra_op_num_threads = threads
+        options.intra_op_num_threads = threads
+        options.inter_op_num_threads = 1
+        options.add_session_config_entry("session.intra_op.allow_spinning", "0")
         try:
             session = ort.InferenceSession(
                 str(onnx_path), options, providers=["CPUExecutionProvider"]

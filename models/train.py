@@ -102,9 +102,9 @@ def _check(data: MomDataset, observation: str) -> None:
 class _Trainer:
     """Holds one training run's data, model and optimiser."""
 
-    def __init__(self, data, observation, decoder, settings, seed, train_rows, val_rows):
+    def __init__(self, data, sampler, decoder, settings, seed, train_rows, val_rows):
         self.data, self.settings, self.decoder_on = data, settings, decoder
-        self.sampler = SamplerConfig(observation=observation)
+        self.sampler = sampler
         self.rng = np.random.default_rng(seed)
         world = data.world[train_rows, :2].astype(np.float64)
         self.centre = world.mean(axis=0)
@@ -116,7 +116,7 @@ class _Trainer:
         self.pix = observation_center(self.sampler, data.boxes, data.image_size, kp)
         k = data.num_cameras
         self.encoder = MomEncoder(
-            k, self.sampler.num_estimators, settings.camera_width, settings.global_width
+            k, self.sampler.rows, settings.camera_width, settings.global_width
         )
         self.decoder = MomDecoder(self._initial_matrices(train_rows))
         params = [*self.encoder.parameters(), *self.decoder.parameters()]
@@ -124,7 +124,7 @@ class _Trainer:
         self.plateau = torch.optim.lr_scheduler.ReduceLROnPlateau(
             self.optim, factor=0.5, patience=max(3, settings.patience // 3)
         )
-        val_config = SamplerConfig(observation=observation, draws=VALIDATION_DRAWS)
+        val_config = SamplerConfig(**{**sampler.to_dict(), "draws": VALIDATION_DRAWS})
         self.val_inputs = InferenceSampler(val_config)(
             data.boxes[val_rows], data.image_size, None if kp is None else kp[val_rows]
         )
@@ -217,20 +217,43 @@ def train_model(
     epochs: int | None = None,
     seed: int = 0,
     progress: bool = True,
+    tuning: dict | None = None,
 ) -> dict:
-    """Train on ``dataset``, write ``out_dir`` (encoder.onnx, model.pt, model.json); metrics."""
-    SamplerConfig(observation=observation)  # validates the mode name
-    _check(dataset, observation)
+    """Train on ``dataset``, write ``out_dir`` (encoder.onnx, model.pt, model.json); metrics.
+
+    ``tuning`` overrides TrainSettings / SamplerConfig fields (for measurements and sweeps).
+    """
+    tuning = dict(tuning or {})
+    sampler_keys = set(SamplerConfig.__dataclass_fields__) - {"observation"}
+    sampler = SamplerConfig(
+        observation=observation, **{k: tuning.pop(k) for k in list(tuning) if k in sampler_keys}
+    )
+    _check(dataset, sampler.observation)
+    unknown = set(tuning) - set(TrainSettings.__dataclass_fields__)
+    if unknown:
+        raise MomlocError(f"tuning: unknown settings {sorted(unknown)}")
     if epochs is not None and epochs < 1:
         raise MomlocError(f"--epochs {epochs}: must be at least 1")
+    threads = torch.get_num_threads()
+    # One thread: these small MLPs gain nothing from a second one, and on a busy 2-core machine
+    # two spinning threads were measured 10x slower (147 s vs 13 s for the same 15 epochs).
+    torch.set_num_threads(1)
+    try:
+        return _train(dataset, Path(out_dir), sampler, decoder, epochs, seed, progress, tuning)
+    finally:
+        torch.set_num_threads(threads)
+
+
+def _train(dataset, out_dir, sampler, decoder, epochs, seed, progress, tuning) -> dict:
     torch.manual_seed(seed)
     started = time.monotonic()
     probe = adaptive_settings(dataset.n, dataset.num_cameras, epochs)
     train_rows, val_rows = split_rows(dataset, probe.val_fraction, seed)
     settings = adaptive_settings(len(train_rows), dataset.num_cameras, epochs)
+    settings = TrainSettings(**{**asdict(settings), **tuning})
     if not decoder:
         settings = TrainSettings(**{**asdict(settings), "rec_weight": 0.0})
-    trainer = _Trainer(dataset, observation, decoder, settings, seed, train_rows, val_rows)
+    trainer = _Trainer(dataset, sampler, decoder, settings, seed, train_rows, val_rows)
 
     best, best_epoch, best_state, history = math.inf, 0, trainer.state(), []
     bar = _progress(settings.max_epochs, progress)
@@ -257,7 +280,7 @@ def train_model(
         val_history=history,
     )
     write_model_dir(
-        Path(out_dir),
+        out_dir,
         encoder=trainer.encoder,
         decoder_matrices=trainer.decoder.matrices.detach().numpy().astype(np.float64),
         sampler=trainer.sampler,

@@ -8,14 +8,16 @@ import torch
 from models.export import pixel_decoder
 from models.mom_runtime import MomRuntime
 from models.mom_torch import DrawAverage, MomDecoder, MomEncoder
+from models.sampling import SamplerConfig
 from tests.models.mom_scene import make_dataset, trained_model
 
 
 def _torch_model(out):
     checkpoint = torch.load(out / "model.pt", weights_only=False)
     settings = checkpoint["settings"]
-    k = json.loads((out / "model.json").read_text())["num_cameras"]
-    encoder = MomEncoder(k, 12, settings["camera_width"], settings["global_width"])
+    meta = json.loads((out / "model.json").read_text())
+    k, rows = meta["num_cameras"], SamplerConfig(**meta["sampler"]).rows
+    encoder = MomEncoder(k, rows, settings["camera_width"], settings["global_width"])
     encoder.load_state_dict(checkpoint["encoder"])
     decoder = MomDecoder(np.zeros((k, 3, 4)))
     decoder.load_state_dict(checkpoint["decoder"])

@@ -24,7 +24,7 @@ def boxes(n: int = 4) -> np.ndarray:
 
 def test_training_estimators_shape_mask_and_bounds():
     est, mask = sample_estimators(SamplerConfig(), boxes(), SIZES, np.random.default_rng(0))
-    assert est.shape == (4, 2, 12, 2) and mask.shape == (4, 2)
+    assert est.shape == (4, 2, 14, 2) and mask.shape == (4, 2)  # 12 estimators + 2 corners
     assert mask[1, 1] == 0 and mask.sum() == 7
     assert (est[1, 1] == 0).all()
     lo = 2 * np.array(BOX[:2]) / SIZES[0] - 1
@@ -38,7 +38,12 @@ def test_estimators_centre_on_box_centre_with_spread_shrinking_with_m():
     many = np.tile(np.array([[BOX]], np.float32), (4000, 1, 1))
     est, _ = sample_estimators(config, many, SIZES[:1], np.random.default_rng(1))
     centre = 2 * np.array([160.0, 220.0]) / SIZES[0] - 1
-    np.testing.assert_allclose(est.reshape(-1, 2).mean(axis=0), centre, atol=2e-3)
+    np.testing.assert_allclose(est[..., :12, :].reshape(-1, 2).mean(axis=0), centre, atol=2e-3)
+    np.testing.assert_allclose(
+        est[0, 0, 12:],
+        [2 * np.array(BOX[:2]) / SIZES[0] - 1, 2 * np.array(BOX[2:]) / SIZES[0] - 1],
+        atol=1e-6,
+    )
     # m varies: single-point estimators spread like the box, full means barely spread
     draws = random_draws(np.random.default_rng(2), (20000,), config)
     weights = subset_weights(draws.keys, draws.frac, np.ones(config.num_points, bool))
@@ -65,7 +70,7 @@ def test_inference_is_deterministic_and_batch_independent():
     again, _ = InferenceSampler(SamplerConfig(draws=8))(data, SIZES)
     single, _ = sampler(data[3:4], SIZES)
     shuffled, _ = sampler(data[::-1], SIZES)
-    assert full.shape == (6, 8, 2, 12, 2)
+    assert full.shape == (6, 8, 2, 14, 2)
     np.testing.assert_array_equal(full, again)
     np.testing.assert_array_equal(full[3], single[0])
     np.testing.assert_array_equal(full[::-1], shuffled)
