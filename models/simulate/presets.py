@@ -109,8 +109,14 @@ def get_config(
     people: int | None = None,
     fps: float | None = None,
     perturbations: tuple | None = None,
+    room: tuple[float, float] | None = None,
+    cameras: int | None = None,
 ) -> SceneConfig:
-    """A preset by name (or a config), with the people count, fps or perturbations overridden."""
+    """A preset by name (or a config), with people, fps, perturbations or the room overridden.
+
+    ``room`` (width, depth) and/or ``cameras`` (1-9) re-hang the cameras with
+    :func:`ring_cameras`, keeping the preset's field of view, image size and distortion.
+    """
     if isinstance(preset, SceneConfig):
         config = preset
     elif preset in PRESETS:
@@ -120,6 +126,17 @@ def get_config(
             f"unknown scene preset '{preset}' (available: {', '.join(sorted(PRESETS))})"
         )
     changes: dict[str, object] = {}
+    if room is not None or cameras is not None:
+        width, depth = room if room is not None else config.room
+        if min(width, depth) <= 1.0:
+            raise MomlocError(f"room {width} x {depth} m: each side must be over 1 m")
+        first = config.cameras[0]
+        changes["room"] = (float(width), float(depth))
+        changes["cameras"] = ring_cameras(
+            width, depth, cameras if cameras is not None else len(config.cameras),
+            first.hfov_deg, first.image_size, first.distortion,
+        )  # fmt: skip
+        changes["name"] = f"{config.name}-custom"
     if people is not None:
         changes["people"] = int(people)
     if fps is not None:

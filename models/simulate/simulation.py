@@ -35,8 +35,13 @@ def simulate(
     people: int | None = None,
     perturbation: Perturbation | Sequence[Perturbation] | None = None,
     fps: float | None = None,
+    room: tuple[float, float] | None = None,
+    cameras: int | None = None,
 ) -> SimulationResult:
     """Observe ``frames`` frames of a preset (by name) or a :class:`SceneConfig`.
+
+    ``people``, ``fps``, ``perturbation``, ``room`` and ``cameras`` override the preset (see
+    :func:`~models.simulate.presets.get_config`).
 
     Example::
 
@@ -52,6 +57,8 @@ def simulate(
         people=people,
         fps=fps,
         perturbations=None if perturbation is None else tuple(perturbation),
+        room=room,
+        cameras=cameras,
     )
     scene = Scene(config, seed)
     parts: dict[str, list[np.ndarray]] = {
