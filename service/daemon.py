@@ -225,6 +225,7 @@ def bind_socket(host: str, port: int) -> socket.socket:
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
     try:
         sock.bind((host, port))
+        sock.listen(2048)  # connections made right after the banner wait in the backlog
     except OSError as error:
         sock.close()
         raise MomlocError(f"cannot listen on {host}:{port} ({error.strerror})") from None

@@ -123,6 +123,8 @@ class Pipeline:
         self._stage_ms: dict[str, float] = {}
         self.frames_processed = 0
         self.frames_dropped = 0
+        self.failures = 0
+        self.last_failure: str | None = None
 
     # -- lifecycle -------------------------------------------------------------------------------
 
@@ -162,7 +164,8 @@ class Pipeline:
             try:
                 self.process(frame_set)
             except Exception as exc:  # keep serving; the error shows in /v1/health
-                self.error = f"pipeline: {type(exc).__name__}: {exc}"
+                self.error = self.last_failure = f"pipeline: {type(exc).__name__}: {exc}"
+                self.failures += 1
                 log.exception("pipeline iteration failed")
                 self._stop.wait(0.1)
 
@@ -189,6 +192,7 @@ class Pipeline:
                 self.image_sizes[k] = size
         runtime = self.runtime
         associations: list[Any] = []
+        self.error = None  # this iteration's state only; failures are counted separately
         if runtime is not None:
             problem = self._sizes_match(runtime)
             if problem is None:
@@ -314,6 +318,8 @@ class Pipeline:
             "frames_processed": self.frames_processed,
             "frames_dropped": self.frames_dropped,
             "error": self.error,
+            "failures": self.failures,
+            "last_failure": self.last_failure,
         }
 
 

@@ -39,7 +39,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     data = result.dataset
     print(f"training on {data.n} rows from {args.frames} frames of {DEMO_PRESET}", flush=True)
-    metrics = train_model(data, args.out, epochs=args.epochs, seed=0, progress=True)
+    progress = sys.stderr.isatty()
+    metrics = train_model(data, args.out, epochs=args.epochs, seed=0, progress=progress)
     for extra in ("model.pt",):
         (args.out / extra).unlink(missing_ok=True)
     meta = json.loads((args.out / "model.json").read_text())
@@ -52,6 +53,7 @@ def main(argv: list[str] | None = None) -> int:
         "made_by": "tools/make_demo_model.py",
     }
     (args.out / "model.json").write_text(json.dumps(meta, indent=1) + "\n")
+    (args.out / "model.json").chmod(0o644)  # readable by the container's non-root user
     shown = {k: v for k, v in metrics.items() if k != "val_history"}
     print(json.dumps(shown, indent=1))
     return 0
