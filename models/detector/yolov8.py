@@ -11,7 +11,8 @@ Interface decoded here (the standard Ultralytics detection export):
   height in input pixels, then C class scores (no objectness). COCO has C = 80, person = class 0;
   a person-only model has C = 1.
 
-Decoding per frame: keep anchors whose person score ≥ ``score_threshold``, convert to corners,
+Decoding per frame: keep anchors whose best class is person with a score ≥ ``score_threshold``
+(Ultralytics' rule: a box scoring higher for "bus" is a bus), convert to corners,
 greedy NMS at ``iou_threshold`` (class-agnostic: we keep one class), at most ``max_detections``,
 then undo the letterbox so boxes are in the frame's pixels. Models exported with a fixed batch of
 1 are run frame by frame (one call each); export with ``dynamic=True`` for one batched call.
@@ -116,6 +117,8 @@ class YoloV8Detector(PersonDetector):
     def _decode(self, raw: np.ndarray, geometry: Geometry) -> Detections:
         scores = raw[4 + self.person_class]
         keep = np.flatnonzero(scores >= self.score_threshold)
+        if keep.size and raw.shape[0] > 5:  # as Ultralytics: a box is the class it scores best
+            keep = keep[raw[4:, keep].argmax(axis=0) == self.person_class]
         if keep.size == 0:
             return Detections.empty()
         cx, cy, w, h = raw[:4, keep]

@@ -26,12 +26,14 @@ def raw_output() -> np.ndarray:
         ((10, 20, 8, 8), 2, 0.95),  # a car: wrong class
         ((50, 40, 6, 12), 0, 0.30),  # person below threshold
         ((12, 30, 6, 16), 0, 0.60),  # person B
+        ((40, 20, 10, 10), 5, 0.85),  # a bus that also scores 0.7 as person: a bus
     ]
     raw = np.zeros((4 + CLASSES, 120), np.float32)  # A > 4 + C, as in real exports
     for column, (box, cls, score) in enumerate(anchors):
         raw[:4, column] = box
         raw[4 + cls, column] = score
     raw[4 + 0, 2] = 0.1  # the car is a little person-ish, still below threshold
+    raw[4 + 0, 5] = 0.7
     return raw
 
 
@@ -90,6 +92,14 @@ def test_threshold_and_nms_options_change_the_result(tmp_path):
     np.testing.assert_allclose(found.scores, [0.9, 0.8, 0.6, 0.3], atol=1e-6)
 
 
+def test_single_class_view_keeps_what_the_full_model_calls_a_bus(tmp_path):
+    """With only the person row there is no rival class, so the 0.7 anchor becomes a person."""
+    raw = raw_output()[:5]
+    detector = create_detector("yolov8", model_path=build_model(tmp_path / "p.onnx", raw))
+    (found,) = detector.detect([np.zeros((480, 640, 3), np.uint8)])
+    np.testing.assert_allclose(found.scores, [0.9, 0.7, 0.6], atol=1e-6)
+
+
 def test_other_frame_size_maps_to_its_own_pixels(tmp_path):
     """A 320×320 frame fills the 64×64 input without padding: boxes scale by 5 exactly."""
     detector = create_detector("yolov8", model_path=build_model(tmp_path / "y.onnx", raw_output()))
@@ -102,13 +112,6 @@ def test_fixed_batch_one_export_runs_per_frame(tmp_path):
     detector = create_detector("yolov8", model_path=model)
     results = detector.detect([np.zeros((480, 640, 3), np.uint8)] * 3)
     assert [len(found) for found in results] == [2, 2, 2]
-
-
-def test_single_class_person_model(tmp_path):
-    raw = raw_output()[:5]  # 4 box rows + the person score only
-    detector = create_detector("yolov8", model_path=build_model(tmp_path / "p.onnx", raw))
-    (found,) = detector.detect([np.zeros((480, 640, 3), np.uint8)])
-    assert len(found) == 2
 
 
 def test_wrong_models_fail_at_load(tmp_path):
