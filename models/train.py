@@ -56,6 +56,7 @@ class TrainSettings:
     rec_weight: float = 0.1  # λ (0 disables the decoder's pull on the encoder)
     view_dropout: float = 0.15
     grad_clip: float = 1.0
+    time_budget_s: float | None = 540.0  # safety net of the adaptive schedule (not with --epochs)
     val_fraction: float = 0.15
 
 
@@ -64,11 +65,14 @@ def adaptive_settings(n_train: int, num_cameras: int, epochs: int | None = None)
     camera_width = 64 if n_train >= 2000 else 32
     global_width = int(min(256, max(64, 32 * num_cameras + 64)))
     batch_size = int(np.clip(2 ** round(math.log2(max(n_train, 1) / 32)), 64, 1024))
-    # ~ a fixed budget of optimisation steps, between 60 and 400 epochs
-    steps_per_epoch = max(1, n_train // batch_size)
-    max_epochs = int(np.clip(24000 // steps_per_epoch, 60, 400)) if epochs is None else epochs
+    # a budget of ~3 million training rows (fresh estimators each), between 60 and 400 epochs:
+    # 20 000 instances take ~180 epochs, a few minutes on one core
+    max_epochs = int(np.clip(3_000_000 // max(n_train, 1), 60, 400)) if epochs is None else epochs
     patience = max(10, max_epochs // 8)
-    return TrainSettings(camera_width, global_width, batch_size, max_epochs, patience)
+    budget = 540.0 if epochs is None else None
+    return TrainSettings(
+        camera_width, global_width, batch_size, max_epochs, patience, time_budget_s=budget
+    )
 
 
 def split_rows(data: MomDataset, val_fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -109,9 +113,12 @@ class _Trainer:
         world = data.world[train_rows, :2].astype(np.float64)
         self.centre = world.mean(axis=0)
         self.scale = float(np.sqrt(((world - self.centre) ** 2).sum(axis=1).mean())) or 1.0
-        self.train, self.val = train_rows, val_rows
         kp = data.keypoints
         self.mask = observation_mask(self.sampler, data.boxes, kp)
+        seen = self.mask.sum(axis=1) > 0  # a row no camera observes teaches nothing
+        self.train, self.val = train_rows[seen[train_rows]], val_rows[seen[val_rows]]
+        if len(self.train) == 0 or len(self.val) == 0:
+            raise MomlocError("dataset: no row is observed by any camera in this observation mode")
         self.target = ((data.world[:, :2] - self.centre) / self.scale).astype(np.float32)
         self.pix = observation_center(self.sampler, data.boxes, data.image_size, kp)
         k = data.num_cameras
@@ -126,7 +133,7 @@ class _Trainer:
         )
         val_config = SamplerConfig(**{**sampler.to_dict(), "draws": VALIDATION_DRAWS})
         self.val_inputs = InferenceSampler(val_config)(
-            data.boxes[val_rows], data.image_size, None if kp is None else kp[val_rows]
+            data.boxes[self.val], data.image_size, None if kp is None else kp[self.val]
         )
 
     def _initial_matrices(self, rows: np.ndarray) -> np.ndarray:
@@ -256,6 +263,7 @@ def _train(dataset, out_dir, sampler, decoder, epochs, seed, progress, tuning) -
     trainer = _Trainer(dataset, sampler, decoder, settings, seed, train_rows, val_rows)
 
     best, best_epoch, best_state, history = math.inf, 0, trainer.state(), []
+    stop = "max_epochs"
     bar = _progress(settings.max_epochs, progress)
     for index in range(settings.max_epochs):
         trainer.epoch(index)
@@ -267,6 +275,10 @@ def _train(dataset, out_dir, sampler, decoder, epochs, seed, progress, tuning) -
         bar.set_postfix_str(f"val {error:.3f} m (best {best:.3f} m @ {best_epoch + 1})")
         bar.update(1)
         if index - best_epoch >= settings.patience:
+            stop = "early_stopping"
+            break
+        if settings.time_budget_s and time.monotonic() - started > settings.time_budget_s:
+            stop = "time_budget"
             break
     bar.close()
     trainer.load(best_state)
@@ -274,6 +286,7 @@ def _train(dataset, out_dir, sampler, decoder, epochs, seed, progress, tuning) -
     metrics.update(
         epochs_run=len(history),
         best_epoch=best_epoch + 1,
+        stopped_by=stop,
         train_rows=len(train_rows),
         val_rows=len(val_rows),
         seconds=round(time.monotonic() - started, 1),
