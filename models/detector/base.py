@@ -120,6 +120,18 @@ def _load_builtin_detectors() -> None:
     from models.detector import ssdlite, yolov8  # noqa: F401
 
 
+def warm_up(detector: PersonDetector, path: Path, frames: int) -> None:
+    """Run the model once at load: allocations happen now, and a model that loads but cannot
+    run (wrong shapes inside, unsupported op) fails at start with one line, not on frame one."""
+    try:
+        detector.detect([np.zeros((480, 640, 3), np.uint8)] * frames)
+    except MomlocError:
+        raise
+    except Exception as error:
+        lines = str(error).strip().splitlines() or [type(error).__name__]
+        raise MomlocError(f"detector model {path}: fails on a test frame ({lines[0]})") from None
+
+
 def open_session(path: str | Path, threads: int | None = None, what: str = "detector model"):
     """An onnxruntime CPU session tuned for a small shared machine, or one clear error.
 

@@ -22,7 +22,13 @@ from pathlib import Path
 
 import numpy as np
 
-from models.detector.base import Detections, PersonDetector, open_session, register_detector
+from models.detector.base import (
+    Detections,
+    PersonDetector,
+    open_session,
+    register_detector,
+    warm_up,
+)
 from models.detector.preprocessing import Geometry, make_batch
 from models.errors import MomlocError
 
@@ -80,7 +86,7 @@ class SSDLiteDetector(PersonDetector):
         self.letterbox = bool(letterbox)
         self.session = open_session(path, threads)
         self._check_interface()
-        self.detect([np.zeros((480, 640, 3), np.uint8)] * 2)  # warm-up: allocations, kernels
+        warm_up(self, path, frames=2)
 
     def _check_interface(self) -> None:
         inputs = self.session.get_inputs()

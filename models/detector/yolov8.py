@@ -25,7 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
-from models.detector.base import Detections, PersonDetector, open_session, register_detector
+from models.detector.base import (
+    Detections,
+    PersonDetector,
+    open_session,
+    register_detector,
+    warm_up,
+)
 from models.detector.preprocessing import Geometry, make_batch, nms
 from models.errors import MomlocError
 
@@ -55,7 +61,7 @@ class YoloV8Detector(PersonDetector):
         self.max_detections = int(max_detections)
         self.session = open_session(self.model_path, threads)
         self._configure(input_size)
-        self.detect([np.zeros((480, 640, 3), np.uint8)])  # warm-up and output-shape check
+        warm_up(self, self.model_path, frames=1)  # also checks the output shape
 
     def _configure(self, input_size: int | tuple[int, int]) -> None:
         inputs, outputs = self.session.get_inputs(), self.session.get_outputs()

@@ -130,3 +130,20 @@ def test_wrong_models_fail_at_load(tmp_path):
         create_detector("yolov8", model_path=garbage)
     with pytest.raises(MomlocError, match="not an SSD detector"):
         create_detector("ssdlite", model_path=tmp_path / "y.onnx")
+
+
+def test_model_that_loads_but_cannot_run_fails_at_start(tmp_path):
+    """Declared [N, 84, A] but its Reshape is impossible for a 3×64×64 input."""
+    graph = helper.make_graph(
+        [helper.make_node("Reshape", ["images", "shape"], ["output0"])],
+        "broken",
+        [helper.make_tensor_value_info("images", TensorProto.FLOAT, ["N", 3, NET, NET])],
+        [helper.make_tensor_value_info("output0", TensorProto.FLOAT, ["N", 84, 120])],
+        [numpy_helper.from_array(np.array([-1, 84, 7], np.int64), "shape")],
+    )
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 13)])
+    model.ir_version = 8
+    onnx.save(model, tmp_path / "broken.onnx")
+    with pytest.raises(MomlocError, match="fails on a test frame") as error:
+        create_detector("yolov8", model_path=tmp_path / "broken.onnx")
+    assert "\n" not in str(error.value)
