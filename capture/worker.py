@@ -15,7 +15,8 @@ newest. Policies, in one place:
   flagged does not by itself reopen the camera: a late frame is still a good frame.
 - **Reconnect with back-off.** When ``read()`` returns ``None`` or raises (device unplugged,
   stream over, read timeout), the worker closes the source and reopens it: first at once, then
-  after ``backoff`` seconds doubling up to ``max_backoff`` while it keeps failing. A failing
+  after ``backoff`` seconds doubling up to ``max_backoff`` until a frame arrives again (a camera
+  that opens but never streams is also retried with back-off). A failing
   camera never touches the other cameras' workers.
 """
 
@@ -176,10 +177,10 @@ class CameraWorker:
             if not self._open:
                 if delay and self._stop.wait(delay):
                     break
-                if self._try_open():
-                    delay = 0.0
-                else:
-                    delay = min(max(delay * 2, self.backoff), self.max_backoff)
+                self._try_open()
+                # Grows until a frame arrives, so a camera that opens but never streams is
+                # retried with back-off too, not in a busy loop.
+                delay = min(max(delay * 2, self.backoff), self.max_backoff)
                 continue
             try:
                 image = self.source.read()
@@ -190,6 +191,7 @@ class CameraWorker:
                 self._lost("no frame (camera gone, stream ended or read timed out)")
                 continue
             self._publish(image)
+            delay = 0.0
 
     def _watch(self) -> None:
         """Counts stalls as they happen (state() reports them itself, at query time)."""

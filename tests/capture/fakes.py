@@ -32,13 +32,15 @@ class FaultySource:
     - ``paused``: stops delivering; ``read()`` waits up to ``read_timeout`` then returns None,
       like a V4L2 select timeout;
     - ``fail_reads``: the next N reads raise;
-    - ``gone``: unplugged: ``read()`` returns None at once and ``open()`` raises.
+    - ``gone``: unplugged: ``read()`` returns None at once and ``open()`` raises;
+    - ``mute``: opens fine but every ``read()`` returns None at once (a busy or broken stream).
     """
 
     def __init__(self, name: str = "fake", fps: float = 100.0, read_timeout: float = 0.2):
         self.name, self.fps, self.read_timeout = name, fps, read_timeout
         self.paused = threading.Event()
         self.gone = threading.Event()
+        self.mute = threading.Event()
         self.fail_reads = 0
         self.reads = 0  # frames delivered
         self.opens = 0  # open attempts, failed ones included
@@ -54,7 +56,7 @@ class FaultySource:
 
     def read(self) -> np.ndarray | None:
         assert self.is_open, "read() on a closed source"
-        if self.gone.is_set():
+        if self.gone.is_set() or self.mute.is_set():
             return None
         if self.fail_reads > 0:
             self.fail_reads -= 1

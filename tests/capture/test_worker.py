@@ -119,6 +119,18 @@ def test_vanished_camera_comes_back_and_others_keep_running(workers):
     assert a.state().connected and a.state().reconnects == 1 and a.state().error is None
 
 
+def test_a_camera_that_opens_but_never_streams_is_retried_with_back_off(workers):
+    source = FaultySource()
+    source.mute.set()
+    worker = workers(source, backoff=0.05, max_backoff=0.2)
+    time.sleep(1.0)
+    assert 3 <= source.opens <= 15  # 0.05, 0.1, 0.2, 0.2, ... s apart: no busy loop
+    assert not worker.state().connected and "no frame" in worker.state().error
+    source.mute.clear()
+    assert worker.wait_for_frame(timeout=10.0) is not None
+    assert worker.state().connected
+
+
 def test_stop_closes_the_source(workers):
     source = FaultySource()
     worker = workers(source)
