@@ -77,8 +77,9 @@ class V4L2Source:
     def open(self) -> None:
         self.close()
         target = self.device if isinstance(self.device, int) else str(self.device)
-        if isinstance(target, str) and not os.path.exists(target):
-            raise MomlocError(f"camera {target}: no such device")
+        path = f"/dev/video{target}" if isinstance(target, int) else target
+        if not os.path.exists(path):  # checked first: OpenCV would log a warning per retry
+            raise MomlocError(f"camera {path}: no such device (unplugged?)")
         # OpenCV reads this when the capture is created; default 10 s is far too long.
         os.environ.setdefault(
             "OPENCV_VIDEOIO_V4L_SELECT_TIMEOUT", str(max(1, round(self.read_timeout)))

@@ -58,8 +58,12 @@ def test_v4l2_source_reports_missing_devices(tmp_path):
     with pytest.raises(MomlocError, match="no such device"):
         V4L2Source(str(tmp_path / "video9")).open()
     source = V4L2Source(63)  # this machine (and CI) has no /dev/video63
-    with pytest.raises(MomlocError, match="cannot open"):
+    with pytest.raises(MomlocError, match="/dev/video63: no such device"):
         source.open()
+    not_a_camera = tmp_path / "video0"
+    not_a_camera.write_bytes(b"")
+    with pytest.raises(MomlocError, match="cannot open with V4L2"):
+        V4L2Source(str(not_a_camera)).open()
     assert source.read() is None and source.name == "video63"
 
 
