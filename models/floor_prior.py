@@ -1,0 +1,305 @@
+"""A calibration-free geometric floor prior: per-camera plane homographies from the floor marks.
+
+Why: a learned model trained on a handful of floor marks cannot interpolate between them (an MLP
+on 4 marks is ~1 m off over the room), but geometry can. A person's box bottom-centre (the *foot*
+point) lies on the floor plane, so pixel → floor is a homography for each camera, fixed by the
+marks alone (no chessboard, no camera pose). The box *centre* is on a plane at about half the
+person's height: also a homography, less noisy (the scale error of a box leaves its centre in
+place) but biased for people taller or shorter than whoever walked the marks.
+
+Model, per camera k and image point p in ``points`` ("foot", "centre"):
+
+* ``G_kp`` pixel → floor, fitted on the training rows (robust, see :mod:`models.homography`).
+* Error model: the residuals of the training rows, mapped back to pixels and divided by the box
+  height (detector noise grows with box size), give a pixel covariance ``S_k`` per unit box
+  height over all the camera's points jointly (the foot and the centre share the box's bottom
+  edge, so their errors are correlated). A view's floor covariance is ``J S_k J^T h²`` with ``J``
+  the homography's Jacobian at the pixel: one pixel far away is many centimetres on the floor,
+  and only along the camera's line of sight.
+* Fusion: generalised least squares over every point of every view (information-weighted). Two
+  cameras that each know the position well only across their line of sight combine like a
+  triangulation. Unseen views (NaN boxes) carry no information; a point on a box cut by the
+  image border (the foot when the bottom or a side is cut, the centre for any cut) has its
+  variance multiplied by ``cut_inflation`` (default 25: a fallback, used when nothing better is
+  seen), a point beyond the plane's horizon is dropped.
+
+Degenerate data: a camera whose usable rows show fewer than 4 distinct floor positions, or
+positions all on one line but one (no homography is determined), gets no prior (``None``) and is
+ignored at prediction; :class:`MomlocError` only when *no* camera can be fitted.
+
+Serving: numpy only; ``to_json``/``from_json`` round-trip through ``model.json``. Example::
+
+    prior = FloorPrior.fit(data)                 # data: MomDataset of the marks
+    xy, std = prior.predict(boxes)               # boxes [B, K, 4], NaN = unseen
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from models.baseline import box_points, truncated
+from models.errors import MomlocError
+from models.homography import apply_homography, fit_homography, homography_jacobian
+
+POINTS = ("foot", "centre")
+CUT_EDGES = {"foot": "lrb", "centre": "ltrb"}
+MIN_ROWS = 8
+DISTINCT_M = 0.05  # positions closer than this count as one mark
+COLLINEAR = 0.05  # minor/major spread ratio under which positions count as a line
+MIN_NOISE = 0.002  # floor of the per-unit-height pixel std (noise-free data stays invertible)
+_UNSEEN_STD = 1e6  # std multiplier that removes a measurement from the fusion
+_FORMAT = "floor-prior-v1"
+
+
+@dataclass(frozen=True)
+class CameraPrior:
+    """One camera's fitted maps (point name → pixel→floor H) and joint pixel noise [2P, 2P]."""
+
+    points: tuple[str, ...]
+    maps: tuple[np.ndarray, ...]
+    signs: tuple[float, ...]  # sign of the homogeneous w of floor points in front of the camera
+    noise: np.ndarray
+    rows: int
+    marks: int
+
+
+def _degenerate(world: np.ndarray) -> str | None:
+    """Why these floor positions cannot fix a homography, or None when they can."""
+    distinct = np.unique(np.round(world / DISTINCT_M), axis=0) * DISTINCT_M
+    if len(distinct) < 4:
+        return f"{len(distinct)} distinct floor positions (need 4)"
+
+    def flat(points: np.ndarray) -> bool:
+        sing = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
+        return sing[0] == 0 or sing[1] < COLLINEAR * sing[0]
+
+    if flat(distinct):
+        return "floor positions on one line"
+    if len(distinct) <= 64 and any(flat(np.delete(distinct, i, 0)) for i in range(len(distinct))):
+        return "all floor positions but one on a line"
+    return None
+
+
+def _robust_covariance(r: np.ndarray) -> np.ndarray:
+    """Second moment [D, D] of residual rows [M, D] after dropping rows past 4 robust stds."""
+    mad = 1.4826 * np.median(np.abs(r - np.median(r, axis=0)), axis=0)
+    keep = (np.abs(r) <= 4 * np.maximum(mad, MIN_NOISE)).all(axis=1)
+    r = r[keep] if keep.sum() >= MIN_ROWS else r
+    cov = r.T @ r / len(r)
+    return cov + np.eye(len(cov)) * MIN_NOISE**2
+
+
+def _box_height(boxes: np.ndarray) -> np.ndarray:
+    return np.maximum(boxes[..., 3] - boxes[..., 1], 1.0)
+
+
+def _fit_camera(
+    world: np.ndarray, boxes: np.ndarray, size: np.ndarray, points: tuple[str, ...]
+) -> tuple[CameraPrior | None, str]:
+    seen = np.isfinite(boxes).all(axis=-1)
+    pixels = box_points(boxes)
+    fitted, maps, signs, usable = [], [], [], []
+    reasons = []
+    for name in points:
+        ok = seen & ~truncated(boxes[:, None], size[None], CUT_EDGES[name])[:, 0]
+        if ok.sum() < MIN_ROWS:
+            reasons.append(f"{name}: {ok.sum()} uncut rows")
+            continue
+        why = _degenerate(world[ok])
+        if why:
+            reasons.append(f"{name}: {why}")
+            continue
+        g = fit_homography(pixels[name][ok], world[ok])
+        w = pixels[name][ok] @ g[2, :2] + g[2, 2]
+        fitted.append(name)
+        maps.append(g)
+        signs.append(float(np.sign(np.median(w))))
+        usable.append(ok)
+    if not fitted:
+        return None, "; ".join(reasons)
+    both = np.logical_and.reduce(usable)
+    if both.sum() < MIN_ROWS:  # too few rows where every point is usable: fit noise per point
+        both = usable[0]
+    height = _box_height(boxes[both])[:, None]
+    residuals = [
+        (pixels[name][both] - apply_homography(np.linalg.inv(g), world[both])) / height
+        for name, g in zip(fitted, maps, strict=True)
+    ]
+    noise = _robust_covariance(np.concatenate(residuals, axis=1))
+    marks = len(np.unique(np.round(world[both] / DISTINCT_M), axis=0))
+    prior = CameraPrior(tuple(fitted), tuple(maps), tuple(signs), noise, int(seen.sum()), marks)
+    return prior, "; ".join(reasons)
+
+
+@dataclass(frozen=True)
+class FloorPrior:
+    """Per-camera floor homographies with an error model, fused into one floor estimate."""
+
+    cameras: tuple[CameraPrior | None, ...]
+    image_size: np.ndarray  # [K, 2]
+    cut_inflation: float = 25.0
+    notes: tuple[str, ...] = ()  # why a camera or a point was left out
+
+    @property
+    def num_cameras(self) -> int:
+        return len(self.cameras)
+
+    @classmethod
+    def fit(cls, dataset, *, points: str | tuple[str, ...] = "foot", **options) -> FloorPrior:
+        """Fit from a :class:`~models.dataset.MomDataset` (its ``world``, ``boxes``, sizes)."""
+        return cls.fit_arrays(
+            dataset.world, dataset.boxes, dataset.image_size, points=points, **options
+        )
+
+    @classmethod
+    def fit_arrays(
+        cls,
+        world: np.ndarray,
+        boxes: np.ndarray,
+        image_size: np.ndarray,
+        *,
+        points: str | tuple[str, ...] = "foot",
+        cut_inflation: float = 25.0,
+    ) -> FloorPrior:
+        """Fit from ``world`` [N, 2|3] metres, ``boxes`` [N, K, 4] pixels, ``image_size`` [K, 2].
+
+        ``points``: "foot", "centre", "both" or a tuple of names from :data:`POINTS`.
+        """
+        names = POINTS if points == "both" else (points,) if isinstance(points, str) else points
+        if not names or any(name not in POINTS for name in names):
+            raise MomlocError(f"floor prior points {points!r}: expected foot, centre or both")
+        world = np.asarray(world, dtype=np.float64)[:, :2]
+        boxes = np.asarray(boxes, dtype=np.float64)
+        size = np.asarray(image_size, dtype=np.float64)
+        if boxes.ndim != 3 or boxes.shape[0] != len(world) or size.shape != (boxes.shape[1], 2):
+            raise MomlocError(
+                f"floor prior: boxes {boxes.shape}, world {world.shape} and image sizes "
+                f"{size.shape} do not match"
+            )
+        cameras, notes = [], []
+        for k in range(boxes.shape[1]):
+            prior, why = _fit_camera(world, boxes[:, k], size[k], tuple(names))
+            cameras.append(prior)
+            if why:
+                notes.append(f"camera {k}: {why}")
+        if all(c is None for c in cameras):
+            raise MomlocError(
+                "floor prior: no camera sees 4 floor marks off one line (" + "; ".join(notes) + ")"
+            )
+        return cls(tuple(cameras), size, float(cut_inflation), tuple(notes))
+
+    def views(self, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per-camera floor estimates [B, K, 2] and information matrices [B, K, 2, 2].
+
+        Zero information (and a zero estimate) where a camera has no prior or sees nothing
+        usable. The lead model can take these as features; :meth:`predict` fuses them.
+        """
+        boxes = np.asarray(boxes, dtype=np.float64)
+        if boxes.ndim != 3 or boxes.shape[1:] != (self.num_cameras, 4):
+            raise MomlocError(
+                f"floor prior: boxes {boxes.shape} are not [B, {self.num_cameras}, 4]"
+            )
+        n = boxes.shape[0]
+        est = np.zeros((n, self.num_cameras, 2))
+        info = np.zeros((n, self.num_cameras, 2, 2))
+        for k, cam in enumerate(self.cameras):
+            if cam is not None:
+                est[:, k], info[:, k] = self._camera_view(cam, boxes[:, k], self.image_size[k])
+        return est, info
+
+    def _camera_view(
+        self, cam: CameraPrior, boxes: np.ndarray, size: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        seen = np.isfinite(boxes).all(axis=-1)
+        safe = np.where(seen[:, None], boxes, [0.0, 0.0, size[0], size[1]])
+        pixels = box_points(safe)
+        height = _box_height(safe)
+        zs, jacobians, scales = [], [], []
+        for name, g, sign in zip(cam.points, cam.maps, cam.signs, strict=True):
+            pix = pixels[name]
+            xy = apply_homography(g, pix)
+            w = pix @ g[2, :2] + g[2, 2]
+            valid = seen & (np.sign(w) == sign) & np.isfinite(xy).all(axis=1)
+            cut = truncated(safe[:, None], size[None], CUT_EDGES[name])[:, 0]
+            scale = np.where(cut, np.sqrt(self.cut_inflation), 1.0)
+            scales.append(np.where(valid, scale, _UNSEEN_STD) * height)
+            zs.append(np.where(valid[:, None], xy, 0.0))
+            jac = homography_jacobian(g, pix)
+            jacobians.append(np.where(valid[:, None, None], jac, np.eye(2)))
+        p = len(cam.points)
+        jac = np.zeros((len(boxes), 2 * p, 2 * p))
+        for i, j in enumerate(jacobians):
+            jac[:, 2 * i : 2 * i + 2, 2 * i : 2 * i + 2] = j
+        d = np.repeat(np.stack(scales, axis=1), 2, axis=1)  # [B, 2P]
+        pixel_cov = cam.noise[None] * d[:, :, None] * d[:, None, :]
+        floor_cov = jac @ pixel_cov @ jac.transpose(0, 2, 1)
+        weight = np.linalg.inv(floor_cov)  # [B, 2P, 2P]
+        a = np.tile(np.eye(2), (p, 1))  # [2P, 2]: every point measures the same floor x, y
+        info = a.T @ weight @ a
+        eta = a.T @ weight @ np.concatenate(zs, axis=1)[:, :, None]
+        info = np.where(seen[:, None, None], info, 0.0)
+        est = np.linalg.solve(info + np.eye(2) * 1e-12, eta)[..., 0]
+        return np.where(seen[:, None], est, 0.0), info
+
+    def predict(self, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Fused floor positions [B, 2] (metres) and their std [B] (metres, RMS over x and y).
+
+        NaN position and infinite std for rows that no fitted camera sees.
+        """
+        est, info = self.views(boxes)
+        total = info.sum(axis=1)
+        eta = (info @ est[..., None]).sum(axis=1)
+        has = np.trace(total, axis1=1, axis2=2) > 1e-9
+        safe = np.where(has[:, None, None], total, np.eye(2))
+        xy = np.linalg.solve(safe, eta)[..., 0]
+        cov = np.linalg.inv(safe)
+        std = np.sqrt(np.clip(np.trace(cov, axis1=1, axis2=2) / 2, 0.0, None))
+        return np.where(has[:, None], xy, np.nan), np.where(has, std, np.inf)
+
+    def to_json(self) -> dict:
+        """Plain-JSON form for ``model.json`` (lists and numbers only)."""
+        return {
+            "format": _FORMAT,
+            "image_size": self.image_size.tolist(),
+            "cut_inflation": self.cut_inflation,
+            "notes": list(self.notes),
+            "cameras": [
+                None
+                if c is None
+                else {
+                    "points": list(c.points),
+                    "maps": [g.tolist() for g in c.maps],
+                    "signs": list(c.signs),
+                    "noise": c.noise.tolist(),
+                    "rows": c.rows,
+                    "marks": c.marks,
+                }
+                for c in self.cameras
+            ],
+        }
+
+    @classmethod
+    def from_json(cls, data: dict) -> FloorPrior:
+        """Inverse of :meth:`to_json`; a malformed entry raises :class:`MomlocError`."""
+        try:
+            if data["format"] != _FORMAT:
+                raise MomlocError(f"floor prior: format {data['format']!r} is not {_FORMAT}")
+            cameras = tuple(
+                None
+                if c is None
+                else CameraPrior(
+                    tuple(c["points"]),
+                    tuple(np.asarray(g, dtype=np.float64).reshape(3, 3) for g in c["maps"]),
+                    tuple(float(s) for s in c["signs"]),
+                    np.asarray(c["noise"], dtype=np.float64),
+                    int(c["rows"]),
+                    int(c["marks"]),
+                )
+                for c in data["cameras"]
+            )
+            size = np.asarray(data["image_size"], dtype=np.float64).reshape(len(cameras), 2)
+            return cls(cameras, size, float(data["cut_inflation"]), tuple(data.get("notes", ())))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise MomlocError(f"floor prior: malformed model.json entry ({exc})") from exc
