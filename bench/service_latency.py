@@ -99,11 +99,25 @@ def lag_in_snapshots(records: list[list[float]], publish_times: list[tuple[int, 
     return np.array(out)
 
 
-def run_clients(url: str, clients: int, seconds: float, churn: float, out: Path) -> None:
-    """Start the client process and wait for it."""
-    cmd = [sys.executable, "-m", "bench.service_latency", "--worker", url, str(clients)]
-    cmd += [str(seconds), str(churn), str(out)]
-    subprocess.run(cmd, check=True, timeout=seconds + 120)
+def run_clients(
+    url: str, clients: int, seconds: float, churn: float, out: Path, procs: int = 1
+) -> None:
+    """Run ``clients`` spread over ``procs`` client processes; merged records go to ``out``."""
+    procs = max(1, min(procs, clients))
+    running = []
+    for i in range(procs):
+        share = clients // procs + (1 if i < clients % procs else 0)
+        part = out.with_suffix(f".{i}.json")
+        cmd = [sys.executable, "-m", "bench.service_latency", "--worker", url, str(share)]
+        cmd += [str(seconds), str(churn / procs), str(part)]
+        running.append((subprocess.Popen(cmd), part))
+    records: list = []
+    for proc, part in running:
+        if proc.wait(timeout=seconds + 120) != 0:
+            raise RuntimeError("a benchmark client process failed")
+        records += json.loads(part.read_text())
+        part.unlink()
+    out.write_text(json.dumps(records))
 
 
 # -- client side (separate process) ------------------------------------------------------------
@@ -131,7 +145,7 @@ async def _workers(url: str, clients: int, seconds: float, churn: float) -> list
 
     def spawn(index: int) -> None:
         cancel = asyncio.Event()
-        keep = index < 20 or churn == 0  # record a sample of clients; all read everything
+        keep = index < 10 or churn == 0  # record a sample of clients; all read everything
         task = asyncio.create_task(_client(url, stop_at, records, keep, cancel))
         live.append((task, cancel))
 
@@ -143,7 +157,7 @@ async def _workers(url: str, clients: int, seconds: float, churn: float) -> list
     while time.time() < stop_at:
         await asyncio.sleep(1.0)
         if churn > 0:  # clients leave and others join
-            leaving = rng.sample(range(len(live)), int(churn))
+            leaving = rng.sample(range(len(live)), round(churn))
             for i in sorted(leaving, reverse=True):
                 live.pop(i)[1].set()
             for _ in leaving:
@@ -172,7 +186,10 @@ def scenario(detections: str, args: argparse.Namespace) -> dict[str, Any]:
         fps_one = fps_between(publish, t0 + 1, time.time() - 1)
         stats_one = background.daemon.pipeline.stats()
         t1 = time.time()
-        run_clients(url, args.clients, args.seconds, 0, out)
+        hub = background.daemon.hub
+        before = hub.stream_stats()
+        run_clients(url, args.clients, args.seconds, 0, out, args.client_procs)
+        after = hub.stream_stats()
         many = np.array(json.loads(out.read_text()))
         fps_many = fps_between(publish, t1 + 3, time.time() - 1)
         lat_one = (one[:, 2] - one[:, 1]) * 1e3
@@ -191,6 +208,11 @@ def scenario(detections: str, args: argparse.Namespace) -> dict[str, Any]:
             "lag_max": float(lag.max()),
             "lag_over_1": float((lag > 1).mean() * 100),
             "messages_many": len(many),
+            "server_sent": after["sent"] - before["sent"],
+            "server_behind_pct": (after["sent_behind"] - before["sent_behind"])
+            / max(1, after["sent"] - before["sent"])
+            * 100,
+            "load": os.getloadavg()[0],
         }
         if detections == "simulated" and args.memory_seconds > 0:
             result["memory"] = memory_run(url, args, background)
@@ -216,7 +238,7 @@ def memory_run(url: str, args: argparse.Namespace, background: Any) -> dict[str,
     sampler = threading.Thread(target=sample, daemon=True)
     sampler.start()
     try:
-        run_clients(url, args.clients, args.memory_seconds, args.churn, out)
+        run_clients(url, args.clients, args.memory_seconds, args.churn, out, args.client_procs)
     finally:
         stop.set()
         sampler.join()
@@ -246,8 +268,9 @@ def report(results: list[dict[str, Any]], args: argparse.Namespace) -> str:
         "",
         "| detections | capture->WS p50 | p95 | pipeline fps | dropped/processed | "
         "detect / associate / track ms | fps with "
-        f"{args.clients} clients | p95 with {args.clients} | max lag | msgs >1 behind |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        f"{args.clients} clients | p95 with {args.clients} | client-side max lag | "
+        "client msgs >1 behind | server sends >1 behind | load avg |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in results:
         st = {k: r["stage_ms"].get(k, 0.0) for k in ("detect", "associate", "track")}
@@ -256,7 +279,8 @@ def report(results: list[dict[str, Any]], args: argparse.Namespace) -> str:
             f"{r['fps']:.1f} | {r['dropped']}/{r['processed']} | "
             f"{st['detect']:.1f} / {st['associate']:.1f} / {st['track']:.1f} | "
             f"{r['fps_many']:.1f} ({(r['fps_many'] / r['fps'] - 1) * 100:+.0f} %) | "
-            f"{r['latency_many_p95']:.1f} ms | {r['lag_max']:.0f} | {r['lag_over_1']:.2f} % |"
+            f"{r['latency_many_p95']:.1f} ms | {r['lag_max']:.0f} | {r['lag_over_1']:.2f} % | "
+            f"{r['server_behind_pct']:.2f} % of {r['server_sent']} | {r['load']:.1f} |"
         )
     for r in results:
         if "memory" in r:
@@ -271,8 +295,12 @@ def report(results: list[dict[str, Any]], args: argparse.Namespace) -> str:
             ]
     lines += [
         "",
-        "Lag counts snapshots published before a message arrived minus that message's seq "
-        "(0 = newest). Stage times are the last frame set's. Latency includes detection "
+        "Client-side lag counts snapshots published before a message arrived minus that "
+        "message's seq (0 = newest); it includes the client processes' own backlog (200 Python "
+        "clients parsing JSON on the same 2 cores as the server). Server sends >1 behind counts "
+        "messages the server sent while 2+ newer snapshots existed: the server's own lag. "
+        "Load avg: 1-minute load of the machine (other jobs included) at the end of the run. "
+        "Stage times are the last frame set's. Latency includes detection "
         "(one batched SSDLite call for both cameras) when detections are `rendered`; "
         "`simulated` feeds the simulator's boxes at the same pipeline entry.",
     ]
@@ -292,6 +320,7 @@ def main(argv: list[str] | None = None) -> int:
         "--memory-seconds", type=float, default=60.0, help="churn run length (600 = issue target)"
     )
     parser.add_argument("--churn", type=int, default=20, help="clients replaced per second")
+    parser.add_argument("--client-procs", type=int, default=2, help="client processes")
     parser.add_argument("--clip", type=int, default=90, help="pre-drawn frames replayed")
     parser.add_argument(
         "--detections", nargs="+", default=["rendered", "simulated"], help="scenarios"

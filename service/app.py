@@ -191,6 +191,7 @@ async def _serve_stream(websocket: WebSocket, daemon: Daemon, rate: float) -> No
             if delay > 0:
                 await asyncio.sleep(delay)
                 snapshot = _newest(subscription, snapshot)
+            daemon.hub.note_send(snapshot.seq)
             await websocket.send_text(snapshot.text)
             next_time = max(next_time + interval, loop.time())
 

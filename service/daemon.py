@@ -72,7 +72,7 @@ class Daemon:
             "model": model,
             "pipeline": pipeline,
             "clients": self.hub.subscriber_count,
-            "published": self.hub.published,
+            "stream": self.hub.stream_stats(),
             **self.extras,
         }
 

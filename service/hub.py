@@ -92,6 +92,9 @@ class Hub:
         self._subscribers: set[Subscription] = set()
         self._loop: asyncio.AbstractEventLoop | None = None
         self.published = 0
+        self.sent = 0  # messages handed to clients
+        self.sent_behind = 0  # ... of which a newer-by-2+ snapshot already existed
+        self.max_behind = 0
 
     def bind(self, loop: asyncio.AbstractEventLoop | None) -> None:
         """Attach the event loop that owns the subscribers (None detaches at shutdown)."""
@@ -110,6 +113,28 @@ class Hub:
     def _fan_out(self, snapshot: Snapshot) -> None:
         for subscription in tuple(self._subscribers):
             subscription.offer(snapshot)
+
+    def note_send(self, seq: int) -> int:
+        """Record that ``seq`` is being sent; returns how many snapshots newer already exist.
+
+        Server-side lag (loop thread only): >1 means the event loop could not keep up with the
+        pipeline for this client, as opposed to the client or network being slow.
+        """
+        behind = self.latest().seq - seq
+        self.sent += 1
+        if behind > 1:
+            self.sent_behind += 1
+        self.max_behind = max(self.max_behind, behind)
+        return behind
+
+    def stream_stats(self) -> dict[str, int]:
+        return {
+            "clients": self.subscriber_count,
+            "published": self.published,
+            "sent": self.sent,
+            "sent_behind": self.sent_behind,
+            "max_behind": self.max_behind,
+        }
 
     def latest(self) -> Snapshot:
         with self._lock:

@@ -56,6 +56,13 @@ class _DaemonCollector(Collector):
         yield GaugeMetricFamily(
             "momloc_stream_clients", "Connected WebSocket clients", d.hub.subscriber_count
         )
+        stream = d.hub.stream_stats()
+        yield CounterMetricFamily("momloc_stream_sent", "Snapshots sent to clients", stream["sent"])
+        yield CounterMetricFamily(
+            "momloc_stream_sent_behind",
+            "Snapshots sent while 2+ newer ones existed (event loop falling behind)",
+            stream["sent_behind"],
+        )
         yield GaugeMetricFamily(
             "momloc_model_loaded",
             "1 when a MoM model is loaded",

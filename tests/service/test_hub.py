@@ -68,3 +68,17 @@ def test_publish_without_loop_keeps_latest():
     hub = Hub()
     hub.publish(snap(5))
     assert hub.latest().seq == 5 and hub.published == 1
+
+
+def test_send_lag_bookkeeping():
+    hub = Hub()
+    for seq in range(1, 6):
+        hub.publish(snap(seq))
+    assert hub.note_send(5) == 0 and hub.note_send(4) == 1 and hub.note_send(2) == 3
+    assert hub.stream_stats() == {
+        "clients": 0,
+        "published": 5,
+        "sent": 3,
+        "sent_behind": 1,
+        "max_behind": 3,
+    }
