@@ -60,10 +60,15 @@ def run(args: argparse.Namespace) -> int:
         raise MomlocError("--grid needs --room WxD (metres)")
     marks = load_marks(args.marks) if args.marks else grid_marks(args.grid, room_text)
 
-    feed = _open_feed(args, marks)
-    writer = DatasetAppender(Path(args.out), feed.image_sizes)
+    feed = _open_feed(args)
+    try:
+        writer = DatasetAppender(Path(args.out), feed.image_sizes)
+    except MomlocError:
+        feed.close()
+        raise
     todo = [m for m in marks if args.redo or not writer.has_mark(m)]
     if not todo:
+        feed.close()
         print(f"all {len(marks)} marks are already in {args.out}; use --redo to record again")
         return 0
     start = (todo[0].x, todo[0].y) if args.source == "cameras" else _room_centre(feed)
@@ -102,6 +107,7 @@ def run(args: argparse.Namespace) -> int:
             on_progress=on_progress,
         )
     finally:
+        feed.close()
         bar.close()
         kept = writer.existing_rows + writer.new_rows
         print(f"{args.out}: {writer.new_rows} new rows, {kept} in total")
@@ -112,7 +118,7 @@ def _room_centre(feed) -> tuple[float, float]:
     return (feed.room[0] / 2, feed.room[1] / 2)
 
 
-def _open_feed(args: argparse.Namespace, marks):
+def _open_feed(args: argparse.Namespace):
     from models.errors import MomlocError
 
     if args.source == "synthetic":

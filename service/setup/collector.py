@@ -115,6 +115,10 @@ class DetectionFeed(Protocol):
         """Frame sets for the duration of ``step`` (a simulated person follows it)."""
         ...
 
+    def close(self) -> None:
+        """Release cameras."""
+        ...
+
 
 def frame_row(frame: FeedFrame, require_all_cameras: bool) -> tuple[np.ndarray, np.ndarray] | None:
     """The frame as one row (boxes [K,4], keypoints [K,J,3]) or None when it must be dropped."""

@@ -1,4 +1,4 @@
-"""Detection feeds for guided collection: the synthetic scene with a person who follows the plan.
+"""Detection feeds for guided collection: live cameras, or a synthetic person who follows the plan.
 
 The synthetic feed runs as fast as the simulator goes (simulated time, no sleeping), so an
 unattended collection of 9 marks x 20 s takes seconds. It uses exactly the cameras of
@@ -8,10 +8,13 @@ evaluated on a dense ``simulate`` file of the same scene.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 
+from models.errors import MomlocError
 from models.simulate import get_config
 from models.simulate.scripted import Segment, scripted_scene
 from service.setup.collector import FeedFrame, Step
@@ -46,3 +49,69 @@ class SyntheticFeed:
                 boxes.append(observation.boxes[seen, k])
                 keypoints.append(observation.keypoints[seen, k])
             yield FeedFrame(index / self._fps, boxes, keypoints)
+
+    def close(self) -> None:
+        """Nothing to release: the scene lives in memory."""
+
+
+class LiveFeed:
+    """Live cameras and the configured detector: the very stages the daemon runs.
+
+    Recording runs in real time: each step lasts ``step.seconds`` of wall clock, and every new
+    frame set in that time is detected once (a slow detector skips frames, it never queues them).
+    """
+
+    def __init__(self, rig: Any, detect: Any, first_frame_timeout_s: float = 10.0) -> None:
+        self.rig, self.detect = rig, detect
+        rig.start()
+        first = self._first_frame_set(first_frame_timeout_s)
+        self.image_sizes = np.array(
+            [[f.image.shape[1], f.image.shape[0]] for f in first.frames], np.int32
+        )
+
+    @classmethod
+    def from_config(cls, path: str) -> LiveFeed:
+        from service.daemon import build_detect_stage, build_rig
+        from service.settings import load_settings
+
+        settings = load_settings(path)
+        rig, player = build_rig(settings)
+        return cls(rig, build_detect_stage(settings, player))
+
+    def _first_frame_set(self, timeout_s: float) -> Any:
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            frame_set = self.rig.frame_set()
+            if frame_set is not None and all(_has_image(f) for f in frame_set.frames):
+                return frame_set
+            time.sleep(0.05)
+        self.rig.stop()
+        missing = (
+            [] if frame_set is None else [k for k, f in enumerate(frame_set.frames) if f is None]
+        )
+        which = ", ".join(f"camera {k}" for k in missing) or "no camera"
+        raise MomlocError(
+            f"{which} delivered no frame within {timeout_s:g} s; check `momloc cameras`"
+        )
+
+    def prepare(self, steps: list[Step]) -> None:
+        """Live people follow the printed instructions; nothing to script."""
+
+    def frames(self, step: Step) -> Iterator[FeedFrame]:
+        end = time.monotonic() + step.seconds
+        last = None
+        while time.monotonic() < end:
+            frame_set = self.rig.frame_set()
+            stamp = None if frame_set is None else frame_set.timestamp
+            if stamp is None or stamp == last:
+                time.sleep(0.005)
+                continue
+            last = stamp
+            yield FeedFrame(stamp, self.detect(frame_set))
+
+    def close(self) -> None:
+        self.rig.stop()
+
+
+def _has_image(frame: Any) -> bool:
+    return frame is not None and frame.image is not None

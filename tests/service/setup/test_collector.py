@@ -115,3 +115,22 @@ def test_collect_cli_errors_are_one_line(tmp_path: Path) -> None:
     result = _momloc("collect", "--grid", "3x3", "--seconds", "5", "--out", str(tmp_path / "x"))
     assert result.returncode == 2
     assert result.stderr.strip().count("\n") == 0 and "--room" in result.stderr
+
+
+def test_live_feed_records_through_the_daemon_rig_and_detector_stage(tmp_path: Path) -> None:
+    """The live path (settings -> rig -> detector stage) on the synthetic rig in real time."""
+    from service.setup.feeds import LiveFeed
+
+    config = tmp_path / "cams.yaml"
+    config.write_text(
+        "cameras: [{type: synthetic, index: 0}, {type: synthetic, index: 1}]\n"
+        "synthetic: {preset: indoor-2cam, people: 1, fps: 20, detections: simulated}\n"
+    )
+    feed = LiveFeed.from_config(str(config))
+    try:
+        assert feed.image_sizes.tolist() == [[640, 480], [640, 480]]
+        steps = plan_steps([FloorMark("a", 5, 5)], 1.0, start=(5, 5), move_s=0.2, countdown_s=0.2)
+        writer = collect(feed, steps, DatasetAppender(tmp_path / "live.npz", feed.image_sizes))
+    finally:
+        feed.close()
+    assert 5 <= writer.new_rows <= 25  # about 1 s at 20 fps, frames with one person kept
