@@ -1,0 +1,67 @@
+"""REST endpoints of the web set-up flow (``/setup`` page): start, follow and stop a collection."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Body, HTTPException
+from pydantic import BaseModel, ConfigDict, Field
+
+from models.errors import MomlocError
+from service.setup.marks import FloorMark, grid_marks
+from service.setup.session import SetupSession
+
+
+class MarkIn(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    name: str = Field(min_length=1, max_length=40, description="Mark label, e.g. B2.")
+    x: float = Field(description="Floor x in metres.")
+    y: float = Field(description="Floor y in metres.")
+
+
+class StartRequest(BaseModel):
+    """Either ``marks`` or ``grid`` + ``room``."""
+
+    model_config = ConfigDict(extra="forbid")
+    marks: list[MarkIn] | None = Field(None, description="Explicit floor marks.")
+    grid: str | None = Field(None, description="Grid of marks RxC, e.g. 3x3.")
+    room: str | None = Field(None, description="Room WxD in metres, for grid.")
+    seconds: float = Field(20.0, gt=0, le=600, description="Seconds recorded on each mark.")
+    walk: bool = Field(False, description="Also record walks between marks (interpolated).")
+    countdown: float = Field(3.0, ge=0, le=30, description="Seconds before recording starts.")
+    move_seconds: float = Field(5.0, ge=0, le=120, description="Time to reach each mark.")
+    out: str = Field("setup.npz", description="File name in the daemon's data directory.")
+
+
+def create_setup_router(session: SetupSession) -> APIRouter:
+    router = APIRouter(prefix="/v1/setup", tags=["setup"])
+
+    @router.post("/start", summary="Start a guided collection at floor marks")
+    def start(request: Annotated[StartRequest, Body()]) -> dict[str, Any]:
+        try:
+            if request.marks:
+                marks = [FloorMark(m.name, m.x, m.y) for m in request.marks]
+            elif request.grid and request.room:
+                marks = grid_marks(request.grid, request.room)
+            else:
+                raise MomlocError("give either marks, or grid and room")
+            return session.start(
+                marks,
+                request.seconds,
+                request.out,
+                walk=request.walk,
+                countdown_s=request.countdown,
+                move_s=request.move_seconds,
+            )
+        except MomlocError as error:
+            raise HTTPException(409 if "already" in str(error) else 422, str(error)) from None
+
+    @router.get("/status", summary="Progress of the current or last collection")
+    def status() -> dict[str, Any]:
+        return session.status()
+
+    @router.post("/stop", summary="Stop the collection, keeping what was recorded")
+    def stop() -> dict[str, Any]:
+        return session.stop()
+
+    return router

@@ -1,0 +1,175 @@
+"""Guided collection driven from the web page, on the running daemon's own detections.
+
+The daemon's pipeline already detects people in every frame set; a :class:`DetectionTap` receives
+those detections (the pipeline calls it, it never waits) and serves them to the collector as a
+feed, so collecting costs no second detector run and the live map keeps streaming meanwhile.
+A :class:`SetupSession` runs one collection at a time in a thread; the page polls
+:meth:`SetupSession.status`. Stopping cancels between frames and keeps every row recorded so far
+(the collector flushes on every exit path).
+"""
+
+from __future__ import annotations
+
+import re
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from models.errors import MomlocError
+from service.setup.collector import (
+    DatasetAppender,
+    FeedFrame,
+    Progress,
+    Step,
+    collect,
+    plan_steps,
+)
+from service.setup.marks import FloorMark
+
+_SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,80}\.npz$")
+
+
+class Cancelled(Exception):
+    """The user pressed stop."""
+
+
+class DetectionTap:
+    """A feed fed by the pipeline: keeps only the newest frame set's detections."""
+
+    def __init__(self, image_sizes: np.ndarray) -> None:
+        self.image_sizes = np.asarray(image_sizes, np.int32)
+        self._latest: FeedFrame | None = None
+        self._new = threading.Condition()
+        self.cancelled = threading.Event()
+
+    def push(self, t: float, detections: list[np.ndarray]) -> None:
+        """Called by the pipeline thread for every frame set; never blocks on the consumer."""
+        with self._new:
+            self._latest = FeedFrame(t, [np.asarray(d).reshape(-1, 4) for d in detections])
+            self._new.notify_all()
+
+    def prepare(self, steps: list[Step]) -> None:
+        """People follow the page's instructions; nothing to script."""
+
+    def frames(self, step: Step) -> Iterator[FeedFrame]:
+        end = time.monotonic() + step.seconds
+        last = None
+        while time.monotonic() < end:
+            if self.cancelled.is_set():
+                raise Cancelled
+            with self._new:
+                self._new.wait_for(lambda seen=last: self._latest is not seen, timeout=0.1)
+                frame = self._latest
+            if frame is not None and frame is not last:
+                last = frame
+                yield frame
+
+    def close(self) -> None:
+        self.cancelled.set()
+
+
+class SetupSession:
+    """At most one web-driven collection; writes ``data_dir/<name>.npz``."""
+
+    def __init__(self, data_dir: Path, image_sizes: Any, attach: Any, detach: Any) -> None:
+        self.data_dir = Path(data_dir)
+        self._image_sizes = image_sizes  # callable: the cameras' current [K, 2] sizes
+        self._attach, self._detach = attach, detach  # register/unregister a tap on the pipeline
+        self._lock = threading.Lock()
+        self._thread: threading.Thread | None = None
+        self._tap: DetectionTap | None = None
+        self._state: dict[str, Any] = {"state": "idle"}
+
+    def start(
+        self,
+        marks: list[FloorMark],
+        seconds: float,
+        name: str,
+        *,
+        walk: bool = False,
+        countdown_s: float = 3.0,
+        move_s: float = 5.0,
+    ) -> dict[str, Any]:
+        if not _SAFE_NAME.match(name):
+            raise MomlocError(f"out '{name}': use a plain file name ending in .npz")
+        with self._lock:
+            if self._thread is not None and self._thread.is_alive():
+                raise MomlocError("a collection is already running; stop it first")
+            sizes = self._image_sizes()
+            if sizes is None:
+                raise MomlocError("cameras have not delivered frames yet; try again in a moment")
+            self.data_dir.mkdir(parents=True, exist_ok=True)
+            writer = DatasetAppender(self.data_dir / name, np.asarray(sizes, np.int32))
+            todo = [m for m in marks if not writer.has_mark(m)]
+            if not todo:
+                raise MomlocError(f"all marks are already recorded in {name}")
+            steps = plan_steps(
+                todo,
+                seconds,
+                start=(todo[0].x, todo[0].y),
+                walk=walk,
+                move_s=move_s,
+                countdown_s=countdown_s,
+            )
+            tap = DetectionTap(writer.image_sizes)
+            self._tap = tap
+            self._state = {
+                "state": "running",
+                "out": str(writer.path.resolve()),
+                "model_dir": str((self.data_dir / "model").resolve()),
+                "steps": len(steps),
+                "skipped_marks": [m.name for m in marks if m not in todo],
+                "existing_rows": writer.existing_rows,
+            }
+            self._thread = threading.Thread(
+                target=self._run, args=(tap, steps, writer), name="momloc-setup", daemon=True
+            )
+            self._attach(tap.push)
+            self._thread.start()
+        return self.status()
+
+    def _run(self, tap: DetectionTap, steps: list[Step], writer: DatasetAppender) -> None:
+        try:
+            collect(tap, steps, writer, on_progress=self._on_progress)
+            final = "done"
+        except Cancelled:
+            final = "stopped"
+        except Exception as error:  # shown on the page; the rows recorded are on disk
+            final = f"failed: {error}"
+        finally:
+            self._detach(tap.push)
+        self._state.update(
+            state=final.split(":")[0],
+            error=final if final.startswith("failed") else None,
+            new_rows=writer.new_rows,
+            total_rows=writer.existing_rows + writer.new_rows,
+            instruction="all marks recorded" if final == "done" else "collection stopped",
+        )
+
+    def _on_progress(self, progress: Progress) -> None:
+        step = progress.step
+        self._state.update(
+            step_index=progress.step_index,
+            kind=step.kind,
+            instruction=step.instruction,
+            mark=None if step.mark is None else step.mark.name,
+            fraction=round(progress.fraction, 3),
+            remaining_s=round(max(0.0, (1 - progress.fraction) * step.seconds), 1),
+            cameras_seeing=progress.cameras_seeing,
+            new_rows=progress.kept_rows,
+        )
+
+    def stop(self) -> dict[str, Any]:
+        tap, thread = self._tap, self._thread
+        if tap is not None:
+            tap.cancelled.set()
+        if thread is not None:
+            thread.join(timeout=5)
+        return self.status()
+
+    def status(self) -> dict[str, Any]:
+        return dict(self._state)
