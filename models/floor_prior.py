@@ -44,13 +44,17 @@ from models.errors import MomlocError
 from models.homography import apply_homography, fit_homography, homography_jacobian
 
 POINTS = ("foot", "centre")
-CUT_EDGES = {"foot": "lrb", "centre": "ltrb"}
+CUT_EDGES = {"foot": "lrb", "centre": "ltrb"}  # a cut here makes the point unfit for fitting
+# At prediction a cut only spoils one pixel axis: (edges that bias u, edges that bias v).
+CUT_AXES = {"foot": ("lr", "b"), "centre": ("lr", "tb")}
+HEIGHT_SPREAD = 0.06  # std of people's heights / mean height (adults ~ 6 %)
 MIN_ROWS = 8
 DISTINCT_M = 0.05  # positions closer than this count as one mark
 COLLINEAR = 0.05  # minor/major spread ratio under which positions count as a line
 MIN_NOISE = 0.002  # floor of the per-unit-height pixel std (noise-free data stays invertible)
 _UNSEEN_STD = 1e6  # std multiplier that removes a measurement from the fusion
 _FORMAT = "floor-prior-v1"
+FIT_DIRECTION = "pixel"  # "floor": regress floor on pixels instead (biased; for the study)
 
 
 @dataclass(frozen=True)
@@ -95,6 +99,33 @@ def _box_height(boxes: np.ndarray) -> np.ndarray:
     return np.maximum(boxes[..., 3] - boxes[..., 1], 1.0)
 
 
+def _fit_map(world: np.ndarray, pixels: np.ndarray, height: np.ndarray) -> np.ndarray:
+    """Pixel → floor map from the rows of one camera and one image point.
+
+    Rows at the same floor position (a mark) are first reduced to their median pixel: the
+    sway of the person and the detector noise are then averaged away *before* the fit, where a
+    per-row regression of floor on noisy pixels would shrink the map towards the marks
+    (errors-in-variables), centimetres off outside them. The fit runs floor → pixel with
+    residuals in box heights (detector noise grows with box size), weighted by the square root
+    of the rows behind each point, and is inverted. Dense data (every row its own position)
+    is fitted row by row the same way.
+    """
+    keys = np.round(world / DISTINCT_M).astype(np.int64)
+    _, group, count = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    order = np.argsort(group.ravel(), kind="stable")
+    pieces = np.split(order, np.cumsum(count)[:-1])
+
+    def medians(values: np.ndarray) -> np.ndarray:
+        return np.stack([np.median(values[rows], axis=0) for rows in pieces])
+
+    pos, pix, hgt = medians(world), medians(pixels), medians(height)
+    if FIT_DIRECTION == "floor":
+        return fit_homography(pix, pos, weights=np.sqrt(count))
+    ref = float(np.median(hgt))
+    h = fit_homography(pos, pix, weights=np.sqrt(count) * ref / hgt, scale=0.1 * ref)
+    return np.linalg.inv(h)
+
+
 def _fit_camera(
     world: np.ndarray, boxes: np.ndarray, size: np.ndarray, points: tuple[str, ...]
 ) -> tuple[CameraPrior | None, str]:
@@ -111,7 +142,7 @@ def _fit_camera(
         if why:
             reasons.append(f"{name}: {why}")
             continue
-        g = fit_homography(pixels[name][ok], world[ok])
+        g = _fit_map(world[ok], pixels[name][ok], _box_height(boxes[ok]))
         w = pixels[name][ok] @ g[2, :2] + g[2, 2]
         fitted.append(name)
         maps.append(g)
@@ -140,6 +171,7 @@ class FloorPrior:
     cameras: tuple[CameraPrior | None, ...]
     image_size: np.ndarray  # [K, 2]
     cut_inflation: float = 25.0
+    height_spread: float = HEIGHT_SPREAD
     notes: tuple[str, ...] = ()  # why a camera or a point was left out
 
     @property
@@ -162,6 +194,7 @@ class FloorPrior:
         *,
         points: str | tuple[str, ...] = "foot",
         cut_inflation: float = 25.0,
+        height_spread: float = HEIGHT_SPREAD,
     ) -> FloorPrior:
         """Fit from ``world`` [N, 2|3] metres, ``boxes`` [N, K, 4] pixels, ``image_size`` [K, 2].
 
@@ -188,7 +221,7 @@ class FloorPrior:
             raise MomlocError(
                 "floor prior: no camera sees 4 floor marks off one line (" + "; ".join(notes) + ")"
             )
-        return cls(tuple(cameras), size, float(cut_inflation), tuple(notes))
+        return cls(tuple(cameras), size, float(cut_inflation), float(height_spread), tuple(notes))
 
     def views(self, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per-camera floor estimates [B, K, 2] and information matrices [B, K, 2, 2].
@@ -222,9 +255,10 @@ class FloorPrior:
             xy = apply_homography(g, pix)
             w = pix @ g[2, :2] + g[2, 2]
             valid = seen & (np.sign(w) == sign) & np.isfinite(xy).all(axis=1)
-            cut = truncated(safe[:, None], size[None], CUT_EDGES[name])[:, 0]
-            scale = np.where(cut, np.sqrt(self.cut_inflation), 1.0)
-            scales.append(np.where(valid, scale, _UNSEEN_STD) * height)
+            for edges in CUT_AXES[name]:
+                cut = truncated(safe[:, None], size[None], edges)[:, 0]
+                scale = np.where(cut, np.sqrt(self.cut_inflation), 1.0)
+                scales.append(np.where(valid, scale, _UNSEEN_STD) * height)
             zs.append(np.where(valid[:, None], xy, 0.0))
             jac = homography_jacobian(g, pix)
             jacobians.append(np.where(valid[:, None, None], jac, np.eye(2)))
@@ -232,8 +266,8 @@ class FloorPrior:
         jac = np.zeros((len(boxes), 2 * p, 2 * p))
         for i, j in enumerate(jacobians):
             jac[:, 2 * i : 2 * i + 2, 2 * i : 2 * i + 2] = j
-        d = np.repeat(np.stack(scales, axis=1), 2, axis=1)  # [B, 2P]
-        pixel_cov = cam.noise[None] * d[:, :, None] * d[:, None, :]
+        d = np.stack(scales, axis=1)  # [B, 2P]: per point u, v
+        pixel_cov = (cam.noise + self._height_cov(cam))[None] * d[:, :, None] * d[:, None, :]
         floor_cov = jac @ pixel_cov @ jac.transpose(0, 2, 1)
         weight = np.linalg.inv(floor_cov)  # [B, 2P, 2P]
         a = np.tile(np.eye(2), (p, 1))  # [2P, 2]: every point measures the same floor x, y
@@ -242,6 +276,19 @@ class FloorPrior:
         info = np.where(seen[:, None, None], info, 0.0)
         est = np.linalg.solve(info + np.eye(2) * 1e-12, eta)[..., 0]
         return np.where(seen[:, None], est, 0.0), info
+
+    def _height_cov(self, cam: CameraPrior) -> np.ndarray:
+        """Pixel covariance per unit box height from people's heights (centre point v only).
+
+        The centre homography holds for the height of whoever walked the marks: a person
+        ``HEIGHT_SPREAD`` taller has a box that much taller and a centre half that much higher,
+        which the training residuals (one person) cannot show.
+        """
+        cov = np.zeros_like(cam.noise)
+        for i, name in enumerate(cam.points):
+            if name == "centre":
+                cov[2 * i + 1, 2 * i + 1] = (0.5 * self.height_spread) ** 2
+        return cov
 
     def predict(self, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Fused floor positions [B, 2] (metres) and their std [B] (metres, RMS over x and y).
@@ -264,6 +311,7 @@ class FloorPrior:
             "format": _FORMAT,
             "image_size": self.image_size.tolist(),
             "cut_inflation": self.cut_inflation,
+            "height_spread": self.height_spread,
             "notes": list(self.notes),
             "cameras": [
                 None
@@ -300,6 +348,12 @@ class FloorPrior:
                 for c in data["cameras"]
             )
             size = np.asarray(data["image_size"], dtype=np.float64).reshape(len(cameras), 2)
-            return cls(cameras, size, float(data["cut_inflation"]), tuple(data.get("notes", ())))
+            return cls(
+                cameras,
+                size,
+                float(data["cut_inflation"]),
+                float(data["height_spread"]),
+                tuple(data.get("notes", ())),
+            )
         except (KeyError, TypeError, ValueError) as exc:
             raise MomlocError(f"floor prior: malformed model.json entry ({exc})") from exc

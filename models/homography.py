@@ -83,6 +83,7 @@ def fit_homography(
     src: np.ndarray,
     dst: np.ndarray,
     *,
+    weights: np.ndarray | None = None,
     loss: str = "soft_l1",
     scale: float = 0.15,
     max_nfev: int = 200,
@@ -91,6 +92,8 @@ def fit_homography(
 
     ``scale`` is the soft-L1/Huber knee in destination units (0.15 m on the floor: errors past
     it count linearly, so outliers pull less). ``loss="linear"`` gives plain least squares.
+    ``weights`` [M] scale each pair's residual (1 / its noise std, relative): the knee then
+    applies to the weighted residual.
     """
     src = np.asarray(src, dtype=np.float64)
     dst = np.asarray(dst, dtype=np.float64)
@@ -100,11 +103,12 @@ def fit_homography(
     if abs(h0[2, 2]) < 1e-12:
         raise MomlocError("homography: the data centroid maps to infinity")
     h0 = h0 / h0[2, 2]
+    weight = np.ones((len(s), 1)) if weights is None else np.asarray(weights, np.float64)[:, None]
 
     def residual(p: np.ndarray) -> np.ndarray:
         hom = s @ p[:6].reshape(2, 3)[:, :2].T + p[:6].reshape(2, 3)[:, 2]
         w = s @ p[6:8] + 1.0
-        return (hom / w[:, None] - d).ravel()
+        return ((hom / w[:, None] - d) * weight).ravel()
 
     f_scale = scale * td[0, 0]  # destination units → normalised units
     start = np.concatenate([h0[:2].ravel(), h0[2, :2]])

@@ -1,0 +1,198 @@
+"""Floor prior: homography fit, foot pixel → floor point, fusion with missing views, degeneracy."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from models.errors import MomlocError
+from models.floor_prior import FloorPrior
+from models.homography import (
+    apply_homography,
+    dlt_homography,
+    fit_homography,
+    homography_jacobian,
+)
+
+SIZE = (640, 480)
+FOCAL = 500.0
+
+
+def _camera(eye: tuple[float, float, float], target=(5.0, 5.0, 0.9)) -> np.ndarray:
+    """A pinhole P [3, 4] at ``eye`` looking at ``target`` (z up, image v down)."""
+    eye_v, forward = np.asarray(eye), np.asarray(target) - np.asarray(eye)
+    forward /= np.linalg.norm(forward)
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    down = np.cross(forward, right)
+    rot = np.stack([right, down, forward])
+    k = np.array([[FOCAL, 0, SIZE[0] / 2], [0, FOCAL, SIZE[1] / 2], [0, 0, 1]])
+    return k @ np.concatenate([rot, -(rot @ eye_v)[:, None]], axis=1)
+
+
+CAMERAS = (_camera((0.0, 0.0, 2.3)), _camera((10.0, 0.0, 2.4)))
+
+
+def _project(p: np.ndarray, points: np.ndarray) -> np.ndarray:
+    h = np.concatenate([points, np.ones((len(points), 1))], axis=1) @ p.T
+    return h[:, :2] / h[:, 2:3]
+
+
+def _boxes(world: np.ndarray, cameras=CAMERAS, height: float = 1.7) -> np.ndarray:
+    """Person boxes [N, K, 4] of upright people standing at ``world`` [N, 2] (exact geometry)."""
+    out = []
+    for p in cameras:
+        foot = _project(p, np.c_[world, np.zeros(len(world))])
+        head = _project(p, np.c_[world, np.full(len(world), height)])
+        half = 0.2 * (foot[:, 1] - head[:, 1])
+        out.append(np.stack([foot[:, 0] - half, head[:, 1], foot[:, 0] + half, foot[:, 1]], 1))
+    return np.stack(out, axis=1)
+
+
+def _marks(
+    grid: int = 3, per_mark: int = 20, seed: int = 0, sway: float = 0.05
+) -> tuple[np.ndarray, np.ndarray]:
+    """Rows at a grid of marks in the middle of the room, the person swaying (std ``sway`` m)."""
+    rng = np.random.default_rng(seed)
+    centres = (np.arange(grid) + 0.5) * 6.0 / grid + 2.0
+    marks = np.stack(np.meshgrid(centres, centres), axis=-1).reshape(-1, 2)
+    world = np.repeat(marks, per_mark, axis=0)
+    actual = world + rng.normal(0.0, sway, world.shape)
+    return world, _boxes(actual)
+
+
+def test_homography_fit_recovers_a_known_map_from_exact_points():
+    truth = np.array([[1.2, 0.1, -30.0], [0.05, 0.9, 12.0], [2e-4, 1e-3, 1.0]])
+    src = np.random.default_rng(1).uniform([0, 0], [640, 480], (30, 2))
+    dst = apply_homography(truth, src)
+    for h in (dlt_homography(src, dst), fit_homography(src, dst)):
+        h = h / h[2, 2]
+        np.testing.assert_allclose(h, truth / truth[2, 2], rtol=1e-6, atol=1e-9)
+        probe = np.array([[100.0, 400.0], [600.0, 50.0]])
+        np.testing.assert_allclose(apply_homography(h, probe), apply_homography(truth, probe))
+
+
+def test_homography_fit_ignores_a_few_gross_outliers():
+    truth = np.array([[0.01, 0.002, -3.0], [0.001, 0.02, -4.0], [1e-5, 2e-4, 1.0]])
+    rng = np.random.default_rng(2)
+    src = rng.uniform([0, 0], [640, 480], (200, 2))
+    dst = apply_homography(truth, src) + rng.normal(0, 0.01, (200, 2))
+    dst[:10] += 3.0  # ten rows labelled three metres off (a second person)
+    probe = rng.uniform([0, 0], [640, 480], (50, 2))
+    fitted = apply_homography(fit_homography(src, dst), probe)
+    err = np.linalg.norm(fitted - apply_homography(truth, probe), axis=1)
+    assert err.max() < 0.05
+
+
+def test_jacobian_matches_finite_differences():
+    h = np.array([[1.2, 0.1, -30.0], [0.05, 0.9, 12.0], [2e-4, 1e-3, 1.0]])
+    point = np.array([[300.0, 200.0]])
+    eps = 1e-4
+    steps = np.eye(2) * eps
+    numeric = np.stack(
+        [apply_homography(h, point + d) - apply_homography(h, point - d) for d in steps], axis=-1
+    ) / (2 * eps)
+    np.testing.assert_allclose(homography_jacobian(h, point), numeric, rtol=1e-6)
+
+
+def test_prior_maps_a_foot_pixel_to_its_floor_point_outside_the_marks():
+    world, boxes = _marks(sway=0.0)
+    prior = FloorPrior.fit_arrays(world, boxes, np.array([SIZE, SIZE]), points="foot")
+    assert prior.cameras[0] is not None and prior.cameras[0].marks == 9
+    # Far outside the 2-8 m square of the marks: geometry, not interpolation.
+    probe = np.array([[1.0, 9.0], [9.0, 9.5], [5.0, 5.0], [8.5, 1.5]])
+    xy, std = prior.predict(_boxes(probe))
+    np.testing.assert_allclose(xy, probe, atol=1e-3)
+    assert (std > 0).all() and (std < 0.5).all()
+    for k in range(2):  # each camera alone maps its own foot pixel to the same floor point
+        alone = _boxes(probe)
+        alone[:, 1 - k] = np.nan
+        np.testing.assert_allclose(prior.predict(alone)[0], probe, atol=1e-3)
+
+
+def test_swaying_on_the_marks_costs_centimetres_not_decimetres():
+    world, boxes = _marks(sway=0.05)
+    prior = FloorPrior.fit_arrays(world, boxes, np.array([SIZE, SIZE]), points="foot")
+    inside = np.array([[3.0, 3.0], [5.0, 5.0], [7.0, 6.0]])
+    np.testing.assert_allclose(prior.predict(_boxes(inside))[0], inside, atol=0.03)
+    outside = np.array([[1.0, 9.0], [9.0, 9.5], [8.5, 1.5]])
+    np.testing.assert_allclose(prior.predict(_boxes(outside))[0], outside, atol=0.12)
+
+
+def test_fusion_uses_the_views_that_see_the_person():
+    world, boxes = _marks()
+    prior = FloorPrior.fit_arrays(world, boxes, np.array([SIZE, SIZE]), points="both")
+    probe = np.array([[3.0, 7.0], [6.0, 4.0]])
+    full = _boxes(probe)
+    one = full.copy()
+    one[0, 1] = np.nan  # row 0: camera 1 misses the person
+    one[1, 0] = np.nan  # row 1: camera 0 misses the person
+    xy_full, std_full = prior.predict(full)
+    xy_one, std_one = prior.predict(one)
+    np.testing.assert_allclose(xy_one, probe, atol=0.05)
+    np.testing.assert_allclose(xy_full, probe, atol=0.05)
+    assert (std_one > std_full).all()  # a single view knows less than two
+    _, info = prior.views(one)
+    assert np.all(info[0, 1] == 0) and np.all(info[1, 0] == 0)
+    unseen = np.full((1, 2, 4), np.nan)
+    xy_none, std_none = prior.predict(unseen)
+    assert np.isnan(xy_none).all() and np.isinf(std_none).all()
+
+
+def test_fusion_weighs_views_by_their_error_model():
+    """Noisy boxes: fused error beats each camera alone (triangulation-like behaviour)."""
+    world, boxes = _marks(per_mark=60, seed=3)
+    rng = np.random.default_rng(4)
+    noisy = boxes + rng.normal(0, 2.0, boxes.shape)
+    prior = FloorPrior.fit_arrays(world, noisy, np.array([SIZE, SIZE]))
+    probe = rng.uniform(2.0, 8.0, (400, 2))
+    test = _boxes(probe) + rng.normal(0, 2.0, (400, 2, 4))
+    fused = np.linalg.norm(prior.predict(test)[0] - probe, axis=1).mean()
+    for k in range(2):
+        alone = test.copy()
+        alone[:, 1 - k] = np.nan
+        single = np.linalg.norm(prior.predict(alone)[0] - probe, axis=1).mean()
+        assert fused < 0.8 * single
+
+
+def test_camera_with_too_few_marks_gets_no_prior():
+    world, boxes = _marks()
+    sees = np.isin(np.arange(len(world)) // 20, [0, 1, 2])  # camera 1: only the first 3 marks
+    boxes[~sees, 1] = np.nan
+    prior = FloorPrior.fit_arrays(world, boxes, np.array([SIZE, SIZE]))
+    assert prior.cameras[0] is not None and prior.cameras[1] is None
+    assert any("camera 1" in note and "3 distinct" in note for note in prior.notes)
+    probe = np.array([[4.0, 6.0]])
+    xy, _ = prior.predict(_boxes(probe))
+    np.testing.assert_allclose(xy, probe, atol=0.03)
+
+
+def test_collinear_marks_raise_a_readable_error():
+    xs = np.repeat(np.linspace(2.0, 8.0, 5), 10)
+    world = np.stack([xs, np.full_like(xs, 5.0)], axis=1)
+    with pytest.raises(MomlocError, match=r"no camera.*line"):
+        FloorPrior.fit_arrays(world, _boxes(world), np.array([SIZE, SIZE]))
+    # Three marks on a line and one off it: still no homography (all but one on a line).
+    world = np.repeat([[2.0, 2.0], [4.0, 2.0], [6.0, 2.0], [4.0, 6.0]], 10, axis=0)
+    with pytest.raises(MomlocError, match="all floor positions but one"):
+        FloorPrior.fit_arrays(world, _boxes(world), np.array([SIZE, SIZE]))
+
+
+def test_json_round_trip_gives_the_same_predictions():
+    world, boxes = _marks()
+    prior = FloorPrior.fit_arrays(world, boxes, np.array([SIZE, SIZE]), points="both")
+    again = FloorPrior.from_json(json.loads(json.dumps(prior.to_json())))
+    probe = _boxes(np.array([[1.5, 8.0], [7.0, 3.0]]))
+    for a, b in zip(prior.predict(probe), again.predict(probe), strict=True):
+        np.testing.assert_allclose(a, b)
+    with pytest.raises(MomlocError, match="floor prior"):
+        FloorPrior.from_json({"format": "floor-prior-v1", "cameras": [{"points": ["foot"]}]})
+
+
+def test_wrong_box_shape_is_a_user_error():
+    world, boxes = _marks()
+    prior = FloorPrior.fit_arrays(world, boxes, np.array([SIZE, SIZE]))
+    with pytest.raises(MomlocError, match=r"\[B, 2, 4\]"):
+        prior.predict(np.zeros((3, 3, 4)))
