@@ -247,6 +247,8 @@ def make_server(daemon: Daemon, host: str, port: int) -> Any:
         ws="websockets-sansio",
         ws_ping_interval=daemon.ping_interval,
         ws_ping_timeout=daemon.ping_timeout,
+        # snapshots are a few hundred bytes: per-client zlib costs more CPU than it saves
+        ws_per_message_deflate=False,
     )
     return uvicorn.Server(config)
 
