@@ -19,8 +19,11 @@ Every update:
 
 Output policy (documented for API users):
 
-- a track is reported once it has been seen ``confirm_s`` worth of frames (at least one frame;
-  3 frames at 30 fps) so that a single spurious association does not create an id;
+- a track is reported once it has been seen in every frame for ``confirm_s`` (0.3 s; time, not
+  frames, so it means the same at any pipeline rate), so that a brief split association (one
+  person reported twice for a few frames) does not create a ghost id; with 0.1 s the benchmark
+  counted 11 instead of 3 id switches (indoor-4cam, 2 people) and 33 instead of 23 (indoor-2cam,
+  5 people), for ~1 % less coverage;
 - while a person is unseen (occlusion, detector miss) the track *coasts* on its prediction and is
   still reported, with ``coasting=True`` and a confidence that falls linearly to 0 at
   ``max_missing_s``; the id is kept if the person reappears within the (growing) gate, so a 1 s
@@ -90,7 +93,7 @@ class Tracker:
         gate_growth_mps: float = 1.0,
         measurement_std_m: float = 0.12,
         accel_std: float = 2.0,
-        confirm_s: float = 0.1,
+        confirm_s: float = 0.3,
         rate_alpha: float = 0.1,
     ) -> None:
         if fps_hint <= 0 or max_missing_s <= 0 or gate_m <= 0:
@@ -101,7 +104,7 @@ class Tracker:
         self.gate_growth_mps = float(gate_growth_mps)
         self.measurement_var = float(measurement_std_m) ** 2
         self.accel_var = float(accel_std) ** 2
-        self.min_hits = max(1, round(confirm_s * fps_hint))
+        self.confirm_s = max(0.0, float(confirm_s))
         self.rate_alpha = float(rate_alpha)
         self._tracks: list[_State] = []
         self._next_id = 1
@@ -203,7 +206,8 @@ class Tracker:
         track.last_seen = t
         track.hits += 1
         track.rate = track.rate * (1.0 - self.rate_alpha) + self.rate_alpha
-        track.confirmed = track.confirmed or track.hits >= self.min_hits
+        # Tentative tracks die at their first miss, so surviving confirm_s means seen throughout.
+        track.confirmed = track.confirmed or t - track.born >= self.confirm_s - 1e-9
         track.cameras = [int(k) for k in meta.get("cameras", [])]
         track.meta = dict(meta)
 
@@ -216,7 +220,7 @@ class Tracker:
             cov=cov,
             born=t,
             last_seen=t,
-            confirmed=self.min_hits <= 1,
+            confirmed=self.confirm_s <= 0,
             cameras=[int(k) for k in meta.get("cameras", [])],
             meta=dict(meta),
         )

@@ -66,7 +66,7 @@ def test_one_second_occlusion_keeps_id_and_coasts() -> None:
         hidden = 60 <= i < 90  # exactly 1 s without detections
         pos = np.zeros((0, 2)) if hidden else (np.array([0.5, 2.0]) + t * velocity)[None]
         tracks = tracker.update(t, pos, [{"cameras": [1]}] * len(pos))
-        if i < tracker.min_hits - 1:  # tentative until confirmed
+        if t < tracker.confirm_s - 1e-9:  # tentative until confirmed
             assert tracks == []
             continue
         assert len(tracks) == 1
