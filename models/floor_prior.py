@@ -54,7 +54,6 @@ COLLINEAR = 0.05  # minor/major spread ratio under which positions count as a li
 MIN_NOISE = 0.002  # floor of the per-unit-height pixel std (noise-free data stays invertible)
 _UNSEEN_STD = 1e6  # std multiplier that removes a measurement from the fusion
 _FORMAT = "floor-prior-v1"
-FIT_DIRECTION = "pixel"  # "floor": regress floor on pixels instead (biased; for the study)
 
 
 @dataclass(frozen=True)
@@ -119,8 +118,6 @@ def _fit_map(world: np.ndarray, pixels: np.ndarray, height: np.ndarray) -> np.nd
         return np.stack([np.median(values[rows], axis=0) for rows in pieces])
 
     pos, pix, hgt = medians(world), medians(pixels), medians(height)
-    if FIT_DIRECTION == "floor":
-        return fit_homography(pix, pos, weights=np.sqrt(count))
     ref = float(np.median(hgt))
     h = fit_homography(pos, pix, weights=np.sqrt(count) * ref / hgt, scale=0.1 * ref)
     return np.linalg.inv(h)
@@ -179,7 +176,7 @@ class FloorPrior:
         return len(self.cameras)
 
     @classmethod
-    def fit(cls, dataset, *, points: str | tuple[str, ...] = "foot", **options) -> FloorPrior:
+    def fit(cls, dataset, *, points: str | tuple[str, ...] = "both", **options) -> FloorPrior:
         """Fit from a :class:`~models.dataset.MomDataset` (its ``world``, ``boxes``, sizes)."""
         return cls.fit_arrays(
             dataset.world, dataset.boxes, dataset.image_size, points=points, **options
@@ -192,13 +189,14 @@ class FloorPrior:
         boxes: np.ndarray,
         image_size: np.ndarray,
         *,
-        points: str | tuple[str, ...] = "foot",
+        points: str | tuple[str, ...] = "both",
         cut_inflation: float = 25.0,
         height_spread: float = HEIGHT_SPREAD,
     ) -> FloorPrior:
         """Fit from ``world`` [N, 2|3] metres, ``boxes`` [N, K, 4] pixels, ``image_size`` [K, 2].
 
-        ``points``: "foot", "centre", "both" or a tuple of names from :data:`POINTS`.
+        ``points``: "foot", "centre", "both" (default: measured best from 6 marks on, see
+        ``bench/results/floor_prior_study.md``) or a tuple of names from :data:`POINTS`.
         """
         names = POINTS if points == "both" else (points,) if isinstance(points, str) else points
         if not names or any(name not in POINTS for name in names):
@@ -304,6 +302,27 @@ class FloorPrior:
         cov = np.linalg.inv(safe)
         std = np.sqrt(np.clip(np.trace(cov, axis1=1, axis2=2) / 2, 0.0, None))
         return np.where(has[:, None], xy, np.nan), np.where(has, std, np.inf)
+
+    def reproject(self, world: np.ndarray, point: str = "foot") -> np.ndarray:
+        """Floor positions [B, 2] → the expected ``point`` pixel [B, K, 2] in every camera.
+
+        The inverse maps play the MoM decoder's part (association scoring, the camera-moved
+        alert): NaN for a camera without a fitted map for that point.
+        """
+        world = np.asarray(world, dtype=np.float64)[:, :2]
+        out = np.full((len(world), self.num_cameras, 2), np.nan)
+        for k, cam in enumerate(self.cameras):
+            if cam is not None and point in cam.points:
+                g = cam.maps[cam.points.index(point)]
+                out[:, k] = apply_homography(np.linalg.inv(g), world)
+        return out
+
+    def reprojection_error(
+        self, boxes: np.ndarray, world: np.ndarray, point: str = "foot"
+    ) -> np.ndarray:
+        """Pixel distance [B, K] between each box's ``point`` and :meth:`reproject` (NaN unseen)."""
+        observed = box_points(np.asarray(boxes, dtype=np.float64))[point]
+        return np.linalg.norm(observed - self.reproject(world, point), axis=-1)
 
     def to_json(self) -> dict:
         """Plain-JSON form for ``model.json`` (lists and numbers only)."""

@@ -191,6 +191,20 @@ def test_json_round_trip_gives_the_same_predictions():
         FloorPrior.from_json({"format": "floor-prior-v1", "cameras": [{"points": ["foot"]}]})
 
 
+def test_reprojection_finds_the_foot_pixel_and_flags_a_moved_camera():
+    world, boxes = _marks(sway=0.0)
+    prior = FloorPrior.fit_arrays(world, boxes, np.array([SIZE, SIZE]))
+    probe = np.array([[1.5, 8.0], [7.0, 3.0]])
+    seen = _boxes(probe)
+    foot = np.stack([(seen[..., 0] + seen[..., 2]) / 2, seen[..., 3]], axis=-1)
+    np.testing.assert_allclose(prior.reproject(probe), foot, atol=1e-3)
+    assert prior.reprojection_error(seen, probe).max() < 1e-3
+    bumped = seen.copy()
+    bumped[:, 1] += [25.0, 0.0, 25.0, 0.0]  # camera 1 turned: everything 25 px to the right
+    err = prior.reprojection_error(bumped, probe)
+    assert err[:, 0].max() < 1e-3 and np.allclose(err[:, 1], 25.0, atol=1e-3)
+
+
 def test_wrong_box_shape_is_a_user_error():
     world, boxes = _marks()
     prior = FloorPrior.fit_arrays(world, boxes, np.array([SIZE, SIZE]))
