@@ -21,7 +21,7 @@ FRAMES = 45
 
 def write_clips(tmp_path) -> list:
     """Two cameras' views of the demo scene as MJPG .avi files (what a webcam recording gives)."""
-    scene = make_scene(DEMO_PRESET, seed=DEMO_SEED, people=2, fps=15)
+    scene = make_scene(DEMO_PRESET, seed=DEMO_SEED, people=3, fps=15)
     paths = []
     for k in range(2):
         path = tmp_path / f"cam{k}.avi"
@@ -47,7 +47,7 @@ def test_serve_on_video_files_with_the_real_detector(tmp_path):
 
         async def collect() -> list[dict]:
             async with websockets.connect(url) as ws:
-                return [json.loads(await asyncio.wait_for(ws.recv(), 20)) for _ in range(25)]
+                return [json.loads(await asyncio.wait_for(ws.recv(), 20)) for _ in range(45)]
 
         messages = asyncio.run(collect())
         daemon = background.daemon
@@ -56,9 +56,9 @@ def test_serve_on_video_files_with_the_real_detector(tmp_path):
         assert all(c["connected"] for c in health["cameras"]), health["cameras"]
         assert health["pipeline"]["stage_ms"]["detect"] > 0
         people = [p for m in messages for p in m["people"]]
-        assert len(people) >= 10, "the detector found nobody in the recorded frames"
+        assert len(people) >= 10, "the detector found (almost) nobody in the recorded frames"
         xy = np.array([[p["x"], p["y"]] for p in people])
         assert np.all((xy > -1.0) & (xy < 11.0)), xy  # inside the 10 x 10 m room (+ margin)
-        assert set().union(*(p["cameras"] for p in people)) == {0, 1}
+        assert any(sorted(p["cameras"]) == [0, 1] for p in people)  # matched across cameras
     finally:
         background.stop()
