@@ -207,6 +207,7 @@ class SyntheticSource:
         self.name = f"synthetic-{camera}"
         self._next = 0
         self._open = False
+        self.last_index: int | None = None  # scene frame of the newest image read
 
     def open(self) -> None:
         self._open = True
@@ -219,7 +220,9 @@ class SyntheticSource:
         self.clock.wait_for(index)
         self._next = index + 1
         self.clock.stamp(index, time.time())
-        return self.clock.render(index, self.camera)
+        image = self.clock.render(index, self.camera)
+        self.last_index = index
+        return image
 
     def close(self) -> None:
         self._open = False
