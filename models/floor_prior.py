@@ -139,7 +139,11 @@ def _fit_camera(
         if why:
             reasons.append(f"{name}: {why}")
             continue
-        g = _fit_map(world[ok], pixels[name][ok], _box_height(boxes[ok]))
+        try:
+            g = _fit_map(world[ok], pixels[name][ok], _box_height(boxes[ok]))
+        except MomlocError as exc:  # e.g. the marks' pixels on one line (seen edge-on)
+            reasons.append(f"{name}: {exc}")
+            continue
         w = pixels[name][ok] @ g[2, :2] + g[2, 2]
         fitted.append(name)
         maps.append(g)

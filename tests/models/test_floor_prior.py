@@ -169,6 +169,14 @@ def test_camera_with_too_few_marks_gets_no_prior():
     np.testing.assert_allclose(xy, probe, atol=0.03)
 
 
+def test_camera_whose_boxes_never_move_gets_no_prior():
+    world, boxes = _marks()
+    boxes[:, 1] = [300.0, 100.0, 340.0, 300.0]  # a frozen feed: the same box on every mark
+    prior = FloorPrior.fit_arrays(world, boxes, np.array([SIZE, SIZE]), points="foot")
+    assert prior.cameras[0] is not None and prior.cameras[1] is None
+    assert any("camera 1" in note and "degenerate" in note for note in prior.notes)
+
+
 def test_collinear_marks_raise_a_readable_error():
     xs = np.repeat(np.linspace(2.0, 8.0, 5), 10)
     world = np.stack([xs, np.full_like(xs, 5.0)], axis=1)
