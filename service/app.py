@@ -178,7 +178,11 @@ def _parse_rate(raw: str | None, ceiling: float) -> float | None:
 
 
 async def _serve_stream(websocket: WebSocket, daemon: Daemon, rate: float) -> None:
-    """Send from the client's latest-value slot, never faster than ``rate``."""
+    """Send from the client's latest-value slot, never faster than ``rate`` on average.
+
+    The schedule lets one message through at once after an idle spell (a bucket of two), so a
+    client asking for the pipeline's own rate does not lose snapshots to timing jitter.
+    """
     subscription = daemon.hub.subscribe()
     interval = 1.0 / rate
     loop = asyncio.get_running_loop()

@@ -147,27 +147,31 @@ class Pipeline:
     def _run(self) -> None:
         previous = None
         while not self._stop.is_set():
-            # waits (briefly) for frames newer than the last set instead of spinning
-            frame_set = self.rig.frame_set(after=previous, timeout=0.1)
-            seqs = self._frame_seqs(frame_set)
-            if seqs is None or seqs == self._last_frame_seqs:
-                self._stop.wait(0.002)
-                continue
-            previous = frame_set
-            if self._last_frame_seqs is not None:
-                self.frames_dropped += sum(
-                    max(0, new - old - 1)
-                    for new, old in zip(seqs, self._last_frame_seqs, strict=True)
-                    if new >= 0 and old >= 0
-                )
-            self._last_frame_seqs = seqs
             try:
-                self.process(frame_set)
+                previous = self._step(previous)
             except Exception as exc:  # keep serving; the error shows in /v1/health
                 self.error = self.last_failure = f"pipeline: {type(exc).__name__}: {exc}"
                 self.failures += 1
                 log.exception("pipeline iteration failed")
                 self._stop.wait(0.1)
+
+    def _step(self, previous: Any) -> Any:
+        """Process the newest frame set if it is new; returns the set to wait after."""
+        # waits (briefly) for frames newer than the last set instead of spinning
+        frame_set = self.rig.frame_set(after=previous, timeout=0.1)
+        seqs = self._frame_seqs(frame_set)
+        if seqs is None or seqs == self._last_frame_seqs:
+            self._stop.wait(0.002)
+            return previous
+        if self._last_frame_seqs is not None:
+            self.frames_dropped += sum(
+                max(0, new - old - 1)
+                for new, old in zip(seqs, self._last_frame_seqs, strict=True)
+                if new >= 0 and old >= 0
+            )
+        self._last_frame_seqs = seqs
+        self.process(frame_set)
+        return frame_set
 
     @staticmethod
     def _frame_seqs(frame_set: Any) -> tuple[int, ...] | None:
