@@ -7,6 +7,7 @@ Routes (version 1; OpenAPI at ``/docs``):
 - ``GET /v1/positions`` newest snapshot; ``GET /v1/health`` cameras, model, pipeline, clients.
 - ``GET /v1/cameras/{k}/snapshot.jpg`` newest frame of camera k with boxes and track ids drawn.
 - ``GET /v1/config`` what the map page needs (floor extent, camera names, stream rate).
+- ``GET /v1/settings/schema`` every setting with its type, bounds and description.
 - ``POST /v1/model/reload`` hot-swap the MoM model (refused if it does not fit the cameras).
 - ``GET /metrics`` Prometheus text; ``GET /`` the live map.
 
@@ -111,6 +112,12 @@ def create_app(daemon: Daemon, *, manage_pipeline: bool = True) -> FastAPI:
     @app.get("/v1/config", dependencies=secured, summary="Map extent, cameras, stream rate")
     def config() -> dict[str, Any]:
         return daemon.public_config()
+
+    @app.get("/v1/settings/schema", summary="JSON schema of the settings file (documented)")
+    def settings_schema() -> dict[str, Any]:
+        from service.settings import Settings
+
+        return Settings.model_json_schema()
 
     @app.get(
         "/v1/cameras/{k}/snapshot.jpg",

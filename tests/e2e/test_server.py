@@ -167,6 +167,8 @@ def test_openapi_docs(server):
     assert server.get("/docs").status_code == 200
     paths = server.get("/openapi.json").json()["paths"]
     assert {"/v1/positions", "/v1/health", "/v1/cameras/{k}/snapshot.jpg"} <= set(paths)
+    schema = server.get("/v1/settings/schema").json()
+    assert "description" in schema["properties"]["port"]
 
 
 def test_token_auth():
