@@ -162,14 +162,19 @@ class SyntheticRig(SceneClock):
                 self._new_frames.notify_all()
 
     def produce(self, index: int) -> FrameSet:
-        """Render scene frame ``index`` for every camera (also usable without the thread)."""
+        """Render scene frame ``index`` for every camera (also usable without the thread).
+
+        Stamped once drawn, like a camera worker stamping a frame when it arrives: latency
+        measured from ``timestamp`` is the daemon's, not the simulator's drawing time.
+        """
+        drawn = self.render_every > 0 and index % self.render_every == 0
+        images = [self.render(index, camera) if drawn else None for camera in self.cameras]
         timestamp = time.time()
         self.stamp(index, timestamp)
-        frames = []
-        for k, camera in enumerate(self.cameras):
-            drawn = self.render_every > 0 and index % self.render_every == 0
-            image = self.render(index, camera) if drawn else None
-            frames.append(Frame(camera=k, image=image, timestamp=timestamp, seq=index))
+        frames = [
+            Frame(camera=k, image=image, timestamp=timestamp, seq=index)
+            for k, image in enumerate(images)
+        ]
         self._produced = [*self._produced[-59:], timestamp]
         return FrameSet(frames=frames, skew=0.0)
 
