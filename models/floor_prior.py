@@ -43,10 +43,14 @@ from models.baseline import box_points, truncated
 from models.errors import MomlocError
 from models.homography import apply_homography, fit_homography, homography_jacobian
 
-POINTS = ("foot", "centre")
-CUT_EDGES = {"foot": "lrb", "centre": "ltrb"}  # a cut here makes the point unfit for fitting
+POINTS = ("foot", "centre", "ankle")
+SETS = {"both": ("foot", "centre"), "all": POINTS}
+CUT_EDGES = {"foot": "lrb", "centre": "ltrb", "ankle": ""}  # a cut here: unfit for fitting
 # At prediction a cut only spoils one pixel axis: (edges that bias u, edges that bias v).
-CUT_AXES = {"foot": ("lr", "b"), "centre": ("lr", "tb")}
+CUT_AXES = {"foot": ("lr", "b"), "centre": ("lr", "tb"), "ankle": ("", "")}
+ANKLES = (15, 16)  # COCO-17 left and right ankle
+MIN_CONFIDENCE = 0.5  # keypoints below this confidence count as unseen
+ANKLE_STRIDE_M = 0.15  # floor std of the ankles' middle about the point under the hips
 HEIGHT_SPREAD = 0.06  # std of people's heights / mean height (adults ~ 6 %)
 MIN_ROWS = 8
 DISTINCT_M = 0.05  # positions closer than this count as one mark
@@ -123,15 +127,41 @@ def _fit_map(world: np.ndarray, pixels: np.ndarray, height: np.ndarray) -> np.nd
     return np.linalg.inv(h)
 
 
+def image_points(boxes: np.ndarray, keypoints: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """Foot (box bottom-centre), centre and, with COCO-17 ``keypoints`` [..., 17, 3], the ankle
+    point (mean of the confident ankles, NaN if none): [..., 2] pixels each."""
+    points = box_points(boxes)
+    if keypoints is not None:
+        ankles = np.asarray(keypoints, dtype=np.float64)[..., ANKLES, :]
+        ok = (ankles[..., 2] >= MIN_CONFIDENCE) & np.isfinite(ankles[..., :2]).all(axis=-1)
+        count = ok.sum(axis=-1)[..., None]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            points["ankle"] = np.where(ok[..., None], ankles[..., :2], 0.0).sum(axis=-2) / count
+    else:
+        points["ankle"] = np.full(points["foot"].shape, np.nan)
+    return points
+
+
+def _residual(g, pixels, world, boxes, rows) -> np.ndarray:
+    """Training pixel residuals [M, 2] of a pixel → floor map, per unit box height."""
+    predicted = apply_homography(np.linalg.inv(g), world[rows])
+    return (pixels[rows] - predicted) / _box_height(boxes[rows])[:, None]
+
+
 def _fit_camera(
-    world: np.ndarray, boxes: np.ndarray, size: np.ndarray, points: tuple[str, ...]
+    world: np.ndarray,
+    boxes: np.ndarray,
+    keypoints: np.ndarray | None,
+    size: np.ndarray,
+    points: tuple[str, ...],
 ) -> tuple[CameraPrior | None, str]:
     seen = np.isfinite(boxes).all(axis=-1)
-    pixels = box_points(boxes)
+    pixels = image_points(boxes, keypoints)
     fitted, maps, signs, usable = [], [], [], []
     reasons = []
     for name in points:
         ok = seen & ~truncated(boxes[:, None], size[None], CUT_EDGES[name])[:, 0]
+        ok &= np.isfinite(pixels[name]).all(axis=-1)
         if ok.sum() < MIN_ROWS:
             reasons.append(f"{name}: {ok.sum()} uncut rows")
             continue
@@ -152,14 +182,16 @@ def _fit_camera(
     if not fitted:
         return None, "; ".join(reasons)
     both = np.logical_and.reduce(usable)
-    if both.sum() < MIN_ROWS:  # too few rows where every point is usable: fit noise per point
+    named = list(zip(fitted, maps, usable, strict=True))
+    if both.sum() >= MIN_ROWS:  # joint covariance: the points share box edges
+        joint = [_residual(g, pixels[n], world, boxes, both) for n, g, _ in named]
+        noise = _robust_covariance(np.concatenate(joint, axis=1))
+    else:  # too few rows where every point is usable: independent points
+        noise = np.zeros((2 * len(named), 2 * len(named)))
+        for i, (n, g, ok) in enumerate(named):
+            block = _robust_covariance(_residual(g, pixels[n], world, boxes, ok))
+            noise[2 * i : 2 * i + 2, 2 * i : 2 * i + 2] = block
         both = usable[0]
-    height = _box_height(boxes[both])[:, None]
-    residuals = [
-        (pixels[name][both] - apply_homography(np.linalg.inv(g), world[both])) / height
-        for name, g in zip(fitted, maps, strict=True)
-    ]
-    noise = _robust_covariance(np.concatenate(residuals, axis=1))
     marks = len(np.unique(np.round(world[both] / DISTINCT_M), axis=0))
     prior = CameraPrior(tuple(fitted), tuple(maps), tuple(signs), noise, int(seen.sum()), marks)
     return prior, "; ".join(reasons)
@@ -183,7 +215,12 @@ class FloorPrior:
     def fit(cls, dataset, *, points: str | tuple[str, ...] = "both", **options) -> FloorPrior:
         """Fit from a :class:`~models.dataset.MomDataset` (its ``world``, ``boxes``, sizes)."""
         return cls.fit_arrays(
-            dataset.world, dataset.boxes, dataset.image_size, points=points, **options
+            dataset.world,
+            dataset.boxes,
+            dataset.image_size,
+            keypoints=dataset.keypoints,
+            points=points,
+            **options,
         )
 
     @classmethod
@@ -193,6 +230,7 @@ class FloorPrior:
         boxes: np.ndarray,
         image_size: np.ndarray,
         *,
+        keypoints: np.ndarray | None = None,
         points: str | tuple[str, ...] = "both",
         cut_inflation: float = 25.0,
         height_spread: float = HEIGHT_SPREAD,
@@ -202,9 +240,13 @@ class FloorPrior:
         ``points``: "foot", "centre", "both" (default: measured best from 6 marks on, see
         ``bench/results/floor_prior_study.md``) or a tuple of names from :data:`POINTS`.
         """
-        names = POINTS if points == "both" else (points,) if isinstance(points, str) else points
+        names = SETS.get(points, (points,)) if isinstance(points, str) else points
         if not names or any(name not in POINTS for name in names):
-            raise MomlocError(f"floor prior points {points!r}: expected foot, centre or both")
+            raise MomlocError(
+                f"floor prior points {points!r}: expected foot, centre, ankle, both or all"
+            )
+        if "ankle" in names and keypoints is None:
+            raise MomlocError("floor prior: the ankle point needs keypoints in the data set")
         world = np.asarray(world, dtype=np.float64)[:, :2]
         boxes = np.asarray(boxes, dtype=np.float64)
         size = np.asarray(image_size, dtype=np.float64)
@@ -215,7 +257,8 @@ class FloorPrior:
             )
         cameras, notes = [], []
         for k in range(boxes.shape[1]):
-            prior, why = _fit_camera(world, boxes[:, k], size[k], tuple(names))
+            kp = None if keypoints is None else np.asarray(keypoints)[:, k]
+            prior, why = _fit_camera(world, boxes[:, k], kp, size[k], tuple(names))
             cameras.append(prior)
             if why:
                 notes.append(f"camera {k}: {why}")
@@ -225,7 +268,9 @@ class FloorPrior:
             )
         return cls(tuple(cameras), size, float(cut_inflation), float(height_spread), tuple(notes))
 
-    def views(self, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def views(
+        self, boxes: np.ndarray, keypoints: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Per-camera floor estimates [B, K, 2] and information matrices [B, K, 2, 2].
 
         Zero information (and a zero estimate) where a camera has no prior or sees nothing
@@ -241,22 +286,23 @@ class FloorPrior:
         info = np.zeros((n, self.num_cameras, 2, 2))
         for k, cam in enumerate(self.cameras):
             if cam is not None:
-                est[:, k], info[:, k] = self._camera_view(cam, boxes[:, k], self.image_size[k])
+                kp = None if keypoints is None else np.asarray(keypoints)[:, k]
+                est[:, k], info[:, k] = self._camera_view(cam, boxes[:, k], kp, self.image_size[k])
         return est, info
 
     def _camera_view(
-        self, cam: CameraPrior, boxes: np.ndarray, size: np.ndarray
+        self, cam: CameraPrior, boxes: np.ndarray, keypoints: np.ndarray | None, size: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         seen = np.isfinite(boxes).all(axis=-1)
         safe = np.where(seen[:, None], boxes, [0.0, 0.0, size[0], size[1]])
-        pixels = box_points(safe)
+        pixels = image_points(safe, keypoints)
         height = _box_height(safe)
         zs, jacobians, scales = [], [], []
         for name, g, sign in zip(cam.points, cam.maps, cam.signs, strict=True):
-            pix = pixels[name]
+            pix = np.where(np.isfinite(pixels[name]), pixels[name], 0.5 * size)
             xy = apply_homography(g, pix)
             w = pix @ g[2, :2] + g[2, 2]
-            valid = seen & (np.sign(w) == sign) & np.isfinite(xy).all(axis=1)
+            valid = seen & (np.sign(w) == sign) & np.isfinite(pixels[name]).all(axis=1)
             for edges in CUT_AXES[name]:
                 cut = truncated(safe[:, None], size[None], edges)[:, 0]
                 scale = np.where(cut, np.sqrt(self.cut_inflation), 1.0)
@@ -271,6 +317,9 @@ class FloorPrior:
         d = np.stack(scales, axis=1)  # [B, 2P]: per point u, v
         pixel_cov = (cam.noise + self._height_cov(cam))[None] * d[:, :, None] * d[:, None, :]
         floor_cov = jac @ pixel_cov @ jac.transpose(0, 2, 1)
+        if "ankle" in cam.points:  # mid-stride the ankles' middle is off the hip's floor point
+            i = 2 * cam.points.index("ankle")
+            floor_cov[:, i : i + 2, i : i + 2] += np.eye(2) * ANKLE_STRIDE_M**2
         weight = np.linalg.inv(floor_cov)  # [B, 2P, 2P]
         a = np.tile(np.eye(2), (p, 1))  # [2P, 2]: every point measures the same floor x, y
         info = a.T @ weight @ a
@@ -292,12 +341,14 @@ class FloorPrior:
                 cov[2 * i + 1, 2 * i + 1] = (0.5 * self.height_spread) ** 2
         return cov
 
-    def predict(self, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def predict(
+        self, boxes: np.ndarray, keypoints: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Fused floor positions [B, 2] (metres) and their std [B] (metres, RMS over x and y).
 
         NaN position and infinite std for rows that no fitted camera sees.
         """
-        est, info = self.views(boxes)
+        est, info = self.views(boxes, keypoints)
         total = info.sum(axis=1)
         eta = (info @ est[..., None]).sum(axis=1)
         has = np.trace(total, axis1=1, axis2=2) > 1e-9
@@ -322,10 +373,14 @@ class FloorPrior:
         return out
 
     def reprojection_error(
-        self, boxes: np.ndarray, world: np.ndarray, point: str = "foot"
+        self,
+        boxes: np.ndarray,
+        world: np.ndarray,
+        point: str = "foot",
+        keypoints: np.ndarray | None = None,
     ) -> np.ndarray:
         """Pixel distance [B, K] between each box's ``point`` and :meth:`reproject` (NaN unseen)."""
-        observed = box_points(np.asarray(boxes, dtype=np.float64))[point]
+        observed = image_points(np.asarray(boxes, dtype=np.float64), keypoints)[point]
         return np.linalg.norm(observed - self.reproject(world, point), axis=-1)
 
     def to_json(self) -> dict:

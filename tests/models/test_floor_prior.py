@@ -213,6 +213,33 @@ def test_reprojection_finds_the_foot_pixel_and_flags_a_moved_camera():
     assert err[:, 0].max() < 1e-3 and np.allclose(err[:, 1], 25.0, atol=1e-3)
 
 
+def _ankles(world: np.ndarray, confidence: float = 0.9) -> np.ndarray:
+    """COCO-17 keypoints [N, K, 17, 3]: only the ankles (8 cm above the floor) are known."""
+    out = np.full((len(world), len(CAMERAS), 17, 3), np.nan)
+    for k, p in enumerate(CAMERAS):
+        ankle = _project(p, np.c_[world, np.full(len(world), 0.08)])
+        out[:, k, 15:17, :2] = ankle[:, None]
+        out[:, k, 15:17, 2] = confidence
+    return out
+
+
+def test_ankle_keypoints_give_their_own_floor_map():
+    world, boxes = _marks(sway=0.0)
+    size = np.array([SIZE, SIZE])
+    with pytest.raises(MomlocError, match="keypoints"):
+        FloorPrior.fit_arrays(world, boxes, size, points="ankle")
+    prior = FloorPrior.fit_arrays(world, boxes, size, keypoints=_ankles(world), points="ankle")
+    probe = np.array([[1.5, 8.0], [7.0, 3.0]])
+    xy, _ = prior.predict(_boxes(probe), _ankles(probe))
+    np.testing.assert_allclose(xy, probe, atol=1e-3)
+    unsure, std = prior.predict(_boxes(probe), _ankles(probe, confidence=0.2))
+    assert np.isnan(unsure).all() and np.isinf(std).all()  # low-confidence ankles are unseen
+    everything = FloorPrior.fit_arrays(world, boxes, size, keypoints=_ankles(world), points="all")
+    assert everything.cameras[0].points == ("foot", "centre", "ankle")
+    xy, _ = everything.predict(_boxes(probe))  # served without keypoints: boxes only
+    np.testing.assert_allclose(xy, probe, atol=0.02)
+
+
 def test_wrong_box_shape_is_a_user_error():
     world, boxes = _marks()
     prior = FloorPrior.fit_arrays(world, boxes, np.array([SIZE, SIZE]))
