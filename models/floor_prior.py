@@ -5,17 +5,22 @@ on 4 marks is ~1 m off over the room), but geometry can. A person's box bottom-c
 point) lies on the floor plane, so pixel → floor is a homography for each camera, fixed by the
 marks alone (no chessboard, no camera pose). The box *centre* is on a plane at about half the
 person's height: also a homography, less noisy (the scale error of a box leaves its centre in
-place) but biased for people taller or shorter than whoever walked the marks.
+place) but biased for people taller or shorter than whoever walked the marks. With a pose
+detector, the middle of the confident ankles (COCO-17) is a third, less noisy floor point.
 
-Model, per camera k and image point p in ``points`` ("foot", "centre"):
+Model, per camera k and image point p in ``points`` ("foot", "centre", "ankle"; "both" = foot +
+centre, the default for box-only detectors; "all" = the three):
 
-* ``G_kp`` pixel → floor, fitted on the training rows (robust, see :mod:`models.homography`).
+* ``G_kp`` pixel → floor, fitted on the training rows: the rows of each mark reduced to their
+  median pixel, then a robust floor → pixel homography (:mod:`models.homography`), inverted.
 * Error model: the residuals of the training rows, mapped back to pixels and divided by the box
   height (detector noise grows with box size), give a pixel covariance ``S_k`` per unit box
   height over all the camera's points jointly (the foot and the centre share the box's bottom
   edge, so their errors are correlated). A view's floor covariance is ``J S_k J^T h²`` with ``J``
   the homography's Jacobian at the pixel: one pixel far away is many centimetres on the floor,
-  and only along the camera's line of sight.
+  and only along the camera's line of sight. Two terms the marks cannot show are added: the
+  spread of people's heights for the centre (``HEIGHT_SPREAD``) and the stride for the ankles
+  (``ANKLE_STRIDE_M``, on the floor).
 * Fusion: generalised least squares over every point of every view (information-weighted). Two
   cameras that each know the position well only across their line of sight combine like a
   triangulation. Unseen views (NaN boxes) carry no information; a point on a box cut by the
@@ -31,6 +36,7 @@ Serving: numpy only; ``to_json``/``from_json`` round-trip through ``model.json``
 
     prior = FloorPrior.fit(data)                 # data: MomDataset of the marks
     xy, std = prior.predict(boxes)               # boxes [B, K, 4], NaN = unseen
+    err = prior.reprojection_error(boxes, xy)    # [B, K] pixels: the decoder's job
 """
 
 from __future__ import annotations
@@ -50,7 +56,7 @@ CUT_EDGES = {"foot": "lrb", "centre": "ltrb", "ankle": ""}  # a cut here: unfit 
 CUT_AXES = {"foot": ("lr", "b"), "centre": ("lr", "tb"), "ankle": ("", "")}
 ANKLES = (15, 16)  # COCO-17 left and right ankle
 MIN_CONFIDENCE = 0.5  # keypoints below this confidence count as unseen
-ANKLE_STRIDE_M = 0.15  # floor std of the ankles' middle about the point under the hips
+ANKLE_STRIDE_M = 0.1  # floor std of the ankles' middle about the point under the hips
 HEIGHT_SPREAD = 0.06  # std of people's heights / mean height (adults ~ 6 %)
 MIN_ROWS = 8
 DISTINCT_M = 0.05  # positions closer than this count as one mark
