@@ -156,6 +156,17 @@ def test_two_marginal_pairs_do_not_beat_one_good_pair() -> None:
     assert sorted(a.detection_index for a in result) == [[0, 1], [1, 0]]
 
 
+def test_single_camera_model_outputs_every_box() -> None:
+    projections = room_cameras(1)
+    world = np.array([[2.0, 2.0], [4.0, 3.0], [3.0, 5.0]])
+    boxes = person_boxes(projections, world)[:, 0]
+    result = associate([boxes], OracleRuntime(projections))
+    assert sorted(a.detection_index[0] for a in result) == [0, 1, 2]
+    for a in result:
+        assert a.cameras == [0]
+        assert np.linalg.norm(a.world - world[a.detection_index[0]]) < 0.05
+
+
 def test_empty_and_invalid_inputs() -> None:
     runtime = OracleRuntime(room_cameras(2))
     assert associate([np.zeros((0, 4)), np.zeros((0, 4))], runtime) == []
