@@ -67,10 +67,10 @@ def adaptive_settings(n_train: int, num_cameras: int, epochs: int | None = None)
     camera_width = 32
     global_width = int(np.clip(16 * num_cameras + 32, 64, 192))
     batch_size = int(np.clip(2 ** round(math.log2(max(n_train, 1) / 32)), 64, 1024))
-    # a budget of ~3 million training rows (fresh estimators each), between 60 and 400 epochs:
-    # 20 000 instances take ~180 epochs, a few minutes on one core
-    max_epochs = int(np.clip(3_000_000 // max(n_train, 1), 60, 400)) if epochs is None else epochs
-    patience = max(10, max_epochs // 8)
+    # a budget of ~5 million training rows (fresh estimators each), between 60 and 400 epochs:
+    # 20 000 instances get up to ~300 epochs, a few minutes on one core
+    max_epochs = int(np.clip(5_000_000 // max(n_train, 1), 60, 400)) if epochs is None else epochs
+    patience = max(15, max_epochs // 4)  # validation error keeps creeping down for a long time
     budget = 540.0 if epochs is None else None
     return TrainSettings(
         camera_width, global_width, batch_size, max_epochs, patience, time_budget_s=budget
