@@ -47,6 +47,7 @@ bench-detector: $(VENV)/.stamp-dev
 
 bench-service: $(VENV)/.stamp-dev
 	$(PY) -m bench.service_latency
+	$(PY) -m bench.association
 
 bench-setup: $(VENV)/.stamp-dev
 	$(PY) -m bench.setup_study
