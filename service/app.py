@@ -45,6 +45,7 @@ from pydantic import BaseModel, Field
 from models.errors import MomlocError
 from service.daemon import Daemon
 from service.metrics import metrics_text
+from service.setup.routes import create_setup_router
 from service.snapshot_image import render_camera_jpeg
 
 WEB_DIR = Path(__file__).resolve().parent / "web"
@@ -81,9 +82,15 @@ def create_app(daemon: Daemon, *, manage_pipeline: bool = True) -> FastAPI:
         daemon.hub.bind(asyncio.get_running_loop())
         if manage_pipeline:
             await asyncio.to_thread(daemon.pipeline.start)
+        if daemon.watcher is not None:
+            daemon.watcher.start()
         try:
             yield
         finally:
+            if daemon.watcher is not None:
+                daemon.watcher.stop()
+            if daemon.setup is not None:
+                await asyncio.to_thread(daemon.setup.stop)
             if manage_pipeline:
                 await asyncio.to_thread(daemon.pipeline.stop)
             daemon.hub.bind(None)
@@ -100,6 +107,13 @@ def create_app(daemon: Daemon, *, manage_pipeline: bool = True) -> FastAPI:
     @app.get("/", include_in_schema=False)
     def index() -> FileResponse:
         return FileResponse(WEB_DIR / "index.html", headers={"Cache-Control": "no-cache"})
+
+    @app.get("/setup", include_in_schema=False)
+    def setup_page() -> FileResponse:
+        return FileResponse(WEB_DIR / "setup.html", headers={"Cache-Control": "no-cache"})
+
+    if daemon.setup is not None:
+        app.include_router(create_setup_router(daemon.setup), dependencies=secured)
 
     @app.get("/v1/positions", dependencies=secured, summary="Newest snapshot")
     def positions() -> JSONResponse:

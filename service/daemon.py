@@ -16,8 +16,11 @@ from typing import Any
 
 from models.errors import MomlocError
 from service.hub import Hub
+from service.model_watch import ModelWatcher
 from service.pipeline import DetectorStage, Pipeline
 from service.settings import FileCamera, Settings, SyntheticCamera, V4l2Camera
+from service.setup.camera_monitor import CameraAlignment
+from service.setup.session import SetupSession
 
 log = logging.getLogger("momloc")
 
@@ -36,9 +39,12 @@ class Daemon:
     floor: dict[str, float] | None = None
     extras: dict[str, Any] = field(default_factory=dict)
     started: float = field(default_factory=time.time)
+    watcher: ModelWatcher | None = None
+    setup: SetupSession | None = None
 
     def camera_states(self) -> list[dict[str, Any]]:
         states = self.pipeline.rig.states()
+        alignment = self.pipeline.alignment.status()
         out = []
         for k, state in enumerate(states):
             d = dataclasses.asdict(state) if dataclasses.is_dataclass(state) else dict(vars(state))
@@ -50,6 +56,7 @@ class Daemon:
                 "last_frame_age": _round(d.get("last_frame_age"), 3),
                 "reconnects": int(d.get("reconnects") or 0),
                 "error": d.get("error"),
+                "alignment": _alignment(alignment[k]) if k < len(alignment) else None,
             }
             out.append(d)
         return out
@@ -59,7 +66,7 @@ class Daemon:
         model = self.pipeline.model_info()
         pipeline = self.pipeline.stats()
         ok = (
-            all(c["connected"] for c in cameras)
+            all(c["connected"] and not (c["alignment"] or {}).get("moved") for c in cameras)
             and model["loaded"]
             and model.get("compatible", False)
             and pipeline["running"]
@@ -73,6 +80,7 @@ class Daemon:
             "pipeline": pipeline,
             "clients": self.hub.subscriber_count,
             "stream": self.hub.stream_stats(),
+            "model_reload": None if self.watcher is None else self.watcher.last_reload,
             **self.extras,
         }
 
@@ -84,6 +92,16 @@ class Daemon:
             "auth": self.token is not None,
             **self.extras,
         }
+
+
+def _alignment(state: CameraAlignment) -> dict[str, Any]:
+    """The camera-moved check as health JSON: error now vs usual, and what to do."""
+    return {
+        "moved": state.moved,
+        "reprojection_px": _round(state.error_px, 1),
+        "usual_px": _round(state.baseline_px, 1),
+        "message": state.message,
+    }
 
 
 def _round(value: Any, digits: int = 2) -> float | None:
@@ -151,10 +169,12 @@ def build_detect_stage(settings: Settings, player: Any) -> Any:
         return SimulatedDetections(player)
     from models.detector import create_detector
 
+    options = {"model_path": settings.detector.model_path, "letterbox": settings.detector.letterbox}
     detector = create_detector(
         settings.detector.kind,
         score_threshold=settings.detector.score_threshold,
         threads=settings.detector.threads,
+        **{key: value for key, value in options.items() if value is not None},
     )
     return DetectorStage(detector, settings.detector.score_threshold)
 
@@ -215,7 +235,20 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
         ping_timeout=settings.stream.ping_timeout,
         floor=floor_extent(settings, runtime, player),
         extras=extras,
+        watcher=ModelWatcher(pipeline) if settings.watch_model else None,
+        setup=SetupSession(
+            settings.data_dir,
+            image_sizes=lambda: _known_sizes(pipeline),
+            attach=pipeline.add_detection_listener,
+            detach=pipeline.remove_detection_listener,
+        ),
     )
+
+
+def _known_sizes(pipeline: Pipeline) -> list[tuple[int, int]] | None:
+    """Every camera's frame size once each has delivered a frame, else None."""
+    sizes = list(pipeline.image_sizes)
+    return None if any(size is None for size in sizes) else sizes
 
 
 def bind_socket(host: str, port: int) -> socket.socket:

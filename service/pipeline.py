@@ -32,6 +32,7 @@ import numpy as np
 
 from models.errors import MomlocError
 from service.hub import Hub, Snapshot
+from service.setup.camera_monitor import CameraMotionMonitor
 
 log = logging.getLogger("momloc.pipeline")
 
@@ -125,6 +126,15 @@ class Pipeline:
         self.frames_dropped = 0
         self.failures = 0
         self.last_failure: str | None = None
+        self.alignment = CameraMotionMonitor(num_cameras)
+        self._detection_listeners: list[Callable[[float, list[np.ndarray]], None]] = []
+
+    def add_detection_listener(self, listener: Callable[[float, list[np.ndarray]], None]) -> None:
+        """Call ``listener(t_capture, boxes per camera)`` for every frame set (must not block)."""
+        self._detection_listeners = [*self._detection_listeners, listener]
+
+    def remove_detection_listener(self, listener: Callable[..., None]) -> None:
+        self._detection_listeners = [f for f in self._detection_listeners if f != listener]
 
     # -- lifecycle -------------------------------------------------------------------------------
 
@@ -189,6 +199,8 @@ class Pipeline:
         t_capture = float(min(stamps)) if stamps else time.time()
         t0 = time.perf_counter()
         detections = self.detect(frame_set)
+        for listener in self._detection_listeners:
+            listener(t_capture, detections)
         t1 = time.perf_counter()
         for k, f in enumerate(frames):
             size = _image_size(f)
@@ -201,6 +213,7 @@ class Pipeline:
             problem = self._sizes_match(runtime)
             if problem is None:
                 associations = self.associate(detections, runtime, max_error_px=self.max_error_px)
+                self._watch_alignment(runtime, associations, t_capture)
             else:
                 self.error = f"model: {problem}"
         t2 = time.perf_counter()
@@ -223,6 +236,16 @@ class Pipeline:
             "track": (t3 - t2) * 1e3,
         }
         return snapshot
+
+    def _watch_alignment(self, runtime: Any, associations: Sequence[Any], t: float) -> None:
+        """Feed the camera-moved monitor with the decoder's reprojection error of people seen by
+        two or more cameras (a lone view always agrees with its own prediction)."""
+        multi = [a for a in associations if len(a.cameras) >= 2]
+        if not multi:
+            return
+        boxes = np.stack([np.asarray(a.boxes, np.float32) for a in multi])
+        world = np.stack([np.asarray(a.world, np.float64)[:2] for a in multi])
+        self.alignment.update(t, runtime.reprojection_error(boxes, world))
 
     def _record(
         self,
@@ -276,6 +299,7 @@ class Pipeline:
         if problem is not None:
             raise MomlocError(f"{path}: {problem}; keeping the current model")
         self.runtime, self.model_dir = runtime, path
+        self.alignment = CameraMotionMonitor(self.num_cameras)  # a new model, a new baseline
         if self.error and self.error.startswith("model"):
             self.error = None
         log.info("model loaded from %s", path)

@@ -78,6 +78,12 @@ class DetectorSettings(BaseModel):
         0.4, ge=0.0, le=1.0, description="Boxes scoring below this are ignored."
     )
     threads: int = Field(2, ge=1, le=64, description="onnxruntime intra-op threads.")
+    model_path: Path | None = Field(
+        None, description="ONNX file for detectors you bring (kind: yolov8); ssdlite ships its own."
+    )
+    letterbox: bool | None = Field(
+        None, description="Pad to the model's square input instead of stretching (default: kind's)."
+    )
 
 
 class SyntheticSettings(BaseModel):
@@ -192,6 +198,12 @@ class Settings(BaseSettings):
         default_factory=SyntheticSettings, description="Simulated scene for synthetic cameras."
     )
     floor: FloorSettings | None = Field(None, description="Map extent; default from the model.")
+    data_dir: Path = Field(
+        Path("momloc-data"), description="Where the /setup page writes floor-mark recordings."
+    )
+    watch_model: bool = Field(
+        True, description="Reload the model when momloc train rewrites model_dir."
+    )
 
     @classmethod
     def settings_customise_sources(

@@ -54,6 +54,10 @@ class FakeRuntime:
     def __init__(self, cameras: int = 2, size: tuple[int, int] = (640, 480)) -> None:
         self.num_cameras = cameras
         self.image_sizes = np.array([size] * cameras)
+        self.error_px = 2.0
+
+    def reprojection_error(self, boxes: np.ndarray, world: np.ndarray) -> np.ndarray:
+        return np.full(boxes.shape[:2], self.error_px)
 
 
 def boxes_stage(frame_set):
@@ -199,3 +203,17 @@ def test_detector_stage_batches_and_filters_scores():
     out = stage(SimpleNamespace(frames=[frame, None, frame]))
     assert det.batches == [2]
     assert [o.shape for o in out] == [(1, 4), (0, 4), (1, 4)]
+
+
+def test_detection_listeners_and_alignment_see_every_frame_set():
+    pipeline, _ = make()
+    seen = []
+    listener = lambda t, boxes: seen.append((t, [b.copy() for b in boxes]))  # noqa: E731
+    pipeline.add_detection_listener(listener)
+    rig = FakeRig()
+    for _ in range(3):
+        pipeline.process(rig.frame_set())
+    pipeline.remove_detection_listener(listener)
+    pipeline.process(rig.frame_set())
+    assert len(seen) == 3 and seen[0][1][0].shape == (1, 4)
+    assert [s.error_px for s in pipeline.alignment.status()] == [2.0, 2.0]
