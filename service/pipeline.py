@@ -97,7 +97,7 @@ class Pipeline:
         model_dir: Path | None = None,
         tracker: Any = None,
         associate: Callable[..., list[Any]] | None = None,
-        max_error_px: float = 40.0,
+        max_error_px: float = 100.0,  # service.association.DEFAULT_MAX_ERROR_PX
         load_runtime: Callable[[Path], Any] | None = None,
     ) -> None:
         if tracker is None:

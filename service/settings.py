@@ -133,7 +133,9 @@ class TrackingSettings(BaseModel):
         1.5, gt=0, le=60, description="Keep an unseen person's id this many seconds."
     )
     max_error_px: float = Field(
-        40.0, gt=0, description="Largest decoder reprojection error accepted when matching boxes."
+        100.0,
+        gt=0,
+        description="Largest reprojection error (px, scaled to a 200 px tall box) when matching boxes.",
     )
 
 
