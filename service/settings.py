@@ -135,7 +135,7 @@ class TrackingSettings(BaseModel):
     max_error_px: float = Field(
         100.0,
         gt=0,
-        description="Largest reprojection error (px, scaled to a 200 px tall box) when matching boxes.",
+        description="Largest reprojection error (px, scaled to a 200 px box) for a match.",
     )
 
 
