@@ -41,6 +41,7 @@ bench: bench-model bench-detector bench-service bench-setup
 bench-model: $(VENV)/.stamp-dev
 	$(PY) -m bench.model_accuracy
 	$(PY) -m bench.encoder_speed
+	$(PY) -m bench.simulate_speed
 
 bench-detector: $(VENV)/.stamp-dev
 	$(PY) -m bench.detector_speed
@@ -50,6 +51,7 @@ bench-service: $(VENV)/.stamp-dev
 	$(PY) -m bench.association
 
 bench-setup: $(VENV)/.stamp-dev
+	$(PY) -m bench.floor_prior_study
 	$(PY) -m bench.setup_study
 
 # mediapipe pins numpy<2, so its keypoint tests run in an environment of their own.
