@@ -47,7 +47,12 @@ import numpy as np
 
 from models.baseline import box_points, truncated
 from models.errors import MomlocError
-from models.homography import apply_homography, fit_homography, homography_jacobian
+from models.homography import (
+    apply_homography,
+    degenerate_reason,
+    fit_plane_to_image,
+    homography_jacobian,
+)
 
 POINTS = ("foot", "centre", "ankle")
 SETS = {"both": ("foot", "centre"), "all": POINTS}
@@ -78,23 +83,6 @@ class CameraPrior:
     marks: int
 
 
-def _degenerate(world: np.ndarray) -> str | None:
-    """Why these floor positions cannot fix a homography, or None when they can."""
-    distinct = np.unique(np.round(world / DISTINCT_M), axis=0) * DISTINCT_M
-    if len(distinct) < 4:
-        return f"{len(distinct)} distinct floor positions (need 4)"
-
-    def flat(points: np.ndarray) -> bool:
-        sing = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
-        return sing[0] == 0 or sing[1] < COLLINEAR * sing[0]
-
-    if flat(distinct):
-        return "floor positions on one line"
-    if len(distinct) <= 64 and any(flat(np.delete(distinct, i, 0)) for i in range(len(distinct))):
-        return "all floor positions but one on a line"
-    return None
-
-
 def _robust_covariance(r: np.ndarray) -> np.ndarray:
     """Second moment [D, D] of residual rows [M, D] after dropping rows past 4 robust stds."""
     mad = 1.4826 * np.median(np.abs(r - np.median(r, axis=0)), axis=0)
@@ -106,31 +94,6 @@ def _robust_covariance(r: np.ndarray) -> np.ndarray:
 
 def _box_height(boxes: np.ndarray) -> np.ndarray:
     return np.maximum(boxes[..., 3] - boxes[..., 1], 1.0)
-
-
-def _fit_map(world: np.ndarray, pixels: np.ndarray, height: np.ndarray) -> np.ndarray:
-    """Pixel → floor map from the rows of one camera and one image point.
-
-    Rows at the same floor position (a mark) are first reduced to their median pixel: the
-    sway of the person and the detector noise are then averaged away *before* the fit, where a
-    per-row regression of floor on noisy pixels would shrink the map towards the marks
-    (errors-in-variables), centimetres off outside them. The fit runs floor → pixel with
-    residuals in box heights (detector noise grows with box size), weighted by the square root
-    of the rows behind each point, and is inverted. Dense data (every row its own position)
-    is fitted row by row the same way.
-    """
-    keys = np.round(world / DISTINCT_M).astype(np.int64)
-    _, group, count = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
-    order = np.argsort(group.ravel(), kind="stable")
-    pieces = np.split(order, np.cumsum(count)[:-1])
-
-    def medians(values: np.ndarray) -> np.ndarray:
-        return np.stack([np.median(values[rows], axis=0) for rows in pieces])
-
-    pos, pix, hgt = medians(world), medians(pixels), medians(height)
-    ref = float(np.median(hgt))
-    h = fit_homography(pos, pix, weights=np.sqrt(count) * ref / hgt, scale=0.1 * ref)
-    return np.linalg.inv(h)
 
 
 def image_points(boxes: np.ndarray, keypoints: np.ndarray | None = None) -> dict[str, np.ndarray]:
@@ -171,12 +134,13 @@ def _fit_camera(
         if ok.sum() < MIN_ROWS:
             reasons.append(f"{name}: {ok.sum()} uncut rows")
             continue
-        why = _degenerate(world[ok])
+        why = degenerate_reason(world[ok], DISTINCT_M, COLLINEAR)
         if why:
             reasons.append(f"{name}: {why}")
             continue
         try:
-            g = _fit_map(world[ok], pixels[name][ok], _box_height(boxes[ok]))
+            h = fit_plane_to_image(world[ok], pixels[name][ok], _box_height(boxes[ok]), DISTINCT_M)
+            g = np.linalg.inv(h)
         except MomlocError as exc:  # e.g. the marks' pixels on one line (seen edge-on)
             reasons.append(f"{name}: {exc}")
             continue

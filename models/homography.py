@@ -13,7 +13,9 @@ algebraic error that over-weights far points, and a few bad boxes (occlusion, a 
 behind) must not pull the map. The refinement keeps ``H[2, 2] = 1`` *in normalised coordinates*,
 which is safe because there the centroid of the data maps to a finite point.
 
-Numpy + scipy only: used at serving time too.
+:func:`fit_plane_to_image` adds what labelled floor marks need (many noisy rows per mark: fit
+the per-mark medians, in the direction where the noise is), :func:`degenerate_reason` says when
+the marks cannot fix a map at all. Numpy + scipy only: used at serving time too.
 """
 
 from __future__ import annotations
@@ -116,3 +118,53 @@ def fit_homography(
     h_n = np.vstack([result.x[:6].reshape(2, 3), [*result.x[6:8], 1.0]])
     h = np.linalg.inv(td) @ h_n @ ts
     return h / np.linalg.norm(h)
+
+
+def fit_plane_to_image(
+    world: np.ndarray, pixels: np.ndarray, height: np.ndarray, distinct_m: float = 0.05
+) -> np.ndarray:
+    """Floor → image H [3, 3] from rows ``world`` [M, 2] ↔ ``pixels`` [M, 2], box ``height`` [M].
+
+    Rows at the same floor position (a mark) are first reduced to their median pixel: the
+    sway of the person and the detector noise are then averaged away *before* the fit, where a
+    per-row regression of floor on noisy pixels would shrink the map towards the marks
+    (errors-in-variables), centimetres off outside them. The fit runs floor → pixel with
+    residuals in box heights (detector noise grows with box size), weighted by the square root
+    of the rows behind each point. Dense data (every row its own position) is fitted row by row
+    the same way. Invert the result for the pixel → floor map.
+    """
+    keys = np.round(world / distinct_m).astype(np.int64)
+    _, group, count = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    order = np.argsort(group.ravel(), kind="stable")
+    pieces = np.split(order, np.cumsum(count)[:-1])
+
+    def medians(values: np.ndarray) -> np.ndarray:
+        return np.stack([np.median(values[rows], axis=0) for rows in pieces])
+
+    pos, pix, hgt = medians(world), medians(pixels), medians(height)
+    ref = float(np.median(hgt))
+    return fit_homography(pos, pix, weights=np.sqrt(count) * ref / hgt, scale=0.1 * ref)
+
+
+def degenerate_reason(
+    world: np.ndarray, distinct_m: float = 0.05, collinear: float = 0.05
+) -> str | None:
+    """Why these floor positions [M, 2] cannot fix a homography, or None when they can.
+
+    Positions closer than ``distinct_m`` count as one; a set whose minor/major spread ratio is
+    under ``collinear`` counts as a line. A homography needs 4 positions with no 3 on a line:
+    checked as "not all on a line, nor all but one" (leave-one-out, up to 64 positions).
+    """
+    distinct = np.unique(np.round(world / distinct_m), axis=0) * distinct_m
+    if len(distinct) < 4:
+        return f"{len(distinct)} distinct floor positions (need 4)"
+
+    def flat(points: np.ndarray) -> bool:
+        sing = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
+        return sing[0] == 0 or sing[1] < collinear * sing[0]
+
+    if flat(distinct):
+        return "floor positions on one line"
+    if len(distinct) <= 64 and any(flat(np.delete(distinct, i, 0)) for i in range(len(distinct))):
+        return "all floor positions but one on a line"
+    return None
