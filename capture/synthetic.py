@@ -32,12 +32,19 @@ from capture.worker import CameraState, Frame
 
 
 def make_scene(
-    preset: str, *, seed: int, people: int | None = None, fps: float | None = None
+    preset: str,
+    *,
+    seed: int,
+    people: int | None = None,
+    fps: float | None = None,
+    perturbations: Sequence[Any] | None = None,
 ) -> Any:
-    """A simulator scene from a preset name, with the people count and frame rate overridden."""
+    """A simulator scene from a preset name, with the people count and frame rate overridden
+    and optionally cameras bumped mid-run (``models.simulate.Perturbation``)."""
     from models.simulate import Scene, get_config
 
-    return Scene(get_config(preset, people=people, fps=fps), seed=seed)
+    bumps = None if perturbations is None else tuple(perturbations)
+    return Scene(get_config(preset, people=people, fps=fps, perturbations=bumps), seed=seed)
 
 
 class SceneClock:

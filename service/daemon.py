@@ -19,7 +19,7 @@ from service.hub import Hub
 from service.model_watch import ModelWatcher
 from service.pipeline import DetectorStage, Pipeline
 from service.settings import FileCamera, Settings, SyntheticCamera, V4l2Camera
-from service.setup.camera_monitor import CameraAlignment
+from service.setup.camera_monitor import CameraMoved
 from service.setup.session import SetupSession
 
 log = logging.getLogger("momloc")
@@ -44,7 +44,7 @@ class Daemon:
 
     def camera_states(self) -> list[dict[str, Any]]:
         states = self.pipeline.rig.states()
-        alignment = self.pipeline.alignment.status()
+        alignment = self.pipeline.alignment_status(self.camera_names)
         out = []
         for k, state in enumerate(states):
             d = dataclasses.asdict(state) if dataclasses.is_dataclass(state) else dict(vars(state))
@@ -94,12 +94,18 @@ class Daemon:
         }
 
 
-def _alignment(state: CameraAlignment) -> dict[str, Any]:
-    """The camera-moved check as health JSON: error now vs usual, and what to do."""
+def _alignment(state: CameraMoved) -> dict[str, Any]:
+    """The camera-moved check as health JSON: image shift and reprojection error, what to do."""
+    shift, error = state.shift, state.reprojection
     return {
         "moved": state.moved,
-        "reprojection_px": _round(state.error_px, 1),
-        "usual_px": _round(state.baseline_px, 1),
+        "shift_px": _round(shift.shift_px, 1),
+        "shift_confidence": _round(shift.confidence),
+        "reference": shift.reference,
+        "shift_moved": shift.moved,
+        "reprojection_px": _round(error.error_px, 1),
+        "usual_px": _round(error.baseline_px, 1),
+        "reprojection_moved": error.moved,
         "message": state.message,
     }
 

@@ -31,8 +31,9 @@ from typing import Any, Protocol
 import numpy as np
 
 from models.errors import MomlocError
+from service.camera_shift import CameraShiftMonitor, ShiftWorker
 from service.hub import Hub, Snapshot
-from service.setup.camera_monitor import CameraMotionMonitor
+from service.setup.camera_monitor import CameraMotionMonitor, CameraMoved, combine
 
 log = logging.getLogger("momloc.pipeline")
 
@@ -99,6 +100,7 @@ class Pipeline:
         associate: Callable[..., list[Any]] | None = None,
         max_error_px: float = 100.0,  # service.association.DEFAULT_MAX_ERROR_PX
         load_runtime: Callable[[Path], Any] | None = None,
+        shift_threaded: bool = True,
     ) -> None:
         if tracker is None:
             from service.tracking import Tracker
@@ -127,6 +129,9 @@ class Pipeline:
         self.failures = 0
         self.last_failure: str | None = None
         self.alignment = CameraMotionMonitor(num_cameras)
+        # image-based camera-moved check, ~1/s on its own thread (service.camera_shift)
+        self.camera_shift = CameraShiftMonitor(num_cameras)
+        self._shift_worker = ShiftWorker(self.camera_shift, threaded=shift_threaded)
         self._detection_listeners: list[Callable[[float, list[np.ndarray]], None]] = []
 
     def add_detection_listener(self, listener: Callable[[float, list[np.ndarray]], None]) -> None:
@@ -148,6 +153,7 @@ class Pipeline:
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=5)
+        self._shift_worker.stop()
         self.rig.stop()
 
     @property
@@ -206,6 +212,7 @@ class Pipeline:
             size = _image_size(f)
             if size is not None:
                 self.image_sizes[k] = size
+        self._shift_worker.submit(t_capture, [None if f is None else f.image for f in frames])
         runtime = self.runtime
         associations: list[Any] = []
         self.error = None  # this iteration's state only; failures are counted separately
@@ -299,11 +306,20 @@ class Pipeline:
         if problem is not None:
             raise MomlocError(f"{path}: {problem}; keeping the current model")
         self.runtime, self.model_dir = runtime, path
-        self.alignment = CameraMotionMonitor(self.num_cameras)  # a new model, a new baseline
+        self.reset_alignment()  # a new model (new floor marks): new baseline and references
         if self.error and self.error.startswith("model"):
             self.error = None
         log.info("model loaded from %s", path)
         return self.model_info()
+
+    def reset_alignment(self) -> None:
+        """Accept the cameras where they are now: new error baseline and image references."""
+        self.alignment = CameraMotionMonitor(self.num_cameras)
+        self.camera_shift.reset()
+
+    def alignment_status(self, names: Sequence[str] | None = None) -> list[CameraMoved]:
+        """Per camera: image shift and reprojection error combined into one moved verdict."""
+        return combine(self.alignment.status(), self.camera_shift.status(), names)
 
     def model_info(self) -> dict[str, Any]:
         runtime = self.runtime

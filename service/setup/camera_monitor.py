@@ -8,6 +8,11 @@ median of each camera's error with a baseline (given by the model, or learned du
 seconds of running) and raises an alert only when the median has stayed above
 ``max(ratio * baseline, baseline + margin_px)`` for ``hold_s`` seconds: a single bad frame, a
 passing occlusion or one badly detected person does not trip it.
+
+This signal alone cannot see every bump nor say which camera moved (with two cameras a sideways
+shift is absorbed into the position, and both cameras share a rise), so :func:`combine` merges it
+with the image check of ``service.camera_shift``: the image decides which camera moved whenever it
+has a reference, and the reprojection error is the fallback (and catches what images miss).
 """
 
 from __future__ import annotations
@@ -17,6 +22,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+
+from service.camera_shift import CameraShiftState
+
+WHAT_TO_DO = (
+    "re-collect the floor marks (momloc collect, or the /setup page) and retrain (momloc train)"
+)
 
 
 @dataclass(frozen=True)
@@ -102,9 +113,54 @@ class CameraMotionMonitor:
             if self._moved[k]:
                 message = (
                     f"camera {k} looks moved: reprojection error {self._current(k):.1f} px vs "
-                    f"{self._baseline[k]:.1f} px usual; re-collect floor marks and retrain"
+                    f"{self._baseline[k]:.1f} px usual; {WHAT_TO_DO}"
                 )
             out.append(
                 CameraAlignment(k, self._current(k), self._baseline[k], self._moved[k], message)
             )
         return out
+
+
+@dataclass(frozen=True)
+class CameraMoved:
+    """Both camera-moved signals for one camera, and the verdict shown in health and on the map."""
+
+    camera: int
+    moved: bool
+    shift: CameraShiftState
+    reprojection: CameraAlignment
+    message: str | None
+
+
+def combine(
+    reprojection: Sequence[CameraAlignment],
+    shift: Sequence[CameraShiftState],
+    names: Sequence[str] | None = None,
+) -> list[CameraMoved]:
+    """Per camera: moved if its image shifted, or if its reprojection error stays high.
+
+    Attribution: a reprojection alarm on camera k is dropped when the image check has a
+    reference for k, sees k steady, and sees another camera moved: the shared rise is that other
+    camera's (with two cameras both errors rise when either is bumped).
+    """
+    image_moved = {s.camera for s in shift if s.moved}
+    out = []
+    for r, s in zip(reprojection, shift, strict=True):
+        k = r.camera
+        name = f"camera {k}" if names is None or k >= len(names) else f"camera {k} ({names[k]})"
+        explained = s.reference == "ready" and not s.moved and bool(image_moved - {k})
+        by_error = r.moved and not explained
+        message = None
+        if s.moved:
+            message = (
+                f"{name} was moved: its view is {s.shift_px or 0.0:.0f} px off the reference "
+                f"taken at start; {WHAT_TO_DO}"
+            )
+        elif by_error:
+            seen = " (the image check sees no shift)" if s.reference == "ready" else ""
+            message = (
+                f"{name} looks moved: reprojection error {r.error_px or 0.0:.1f} px vs "
+                f"{r.baseline_px or 0.0:.1f} px usual{seen}; {WHAT_TO_DO}"
+            )
+        out.append(CameraMoved(k, s.moved or by_error, s, r, message))
+    return out
