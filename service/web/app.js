@@ -5,7 +5,7 @@
 const params = new URLSearchParams(location.search);
 const token = params.get("token");
 const TRAIL_S = 4.0;
-const state = { people: {}, seq: 0, t: 0, draws: 0, connected: false, floor: null, fitted: null };
+const state = { people: {}, seq: 0, t: 0, draws: 0, connected: false, floor: null, fitted: null, moved: [] };
 window.momloc = state;
 
 function withToken(path) {
@@ -163,11 +163,37 @@ async function refreshHealth() {
       row("pipeline", `${p.fps.toFixed(1)} fps, p50 ${p.latency_ms.p50 ?? "–"} ms`, p.running && !p.error),
       row("dropped frames", String(p.frames_dropped)), row("clients", String(h.clients))];
     for (const c of h.cameras) {
-      rows.push(row(`cam ${c.index} ${c.name}`, c.connected ? `${(c.fps ?? 0).toFixed(1)} fps, age ${((c.last_frame_age ?? 0) * 1000).toFixed(0)} ms` : (c.error || "disconnected"), c.connected));
+      const moved = Boolean(c.alignment && c.alignment.moved);
+      rows.push(row(`cam ${c.index} ${c.name}`, (c.connected ? `${(c.fps ?? 0).toFixed(1)} fps, age ${((c.last_frame_age ?? 0) * 1000).toFixed(0)} ms` : (c.error || "disconnected")) + (moved ? " · MOVED" : ""), c.connected && !moved));
     }
     if (p.error) rows.push(row("error", p.error, false));
     document.querySelector("#health tbody").replaceChildren(...rows);
+    showMoved(h.cameras);
   } catch (e) { /* server restarting: the WebSocket pill already says so */ }
+}
+
+// Camera-moved alert: a banner naming each moved camera and what to do; its preview is outlined.
+function showMoved(cameras) {
+  const moved = cameras.filter((c) => c.alignment && c.alignment.moved);
+  state.moved = moved.map((c) => c.index);
+  const banner = document.getElementById("moved-banner");
+  banner.hidden = moved.length === 0;
+  banner.replaceChildren(...moved.map((c) => {
+    const line = document.createElement("p");
+    const title = document.createElement("b");
+    title.textContent = `Camera ${c.index} (${c.name}) has moved. `;
+    // health says "camera k (name) was moved: why; what to do": the title already names it
+    const msg = c.alignment.message || "re-collect the floor marks (momloc collect, or the /setup page) and retrain (momloc train)";
+    const detail = msg.includes(": ") ? msg.slice(msg.indexOf(": ") + 2) : msg;
+    line.append(title, detail.charAt(0).toUpperCase() + detail.slice(1) + ".");
+    return line;
+  }));
+  for (const fig of document.querySelectorAll("#cameras figure")) {
+    const hit = state.moved.includes(Number(fig.dataset.k));
+    fig.classList.toggle("moved", hit);
+    const cap = fig.querySelector("figcaption");
+    cap.textContent = cap.dataset.label + (hit ? " · MOVED" : "");
+  }
 }
 
 function refreshPreviews() {
@@ -186,9 +212,10 @@ async function init() {
     const cfg = await getJSON("/v1/config");
     state.floor = cfg.floor;
     document.getElementById("cameras").replaceChildren(...cfg.cameras.map((c) => {
-      const fig = document.createElement("figure");
+      const fig = document.createElement("figure"); fig.dataset.k = c.index;
       const img = document.createElement("img"); img.dataset.k = c.index; img.alt = c.name;
-      const cap = document.createElement("figcaption"); cap.textContent = `camera ${c.index} · ${c.name}`;
+      const cap = document.createElement("figcaption"); cap.dataset.label = `camera ${c.index} · ${c.name}`;
+      cap.textContent = cap.dataset.label;
       fig.append(img, cap);
       return fig;
     }));

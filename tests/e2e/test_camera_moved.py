@@ -1,0 +1,87 @@
+"""A camera bumped while the real daemon runs: /v1/health and the map page name it."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+import capture.synthetic
+from models.simulate import Perturbation
+from tests.e2e.server import running_server
+
+pytestmark = pytest.mark.timeout(120)
+
+BUMP_S = 4.0  # scene seconds after start; the references are ready after ~2.5 s (see below)
+
+
+def _bumped_scene(monkeypatch: pytest.MonkeyPatch, camera: int) -> None:
+    """Make the demo's scene bump ``camera`` 20 px sideways ``BUMP_S`` into the run."""
+    original = capture.synthetic.make_scene
+
+    def make_scene(preset, **kw):  # type: ignore[no-untyped-def]
+        fps = kw.get("fps") or 30.0
+        bump = Perturbation(camera=camera, start_frame=int(BUMP_S * fps), dx=20.0)
+        return original(preset, **kw, perturbations=[bump])
+
+    monkeypatch.setattr(capture.synthetic, "make_scene", make_scene)
+
+
+def _wait_moved(srv, timeout: float = 25.0) -> dict:  # type: ignore[no-untyped-def]
+    deadline = time.time() + timeout
+    health = srv.get("/v1/health").json()
+    while not any(c["alignment"]["moved"] for c in health["cameras"]):
+        assert time.time() < deadline, health["cameras"]
+        time.sleep(0.25)
+        health = srv.get("/v1/health").json()
+    return health
+
+
+def _fast_reference(srv) -> None:  # type: ignore[no-untyped-def]
+    monitor = srv.daemon.pipeline.camera_shift
+    monitor.reference_spacing_s = 0.5  # default 1 s; keeps the test short
+
+
+def test_health_reports_the_moved_camera(monkeypatch: pytest.MonkeyPatch) -> None:
+    _bumped_scene(monkeypatch, camera=1)
+    with running_server(token="t0k") as srv:
+        _fast_reference(srv)
+        before = srv.get("/v1/health").json()
+        assert not any(c["alignment"]["moved"] for c in before["cameras"])
+        health = _wait_moved(srv)
+        cams = health["cameras"]
+        assert cams[1]["alignment"]["moved"] and not cams[0]["alignment"]["moved"]
+        assert cams[1]["alignment"]["shift_px"] > 15 and cams[0]["alignment"]["shift_px"] < 2
+        assert "camera 1" in cams[1]["alignment"]["message"]
+        assert "momloc collect" in cams[1]["alignment"]["message"]
+        assert health["status"] == "degraded"
+
+
+@pytest.mark.browser
+def test_map_page_shows_the_moved_banner(monkeypatch: pytest.MonkeyPatch) -> None:
+    from tests.e2e.test_map_page import CHROMEDRIVER, CHROMIUM, FLAGS, ensure_chromium, wait_until
+
+    ensure_chromium()
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    _bumped_scene(monkeypatch, camera=0)
+    options = webdriver.ChromeOptions()
+    options.binary_location = str(CHROMIUM)
+    for flag in FLAGS:
+        options.add_argument(flag)
+    with running_server() as srv:
+        _fast_reference(srv)
+        driver = webdriver.Chrome(service=Service(str(CHROMEDRIVER)), options=options)
+        try:
+            driver.get(srv.http + "/")
+            banner = driver.find_element("id", "moved-banner")
+            assert not banner.is_displayed()
+            wait_until(banner.is_displayed, timeout=30, what="camera-moved banner")
+            assert "Camera 0" in banner.text and "momloc train" in banner.text
+            assert driver.execute_script("return window.momloc.moved") == [0]
+            figures = driver.find_elements("css selector", "#cameras figure.moved")
+            assert [f.get_attribute("data-k") for f in figures] == ["0"]
+            assert "MOVED" in figures[0].text
+        finally:
+            driver.quit()
