@@ -108,9 +108,10 @@ def unit_mean(config: SamplerConfig) -> np.ndarray:
 def random_draws(rng: np.random.Generator, shape: tuple[int, ...], config: SamplerConfig) -> Draws:
     """Fresh random draws with leading ``shape`` (training)."""
     n, e = _points_per_draw(config), config.num_estimators
-    unit = _unit_points(rng.random((*shape, n, 2)), config.distribution)
-    keys = rng.random((*shape, e, n))
-    frac = 1.0 - rng.random((*shape, e))  # (0, 1]
+    f32 = np.float32  # half the memory: 100 000 rows × 9 cameras × 12 × 20 keys is large
+    unit = _unit_points(rng.random((*shape, n, 2), dtype=f32), config.distribution)
+    keys = rng.random((*shape, e, n), dtype=f32)
+    frac = 1.0 - rng.random((*shape, e), dtype=f32)  # (0, 1]
     return Draws(unit.astype(np.float32), keys.astype(np.float32), frac.astype(np.float32))
 
 

@@ -151,10 +151,7 @@ class _Trainer:
     def epoch(self, index: int) -> float:
         s = self.settings
         rows = self.rng.permutation(self.train)
-        kp = None if self.data.keypoints is None else self.data.keypoints[rows]
-        est, mask = sample_estimators(
-            self.sampler, self.data.boxes[rows], self.data.image_size, self.rng, kp
-        )
+        est, mask = self._sample(rows)
         mask = mask * self._view_dropout(mask)
         est_t, mask_t = torch.from_numpy(est), torch.from_numpy(mask)
         target, pix = torch.from_numpy(self.target[rows]), torch.from_numpy(self.pix[rows])
@@ -177,6 +174,19 @@ class _Trainer:
             self.optim.step()
             total += float(loss_loc.detach()) * len(target[sl])
         return total / len(rows)
+
+    def _sample(self, rows: np.ndarray, chunk: int = 8192) -> tuple[np.ndarray, np.ndarray]:
+        """Fresh estimators for ``rows``, built in chunks to bound the sampler's memory."""
+        parts = []
+        for start in range(0, len(rows), chunk):
+            part = rows[start : start + chunk]
+            kp = None if self.data.keypoints is None else self.data.keypoints[part]
+            parts.append(
+                sample_estimators(
+                    self.sampler, self.data.boxes[part], self.data.image_size, self.rng, kp
+                )
+            )
+        return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
     def _view_dropout(self, mask: np.ndarray) -> np.ndarray:
         """Hide visible cameras at random, always keeping at least one visible."""
