@@ -13,7 +13,8 @@ How (measured, see ``bench/camera_shift.py``)
 - **Reference**: the per-pixel median of ``reference_frames`` downscaled grayscale frames taken
   ``reference_spacing_s`` apart after start (or after :meth:`CameraShiftMonitor.reset`, e.g. on a
   model reload), so people walking through vanish from it. Corners (``goodFeaturesToTrack``) are
-  picked on that median once.
+  picked on that median once. If one of those frames does not line up with the median (the camera
+  was bumped while collecting), collection starts again from the newest frame.
 - **Check** (about once a second): pyramidal Lucas-Kanade tracks the reference corners into the
   current frame; a RANSAC fit of a rigid motion (rotation + translation: a bump neither zooms nor
   shears) keeps the corners on the static background and drops those occluded by people.
@@ -237,8 +238,19 @@ class CameraShiftMonitor:
         frames.append(gray)
         self._collected_at[k] = t
         if len(frames) >= self.reference_frames:
-            self._reference[k] = ShiftReference(frames, scale)
-            self._collected[k] = []
+            reference = ShiftReference(frames, scale)
+            if self._consistent(reference, frames):
+                self._reference[k] = reference
+                self._collected[k] = []
+            else:  # bumped while collecting: a blend of two views; start again from now
+                self._collected[k] = frames[-1:]
+
+    def _consistent(self, reference: ShiftReference, frames: Sequence[np.ndarray]) -> bool:
+        """Every frame of the median agrees with it (no bump during collection)."""
+        if not reference.usable:
+            return True  # nothing to check against; reported as "no texture"
+        estimates = [reference.estimate(frame) for frame in frames]
+        return all(e is not None and e.shift_px <= self.threshold_px / 2 for e in estimates)
 
     def _update_alert(self, k: int, t: float, high: bool) -> None:
         if high:

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import functools
 import time
 
 import pytest
 
 import capture.synthetic
+import service.pipeline
 from models.simulate import Perturbation
 from tests.e2e.server import running_server
 
@@ -16,7 +18,8 @@ BUMP_S = 4.0  # scene seconds after start; the references are ready after ~2.5 s
 
 
 def _bumped_scene(monkeypatch: pytest.MonkeyPatch, camera: int) -> None:
-    """Make the demo's scene bump ``camera`` 20 px sideways ``BUMP_S`` into the run."""
+    """Make the demo's scene bump ``camera`` 20 px sideways ``BUMP_S`` into the run, with image
+    references taken 0.5 s apart (default 1 s) so they are complete well before the bump."""
     original = capture.synthetic.make_scene
 
     def make_scene(preset, **kw):  # type: ignore[no-untyped-def]
@@ -25,6 +28,11 @@ def _bumped_scene(monkeypatch: pytest.MonkeyPatch, camera: int) -> None:
         return original(preset, **kw, perturbations=[bump])
 
     monkeypatch.setattr(capture.synthetic, "make_scene", make_scene)
+    monkeypatch.setattr(
+        service.pipeline,
+        "CameraShiftMonitor",
+        functools.partial(service.pipeline.CameraShiftMonitor, reference_spacing_s=0.5),
+    )
 
 
 def _wait_moved(srv, timeout: float = 25.0) -> dict:  # type: ignore[no-untyped-def]
@@ -37,15 +45,9 @@ def _wait_moved(srv, timeout: float = 25.0) -> dict:  # type: ignore[no-untyped-
     return health
 
 
-def _fast_reference(srv) -> None:  # type: ignore[no-untyped-def]
-    monitor = srv.daemon.pipeline.camera_shift
-    monitor.reference_spacing_s = 0.5  # default 1 s; keeps the test short
-
-
 def test_health_reports_the_moved_camera(monkeypatch: pytest.MonkeyPatch) -> None:
     _bumped_scene(monkeypatch, camera=1)
     with running_server(token="t0k") as srv:
-        _fast_reference(srv)
         before = srv.get("/v1/health").json()
         assert not any(c["alignment"]["moved"] for c in before["cameras"])
         health = _wait_moved(srv)
@@ -71,13 +73,12 @@ def test_map_page_shows_the_moved_banner(monkeypatch: pytest.MonkeyPatch) -> Non
     for flag in FLAGS:
         options.add_argument(flag)
     with running_server() as srv:
-        _fast_reference(srv)
         driver = webdriver.Chrome(service=Service(str(CHROMEDRIVER)), options=options)
         try:
             driver.get(srv.http + "/")
             banner = driver.find_element("id", "moved-banner")
             assert not banner.is_displayed()
-            wait_until(banner.is_displayed, timeout=30, what="camera-moved banner")
+            wait_until(banner.is_displayed, timeout=40, what="camera-moved banner")
             assert "Camera 0" in banner.text and "momloc train" in banner.text
             assert driver.execute_script("return window.momloc.moved") == [0]
             figures = driver.find_elements("css selector", "#cameras figure.moved")

@@ -118,3 +118,17 @@ def test_rigid_ransac_recovers_rotation_despite_outliers() -> None:
     motion, keep = rigid_ransac(src, dst, 1.0)
     assert np.allclose(motion[:, :2], rot, atol=1e-6) and np.allclose(motion[:, 2], [4, -3])
     assert keep[20:].all() and keep[:20].sum() <= 2
+
+
+def test_a_bump_during_reference_collection_restarts_it() -> None:
+    rng = np.random.default_rng(4)
+    image = (rng.random((240, 320)) * 255).astype(np.uint8)
+    monitor = CameraShiftMonitor(1, reference_frames=3)
+    frames = [image, image, np.roll(image, 12, axis=1)]  # bumped at the third frame
+    for t, frame in enumerate(frames):
+        monitor.offer(float(t), [frame])
+    assert monitor.status()[0].reference == "collecting"
+    for t in (3.0, 4.0, 5.0):
+        monitor.offer(t, [frames[-1]])
+    assert monitor.status()[0].reference == "ready"
+    assert monitor.status()[0].shift_px == pytest.approx(0.0, abs=0.05)
