@@ -87,8 +87,12 @@ def write_model_dir(
     """Write all three files; ``model.json`` last and atomically, so a reader (the daemon's
     hot reload) never sees a half-written model."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    export_encoder(encoder, centre, scale, out_dir / ONNX_NAME, sampler.rows)
-    torch.save(checkpoint, out_dir / CHECKPOINT_NAME)
+    # each file goes to a temporary name first, then replaces the old one in one step
+    tmp_onnx, tmp_pt = out_dir / f".{ONNX_NAME}.tmp", out_dir / f".{CHECKPOINT_NAME}.tmp"
+    export_encoder(encoder, centre, scale, tmp_onnx, sampler.rows)
+    torch.save(checkpoint, tmp_pt)
+    os.replace(tmp_onnx, out_dir / ONNX_NAME)
+    os.replace(tmp_pt, out_dir / CHECKPOINT_NAME)
     meta = {
         "format": MODEL_FORMAT,
         "version": 1,
@@ -117,4 +121,5 @@ def write_model_dir(
     fd, tmp = tempfile.mkstemp(prefix=".model.", suffix=".json", dir=out_dir)
     with os.fdopen(fd, "w") as handle:
         json.dump(meta, handle, indent=1)
+    os.chmod(tmp, 0o644)  # mkstemp makes it private; the daemon may run as another user
     os.replace(tmp, out_dir / JSON_NAME)

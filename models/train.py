@@ -316,7 +316,7 @@ def _train(dataset, out_dir, sampler, decoder, epochs, seed, progress, tuning) -
             **best_state,
             "settings": asdict(settings),
             "seed": seed,
-            "centre": trainer.centre,
+            "centre": [float(c) for c in trainer.centre],  # plain types: weights_only loads
             "scale": trainer.scale,
             "sampler": trainer.sampler.to_dict(),
         },

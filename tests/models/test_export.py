@@ -13,7 +13,7 @@ from tests.models.mom_scene import make_dataset, trained_model
 
 
 def _torch_model(out):
-    checkpoint = torch.load(out / "model.pt", weights_only=False)
+    checkpoint = torch.load(out / "model.pt", weights_only=True)
     settings = checkpoint["settings"]
     meta = json.loads((out / "model.json").read_text())
     k, rows = meta["num_cameras"], SamplerConfig(**meta["sampler"]).rows
@@ -46,7 +46,7 @@ def test_pixel_decoder_matches_normalised_decoder():
     runtime = MomRuntime.load(out)
     _, decoder, checkpoint = _torch_model(out)
     world = data.world[:50]
-    norm = (world - checkpoint["centre"]) / checkpoint["scale"]
+    norm = (world - np.asarray(checkpoint["centre"])) / checkpoint["scale"]
     with torch.no_grad():
         pixels_norm = decoder(torch.tensor(norm, dtype=torch.float32)).numpy()
     expected = (pixels_norm + 1) / 2 * data.image_size
