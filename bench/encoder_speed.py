@@ -87,12 +87,19 @@ def measure(model_dir: Path, threads: int) -> list[tuple[str, float, float]]:
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     model_dir = _model_dir(argv)
+    meta = MomRuntime.load(model_dir).meta
+    widths = meta.get("settings", {})
+    described = (
+        f"{meta['num_cameras']} cameras, {meta['observation']}, camera width "
+        f"{widths.get('camera_width')}, global width {widths.get('global_width')}, "
+        f"D = {meta['sampler']['draws']} draws"
+    )
     lines = [
         "# MoM encoder speed (ONNX Runtime, CPU)",
         "",
         f"Machine: {platform.machine()} {platform.processor() or ''}, "
         f"{os.cpu_count()} cores, Python {platform.python_version()}, "
-        f"date {dt.datetime.now(dt.UTC):%Y-%m-%d %H:%M} UTC. Model: `{model_dir}`.",
+        f"date {dt.datetime.now(dt.UTC):%Y-%m-%d %H:%M} UTC. Model: {described}.",
         "One sample = one person localized (all cameras). D = draws averaged per sample.",
         "",
         "| path | threads | batch-1 latency (ms) | batch-1024 throughput (samples/s) |",
