@@ -49,6 +49,7 @@ bench-detector: $(VENV)/.stamp-dev
 bench-service: $(VENV)/.stamp-dev
 	$(PY) -m bench.service_latency
 	$(PY) -m bench.association
+	$(PY) -m bench.camera_shift
 
 bench-setup: $(VENV)/.stamp-dev
 	$(PY) -m bench.floor_prior_study
