@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from models.errors import MomlocError
+from models.floor_prior import FloorPrior
 from models.sampling import InferenceSampler, SamplerConfig, draws_from_json, unit_mean
 
 MODEL_FORMAT = "mom-model-v1"  # same literal as models.export (which imports torch)
@@ -39,6 +40,11 @@ class MomRuntime:
         self.sampler_config = SamplerConfig(**meta["sampler"])
         self._sampler = InferenceSampler(self.sampler_config, draws_from_json(meta["draws"]))
         self.decoder = np.asarray(meta["decoder"]["matrices"], dtype=np.float64)  # [K, 3, 4]
+        prior = meta.get("floor_prior") or {}
+        self.policy = str(prior.get("policy", "mom"))  # see models.prior_policy
+        self.floor_prior = FloorPrior.from_json(prior["prior"]) if prior.get("prior") else None
+        if self.policy == "prior" and self.floor_prior is None:
+            raise ValueError("floor_prior: policy 'prior' without a fitted prior")
 
     @classmethod
     def load(cls, model_dir: str | os.PathLike[str], threads: int = 1) -> MomRuntime:
@@ -110,7 +116,25 @@ class MomRuntime:
 
     # ------------------------------------------------------------------ API
     def localize(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
-        """Floor positions [B, 2] in metres; NaN for a row no camera sees."""
+        """Floor positions [B, 2] in metres; NaN for a row no camera sees.
+
+        With the ``prior`` policy (a model trained on floor marks) the floor-mark geometry places
+        every row a fitted camera sees and the encoder fills in the rest.
+        """
+        if self.policy != "prior":
+            return self._encode(boxes, keypoints)
+        boxes = self._check_boxes(boxes)
+        prior_keypoints = keypoints if self.observation == "keypoints" else None
+        world, _ = self.floor_prior.predict(boxes, prior_keypoints)
+        missing = ~np.isfinite(world).all(axis=1)
+        if missing.any():
+            world[missing] = self._encode(
+                boxes[missing], None if keypoints is None else np.asarray(keypoints)[missing]
+            )
+        return world.astype(np.float32)
+
+    def _encode(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
+        """The MoM encoder's floor positions [B, 2] (the D draws averaged in the graph)."""
         estimators, mask = self.encoder_inputs(boxes, keypoints)
         if len(mask) == 0:
             return np.zeros((0, 2), dtype=np.float32)

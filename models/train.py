@@ -30,6 +30,7 @@ from models.dataset import MomDataset
 from models.errors import MomlocError
 from models.export import write_model_dir
 from models.mom_torch import MomDecoder, MomEncoder, fit_homography
+from models.prior_policy import attach_floor_prior
 from models.sampling import (
     InferenceSampler,
     SamplerConfig,
@@ -323,6 +324,7 @@ def _train(dataset, out_dir, sampler, decoder, epochs, seed, progress, tuning) -
         metrics=metrics,
         settings={**asdict(settings), "decoder": decoder, "seed": seed},
     )
+    metrics["floor_prior"] = attach_floor_prior(dataset, out_dir, sampler.observation)
     return metrics
 
 

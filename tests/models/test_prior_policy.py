@@ -56,3 +56,22 @@ def test_degenerate_marks_fall_back_to_mom(tmp_path: Path) -> None:
     data = MomDataset.load(_marks(tmp_path, "1x3"))  # three marks on a line: no homography
     entry, prior = choose_policy(data, "bbox")
     assert prior is None and entry["policy"] == "mom" and "no floor prior" in entry["reason"]
+
+
+def test_model_trained_on_marks_localizes_the_whole_room_with_the_prior(tmp_path: Path) -> None:
+    """Train on 9 marks, test on people walking everywhere: the geometry carries the room."""
+    from models.dataset import MomDataset
+    from models.evaluate import score
+    from models.mom_runtime import MomRuntime
+    from models.train import train_model
+
+    data = MomDataset.load(_marks(tmp_path, "3x3", 6.0))
+    metrics = train_model(data, tmp_path / "model", epochs=5, progress=False)
+    assert metrics["floor_prior"]["policy"] == "prior"
+    runtime = MomRuntime.load(tmp_path / "model")
+    assert runtime.policy == "prior"
+    test = simulate("indoor-2cam", frames=400, seed=3).dataset
+    with_prior = score(runtime.localize(test.boxes), test).metrics
+    encoder_only = score(runtime._encode(test.boxes), test).metrics
+    assert with_prior["mean"] < 0.3, with_prior
+    assert with_prior["mean"] < 0.6 * encoder_only["mean"], (with_prior, encoder_only)
