@@ -162,6 +162,15 @@ def create_app(daemon: Daemon, *, manage_pipeline: bool = True) -> FastAPI:
             return JSONResponse({"detail": str(error)}, status_code=409)
         return JSONResponse(info)
 
+    @app.post(
+        "/v1/alignment/reset",
+        dependencies=secured,
+        summary="Accept the cameras where they are now (new references, clears camera-moved)",
+    )
+    def reset_alignment() -> dict[str, Any]:
+        daemon.pipeline.reset_alignment()
+        return {"cameras": [c["alignment"] for c in daemon.camera_states()]}
+
     @app.get("/metrics", dependencies=secured, summary="Prometheus metrics")
     def metrics() -> PlainTextResponse:
         body, content_type = metrics_text(daemon)

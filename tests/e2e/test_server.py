@@ -157,6 +157,13 @@ def test_model_reload_endpoint(server, tmp_path):
     assert server.get("/v1/health").json()["model"]["loaded"]
 
 
+def test_alignment_reset_endpoint(server):
+    reset = httpx_post(server, "/v1/alignment/reset", None)
+    assert reset.status_code == 200, reset.text
+    cameras = reset.json()["cameras"]
+    assert len(cameras) == 2 and not any(c["moved"] for c in cameras)
+
+
 def httpx_post(server, path, body):
     import httpx
 
