@@ -41,6 +41,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from service.held_flag import HeldFlag
+
 WORK_WIDTH = 320  # analysis width in pixels; 160 left too few corners in plain rooms
 
 
@@ -185,9 +187,7 @@ class CameraShiftMonitor:
             self._reference: list[ShiftReference | None] = [None] * k
             self._estimate: list[ShiftEstimate | None] = [None] * k
             self._checked_at: list[float | None] = [None] * k
-            self._high_since: list[float | None] = [None] * k
-            self._low_since: list[float | None] = [None] * k
-            self._moved = [False] * k
+            self._moved = [HeldFlag(self.hold_s) for _ in range(k)]
             self._last_offer: float | None = None
 
     def due(self, t: float) -> bool:
@@ -226,7 +226,7 @@ class CameraShiftMonitor:
             self._checked_at[k] = t
             self._estimate[k] = estimate
             if estimate is not None:
-                self._update_alert(k, t, estimate.shift_px > self.threshold_px)
+                self._moved[k].update(t, estimate.shift_px > self.threshold_px)
 
     def _collect(self, k: int, t: float, gray: np.ndarray, scale: float) -> None:
         frames = self._collected[k]
@@ -252,18 +252,6 @@ class CameraShiftMonitor:
         estimates = [reference.estimate(frame) for frame in frames]
         return all(e is not None and e.shift_px <= self.threshold_px / 2 for e in estimates)
 
-    def _update_alert(self, k: int, t: float, high: bool) -> None:
-        if high:
-            self._low_since[k] = None
-            self._high_since[k] = self._high_since[k] if self._high_since[k] is not None else t
-            if t - self._high_since[k] >= self.hold_s:
-                self._moved[k] = True
-        else:
-            self._high_since[k] = None
-            self._low_since[k] = self._low_since[k] if self._low_since[k] is not None else t
-            if t - self._low_since[k] >= self.hold_s:
-                self._moved[k] = False
-
     def status(self) -> list[CameraShiftState]:
         with self._lock:
             out = []
@@ -278,7 +266,7 @@ class CameraShiftMonitor:
                         reference=state,
                         shift_px=None if estimate is None else estimate.shift_px,
                         confidence=None if estimate is None else estimate.confidence,
-                        moved=self._moved[k],
+                        moved=self._moved[k].value,
                         checked_at=self._checked_at[k],
                     )
                 )

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from service.camera_shift import CameraShiftState
+from service.held_flag import HeldFlag
 
 WHAT_TO_DO = (
     "re-collect the floor marks (momloc collect, or the /setup page) and retrain (momloc train)"
@@ -60,9 +61,7 @@ class CameraMotionMonitor:
         self._samples = [deque() for _ in range(num_cameras)]  # (t, error) per camera
         self._warmup: list[list[float]] = [[] for _ in range(num_cameras)]
         self._baseline = list(baseline_px) if baseline_px is not None else [None] * num_cameras
-        self._high_since: list[float | None] = [None] * num_cameras
-        self._low_since: list[float | None] = [None] * num_cameras
-        self._moved = [False] * num_cameras
+        self._moved = [HeldFlag(hold_s) for _ in range(num_cameras)]
         self._start: float | None = None
 
     def update(self, t: float, errors: np.ndarray) -> None:
@@ -91,16 +90,7 @@ class CameraMotionMonitor:
         current, threshold = self._current(k), self._threshold(k)
         if current is None or threshold is None:
             return
-        if current > threshold:
-            self._low_since[k] = None
-            self._high_since[k] = self._high_since[k] if self._high_since[k] is not None else t
-            if t - self._high_since[k] >= self.hold_s:
-                self._moved[k] = True
-        else:
-            self._high_since[k] = None
-            self._low_since[k] = self._low_since[k] if self._low_since[k] is not None else t
-            if t - self._low_since[k] >= self.hold_s:
-                self._moved[k] = False
+        self._moved[k].update(t, current > threshold)
 
     def _current(self, k: int) -> float | None:
         samples = self._samples[k]
@@ -110,13 +100,15 @@ class CameraMotionMonitor:
         out = []
         for k in range(len(self._samples)):
             message = None
-            if self._moved[k]:
+            if self._moved[k].value:
                 message = (
                     f"camera {k} looks moved: reprojection error {self._current(k):.1f} px vs "
                     f"{self._baseline[k]:.1f} px usual; {WHAT_TO_DO}"
                 )
             out.append(
-                CameraAlignment(k, self._current(k), self._baseline[k], self._moved[k], message)
+                CameraAlignment(
+                    k, self._current(k), self._baseline[k], self._moved[k].value, message
+                )
             )
         return out
 
