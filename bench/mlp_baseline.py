@@ -39,7 +39,7 @@ class BoxMlp:
         self.width, self.seed = width, seed
         self.net: nn.Module | None = None
 
-    def fit(self, data: MomDataset, max_epochs: int = 300, patience: int = 30) -> dict:
+    def fit(self, data: MomDataset, max_epochs: int = 200, patience: int = 20) -> dict:
         torch.manual_seed(self.seed)
         rng = np.random.default_rng(self.seed)
         x = torch.from_numpy(features(data))
@@ -59,7 +59,7 @@ class BoxMlp:
             nn.Linear(self.width, 2),
         )
         optimiser = torch.optim.Adam(self.net.parameters(), lr=2e-3)
-        batch = int(np.clip(len(xt) // 32, 64, 1024))
+        batch = int(np.clip(len(xt) // 16, 128, 1024))
         best, best_epoch, best_state = np.inf, 0, None
         for epoch in range(max_epochs):
             self.net.train()

@@ -130,7 +130,7 @@ def _plain_mlp(run: PresetRun, plan: Plan, seed: int) -> None:
 
     started = time.monotonic()
     mlp = BoxMlp(seed=seed)
-    info = mlp.fit(run.train, max_epochs=plan.epochs or 300)
+    info = mlp.fit(run.train, max_epochs=plan.epochs or 200)
     metrics = score(mlp.predict(run.test), run.test).metrics
     seconds = time.monotonic() - started
     _log(f"{run.preset} plain MLP: {seconds:.0f} s, test mean {metrics['mean']:.3f} m")
