@@ -246,11 +246,13 @@ class CameraShiftMonitor:
                 self._collected[k] = frames[-1:]
 
     def _consistent(self, reference: ShiftReference, frames: Sequence[np.ndarray]) -> bool:
-        """Every frame of the median agrees with it (no bump during collection)."""
+        """Every frame of the median that can be matched agrees with it (no bump during
+        collection). A frame without an estimate (a person in front of the lens) says nothing."""
         if not reference.usable:
             return True  # nothing to check against; reported as "no texture"
-        estimates = [reference.estimate(frame) for frame in frames]
-        return all(e is not None and e.shift_px <= self.threshold_px / 2 for e in estimates)
+        estimates = [e for e in map(reference.estimate, frames) if e is not None]
+        matched_enough = 2 * len(estimates) >= len(frames)
+        return matched_enough and all(e.shift_px <= self.threshold_px / 2 for e in estimates)
 
     def status(self) -> list[CameraShiftState]:
         with self._lock:
