@@ -9,7 +9,10 @@ Protocol (the paper's Table 1, Table 2, Fig. 5 and Fig. 6 on the synthetic prese
   seed: the same cameras, *unseen walks* (other paths, other people's heights and noise).
 * MoM rows use ``models.train.train_model`` with its defaults (adaptive sizes and schedule, early
   stopping), exactly what ``momloc train`` does; evaluation is ``models.evaluate`` (the code of
-  ``momloc eval``). The decoder ablation repeats training with several seeds (mean ± std).
+  ``momloc eval``): the served localizer, which blends the MoM encoder with the floor-mark
+  geometry fitted on the same rows (``models.prior_policy``); the "encoder alone" rows are the
+  paper's model by itself. The decoder ablation repeats training with several seeds (mean ± std)
+  and compares encoders alone: the decoder regularises the encoder only.
 * "Plain MLP on box coordinates" (``bench.mlp_baseline``): the same boxes without mean
   estimators or decoder, trained to early stopping; the control for MoM's sampling.
 * Baselines (``models.baseline``) use the simulator's true 3×4 matrices, or matrices re-estimated
@@ -41,6 +44,7 @@ from models.dataset import MomDataset
 from models.evaluate import evaluate, score
 from models.metrics import METRIC_KEYS
 
+ENCODER_ALONE = ", encoder alone"
 COLUMNS = ("Mean ↓", "Median ↓", "Std ↓", "ATE ↓", "RPE ↓", "@0.2 ↑", "@0.3 ↑", "@0.4 ↑", "@0.5 ↑")
 CURVE_PRESET = "indoor-2cam"
 
@@ -122,6 +126,11 @@ def _train(run: PresetRun, work: Path, plan: Plan, name: str, **options) -> dict
     )
     run.rows.setdefault(name, []).append({**metrics, "seconds": seconds, **info})
     run.runtimes.setdefault(name, runtime)
+    if runtime.policy != "mom":  # what the paper's model alone gives, next to what is served
+        keypoints = run.test.keypoints if runtime.observation == "keypoints" else None
+        alone = score(runtime._encode(run.test.boxes, keypoints), run.test).metrics
+        row = {**alone, "seconds": seconds, **info}
+        run.rows.setdefault(f"{name}{ENCODER_ALONE}", []).append(row)
     return metrics
 
 
@@ -280,7 +289,7 @@ def decoder_section(run: PresetRun) -> str:
     header = ("Decoder", "seed", "Mean ↓", "@0.2 ↑", "@0.3 ↑", "@0.4 ↑", "@0.5 ↑")
     rows = []
     for name, label in (("MoM + bbox", "with"), ("MoM + bbox, no decoder", "without")):
-        values = run.rows[name]
+        values = run.rows.get(name + ENCODER_ALONE, run.rows[name])
         for seed, m in enumerate(values):
             rows.append(
                 [label, str(seed), f"{m['mean']:.3f}"]
@@ -349,7 +358,7 @@ def main(argv: list[str] | None = None) -> int:
         "## Table 1: localization on unseen walks",
         "",
         *(preset_section(run) + "\n" for run in runs),
-        f"## Table 2: decoder ablation ({curve_run.preset}, several seeds)",
+        f"## Table 2: decoder ablation ({curve_run.preset}, several seeds, encoders alone)",
         "",
         decoder_section(curve_run),
         "",

@@ -22,6 +22,7 @@ import numpy as np
 
 from models.errors import MomlocError
 from models.floor_prior import FloorPrior
+from models.prior_policy import POLICY_WEIGHTS, VIEW_CLASSES, blend, view_class
 from models.sampling import InferenceSampler, SamplerConfig, draws_from_json, unit_mean
 
 MODEL_FORMAT = "mom-model-v1"  # same literal as models.export (which imports torch)
@@ -42,9 +43,15 @@ class MomRuntime:
         self.decoder = np.asarray(meta["decoder"]["matrices"], dtype=np.float64)  # [K, 3, 4]
         prior = meta.get("floor_prior") or {}
         self.policy = str(prior.get("policy", "mom"))  # see models.prior_policy
+        if self.policy not in POLICY_WEIGHTS:
+            raise ValueError(f"floor_prior: unknown policy {self.policy!r}")
+        weights = prior.get("weights", POLICY_WEIGHTS[self.policy])
+        if len(weights) != len(VIEW_CLASSES):
+            raise ValueError(f"floor_prior: {len(weights)} weights, expected {len(VIEW_CLASSES)}")
+        self.prior_weights = tuple(float(w) for w in weights)  # per VIEW_CLASSES
         self.floor_prior = FloorPrior.from_json(prior["prior"]) if prior.get("prior") else None
-        if self.policy == "prior" and self.floor_prior is None:
-            raise ValueError("floor_prior: policy 'prior' without a fitted prior")
+        if max(self.prior_weights) > 0 and self.floor_prior is None:
+            raise ValueError(f"floor_prior: policy {self.policy!r} without a fitted prior")
 
     @classmethod
     def load(cls, model_dir: str | os.PathLike[str], threads: int = 1) -> MomRuntime:
@@ -118,20 +125,23 @@ class MomRuntime:
     def localize(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
         """Floor positions [B, 2] in metres; NaN for a row no camera sees.
 
-        With the ``prior`` policy (a model trained on floor marks) the floor-mark geometry places
-        every row a fitted camera sees and the encoder fills in the rest.
+        The model's policy (:mod:`models.prior_policy`) weighs the floor-mark geometry against
+        the encoder per row: all geometry for a model trained on marks, a blend chosen on
+        validation rows for dense labels; the encoder alone where no fitted camera sees the row.
         """
-        if self.policy != "prior":
+        if max(self.prior_weights) == 0.0:
             return self._encode(boxes, keypoints)
         boxes = self._check_boxes(boxes)
         prior_keypoints = keypoints if self.observation == "keypoints" else None
-        world, _ = self.floor_prior.predict(boxes, prior_keypoints)
-        missing = ~np.isfinite(world).all(axis=1)
-        if missing.any():
-            world[missing] = self._encode(
-                boxes[missing], None if keypoints is None else np.asarray(keypoints)[missing]
+        prior_xy, _ = self.floor_prior.predict(boxes, prior_keypoints)
+        weight = np.asarray(self.prior_weights)[view_class(boxes)]
+        need = ~np.isfinite(prior_xy).all(axis=1) | (weight < 1.0)
+        encoder_xy = np.full_like(prior_xy, np.nan)
+        if need.any():
+            encoder_xy[need] = self._encode(
+                boxes[need], None if keypoints is None else np.asarray(keypoints)[need]
             )
-        return world.astype(np.float32)
+        return blend(encoder_xy, prior_xy, boxes, self.prior_weights).astype(np.float32)
 
     def _encode(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
         """The MoM encoder's floor positions [B, 2] (the D draws averaged in the graph)."""

@@ -295,7 +295,7 @@ def _train(dataset, out_dir, sampler, decoder, epochs, seed, progress, tuning) -
             break
     bar.close()
     trainer.load(best_state)
-    metrics = _final_metrics(trainer, dataset, val_rows)
+    metrics, val_xy = _final_metrics(trainer, dataset, val_rows)
     metrics.update(
         epochs_run=len(history),
         best_epoch=best_epoch + 1,
@@ -324,22 +324,28 @@ def _train(dataset, out_dir, sampler, decoder, epochs, seed, progress, tuning) -
         metrics=metrics,
         settings={**asdict(settings), "decoder": decoder, "seed": seed},
     )
-    metrics["floor_prior"] = attach_floor_prior(dataset, out_dir, sampler.observation)
+    metrics["floor_prior"] = attach_floor_prior(
+        dataset, out_dir, sampler.observation, val_rows, val_xy
+    )
     return metrics
 
 
-def _final_metrics(trainer: _Trainer, data: MomDataset, val_rows: np.ndarray) -> dict:
+def _final_metrics(
+    trainer: _Trainer, data: MomDataset, val_rows: np.ndarray
+) -> tuple[dict, np.ndarray]:
+    """The encoder's validation metrics, and its positions [V, 2] (NaN for unseen rows)."""
     kp = None if data.keypoints is None else data.keypoints[val_rows]
     est, mask = InferenceSampler(trainer.sampler)(data.boxes[val_rows], data.image_size, kp)
     pred = trainer.predict(est, mask)
     ok = mask.sum(axis=1) > 0
     err = np.linalg.norm(pred[ok] - data.world[val_rows, :2][ok], axis=1)
-    return {
+    metrics = {
         "val_mean_m": round(float(err.mean()), 4),
         "val_median_m": round(float(np.median(err)), 4),
         "val_acc@0.3": round(float((err <= 0.3).mean() * 100), 2),
         "val_acc@0.5": round(float((err <= 0.5).mean() * 100), 2),
     }
+    return metrics, np.where(ok[:, None], pred, np.nan)
 
 
 def _progress(total: int, enabled: bool):

@@ -7,7 +7,13 @@ from pathlib import Path
 
 import numpy as np
 
-from models.prior_policy import attach_floor_prior, choose_policy, label_coverage
+from models.prior_policy import (
+    attach_floor_prior,
+    blend,
+    choose_policy,
+    choose_weights,
+    label_coverage,
+)
 from models.simulate import simulate
 from service.setup.collector import DatasetAppender, collect, plan_steps
 from service.setup.feeds import SyntheticFeed
@@ -34,8 +40,66 @@ def test_marks_choose_the_prior_and_dense_data_chooses_mom(tmp_path: Path) -> No
     entry, prior = choose_policy(MomDataset.load(_marks(tmp_path)), "bbox")
     assert entry["policy"] == "prior" and prior is not None and entry["prior"] is not None
     dense = simulate("indoor-2cam", frames=1500, seed=4).dataset
-    entry, _ = choose_policy(dense, "bbox")
-    assert entry["policy"] == "mom", entry["reason"]
+    entry, _ = choose_policy(dense, "bbox")  # no validation rows to weigh the prior with
+    assert entry["policy"] == "mom" and entry["weights"] == [0.0, 0.0, 0.0], entry["reason"]
+
+
+def _two_localizers(n: int, enc_sigma: float, prior_sigma: float, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    world = rng.uniform(0, 10, size=(n, 2))
+    boxes = np.tile([[100.0, 100.0, 150.0, 300.0]], (n, 2, 1))
+    boxes[: n // 2, 1] = np.nan  # half the rows seen by one camera only
+    enc = world + rng.normal(0, enc_sigma, size=(n, 2))
+    prior = world + rng.normal(0, prior_sigma, size=(n, 2))
+    return world, boxes, enc, prior
+
+
+def test_weights_follow_which_localizer_is_better() -> None:
+    world, boxes, enc, prior = _two_localizers(2000, 0.1, 0.1)
+    assert choose_weights(enc, prior, boxes, world) == (
+        0.5,
+        0.5,
+        0.5,
+    )  # equal, independent: the mean
+    world, boxes, enc, prior = _two_localizers(2000, 0.1, 1.0)
+    assert choose_weights(enc, prior, boxes, world) == (0.0, 0.0, 0.0)
+    world, boxes, enc, prior = _two_localizers(2000, 1.0, 0.1)
+    assert choose_weights(enc, prior, boxes, world) == (1.0, 1.0, 1.0)
+    # one view: the prior is bad; several views: the prior is good; weighed separately
+    world, boxes, enc, prior = _two_localizers(2000, 0.1, 0.02)
+    prior[: len(world) // 2] += 2.0
+    w_one, w_two, _ = choose_weights(enc, prior, boxes, world)
+    assert w_one <= 0.1 and w_two >= 0.9
+
+
+def test_blend_uses_the_encoder_where_the_prior_has_no_position() -> None:
+    _, boxes, enc, prior = _two_localizers(10, 0.1, 0.1)
+    prior[3] = np.nan
+    mixed = blend(enc, prior, boxes, (0.5, 0.5, 0.5))
+    np.testing.assert_allclose(mixed[3], enc[3])
+    np.testing.assert_allclose(mixed[4], (enc[4] + prior[4]) / 2)
+
+
+def test_dense_data_weighs_the_prior_on_validation_rows(tmp_path: Path) -> None:
+    """Trained on dense walks, the served blend is no worse on validation than either part."""
+    from models.mom_runtime import MomRuntime
+    from models.train import train_model
+
+    dense = simulate("indoor-2cam", frames=1200, seed=4).dataset
+    metrics = train_model(dense, tmp_path / "model", epochs=30, progress=False)
+    entry = metrics["floor_prior"]
+    assert entry["coverage"] >= 0.5, entry
+    val = entry["validation"]
+    assert val["served_mean_m"] <= min(val["encoder_mean_m"], val["prior_mean_m"]) + 1e-9, entry
+    runtime = MomRuntime.load(tmp_path / "model")
+    assert runtime.policy == entry["policy"] and list(runtime.prior_weights) == entry["weights"]
+    test = simulate("indoor-2cam", frames=300, seed=5).dataset
+    served = runtime.localize(test.boxes)
+    encoder = runtime._encode(test.boxes)
+    prior, _ = runtime.floor_prior.predict(test.boxes)
+    np.testing.assert_allclose(
+        served, blend(encoder, prior, test.boxes, runtime.prior_weights), atol=1e-4
+    )
 
 
 def test_attach_writes_the_entry_into_model_json(tmp_path: Path) -> None:
