@@ -48,7 +48,7 @@ def label_coverage(world: np.ndarray, cell_m: float = CELL_M) -> float:
 
 VIEW_CLASSES = ("1 view", "2 views", "3+ views")  # the prior's weight is chosen per class
 POLICY_WEIGHTS = {"mom": (0.0,) * 3, "prior": (1.0,) * 3, "blend": (0.5,) * 3}  # if not stored
-WEIGHT_GRID = np.linspace(0.0, 1.0, 11)
+WEIGHT_GRID = np.round(np.linspace(0.0, 1.0, 11), 2)
 MIN_CLASS_ROWS = 30  # fewer validation rows in a class: it takes the weight chosen on all rows
 
 
@@ -190,7 +190,8 @@ def _weigh_on_validation(dataset, observation, val_rows, encoder_xy, coverage):
         "prior_mean_m": mean_error(POLICY_WEIGHTS["prior"]),
         "served_mean_m": mean_error(weights),
     }
-    per_class = ", ".join(f"{w:.1f} ({c})" for w, c in zip(weights, VIEW_CLASSES, strict=True))
+    possible = VIEW_CLASSES[: dataset.num_cameras]  # a 2-camera rig has no "3+ views"
+    per_class = ", ".join(f"{w:.1f} ({c})" for w, c in zip(weights, possible, strict=False))
     reason = (
         f"labels cover {coverage:.0%} of the floor: prior weight {per_class}; validation "
         f"{validation['served_mean_m']:.3f} m (encoder {validation['encoder_mean_m']:.3f} m, "
