@@ -11,8 +11,8 @@ rows and is exact geometry between the marks (0.17 m with 9 marks in the same ro
 - **Dense labels**: the two localizers err differently (the encoder reads the whole box, the
   prior its foot and centre points through per-camera plane maps), and their weighted mean beats
   both (indoor-2cam, dense: encoder 0.130 m, prior 0.142 m, mean of the two 0.115 m). The weight
-  of the prior is chosen on the validation rows, separately for people seen by one camera and by
-  several, with the prior fitted on the training rows only, so the choice is not flattered.
+  of the prior is chosen on the validation rows, separately for people seen by 1, 2 and 3+
+  cameras, with the prior fitted on the training rows only, so the choice is not flattered.
 
 The policy, weights and the prior refitted on all rows are stored in ``model.json`` under
 ``floor_prior``; the runtime (numpy only) applies them. Rows no fitted camera sees use the encoder.
