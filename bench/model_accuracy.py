@@ -128,7 +128,7 @@ def _train(run: PresetRun, work: Path, plan: Plan, name: str, **options) -> dict
     run.runtimes.setdefault(name, runtime)
     if runtime.policy != "mom":  # what the paper's model alone gives, next to what is served
         keypoints = run.test.keypoints if runtime.observation == "keypoints" else None
-        alone = score(runtime._encode(run.test.boxes, keypoints), run.test).metrics
+        alone = score(runtime.encode(run.test.boxes, keypoints), run.test).metrics
         row = {**alone, "seconds": seconds, **info}
         run.rows.setdefault(f"{name}{ENCODER_ALONE}", []).append(row)
     return metrics

@@ -78,7 +78,7 @@ def train_and_score(data: MomDataset, test: MomDataset, decoder: bool, work: Pat
     train_model(data, out, decoder=decoder, progress=False)
     runtime = MomRuntime.load(out)
     metrics = evaluate(runtime, test).metrics
-    encoder = score(runtime._encode(test.boxes), test).metrics
+    encoder = score(runtime.encode(test.boxes), test).metrics
     return {
         **metrics,
         "encoder_mean": encoder["mean"],

@@ -130,7 +130,7 @@ class MomRuntime:
         validation rows for dense labels; the encoder alone where no fitted camera sees the row.
         """
         if max(self.prior_weights) == 0.0:
-            return self._encode(boxes, keypoints)
+            return self.encode(boxes, keypoints)
         boxes = self._check_boxes(boxes)
         prior_keypoints = keypoints if self.observation == "keypoints" else None
         prior_xy, _ = self.floor_prior.predict(boxes, prior_keypoints)
@@ -138,12 +138,12 @@ class MomRuntime:
         need = ~np.isfinite(prior_xy).all(axis=1) | (weight < 1.0)
         encoder_xy = np.full_like(prior_xy, np.nan)
         if need.any():
-            encoder_xy[need] = self._encode(
+            encoder_xy[need] = self.encode(
                 boxes[need], None if keypoints is None else np.asarray(keypoints)[need]
             )
         return blend(encoder_xy, prior_xy, boxes, self.prior_weights).astype(np.float32)
 
-    def _encode(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
+    def encode(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
         """The MoM encoder's floor positions [B, 2] (the D draws averaged in the graph)."""
         estimators, mask = self.encoder_inputs(boxes, keypoints)
         if len(mask) == 0:

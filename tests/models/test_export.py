@@ -36,7 +36,7 @@ def test_onnx_matches_pytorch_on_1000_samples():
     est, mask = runtime.encoder_inputs(data.boxes)
     with torch.no_grad():
         expected = wrapper(torch.from_numpy(est), torch.from_numpy(mask)).numpy()
-    got = runtime.localize(data.boxes)
+    got = runtime.encode(data.boxes)  # the encoder alone: localize may blend in the floor prior
     assert got.shape == (data.n, 2) and data.n > 900
     assert np.abs(got - expected).max() < 1e-3  # metres: under 1 mm
 

@@ -95,7 +95,7 @@ def test_dense_data_weighs_the_prior_on_validation_rows(tmp_path: Path) -> None:
     assert runtime.policy == entry["policy"] and list(runtime.prior_weights) == entry["weights"]
     test = simulate("indoor-2cam", frames=300, seed=5).dataset
     served = runtime.localize(test.boxes)
-    encoder = runtime._encode(test.boxes)
+    encoder = runtime.encode(test.boxes)
     prior, _ = runtime.floor_prior.predict(test.boxes)
     np.testing.assert_allclose(
         served, blend(encoder, prior, test.boxes, runtime.prior_weights), atol=1e-4
@@ -136,6 +136,6 @@ def test_model_trained_on_marks_localizes_the_whole_room_with_the_prior(tmp_path
     assert runtime.policy == "prior"
     test = simulate("indoor-2cam", frames=400, seed=3).dataset
     with_prior = score(runtime.localize(test.boxes), test).metrics
-    encoder_only = score(runtime._encode(test.boxes), test).metrics
+    encoder_only = score(runtime.encode(test.boxes), test).metrics
     assert with_prior["mean"] < 0.3, with_prior
     assert with_prior["mean"] < 0.6 * encoder_only["mean"], (with_prior, encoder_only)
