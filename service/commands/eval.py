@@ -53,6 +53,10 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(payload, allow_nan=False))
     else:
         print(f"{args.data}: {data.summary()}")
-        print(f"model: {model_dir} ({runtime.observation}, {runtime.num_cameras} cameras)")
+        weights = ", ".join(f"{w:g}" for w in runtime.prior_weights)
+        print(
+            f"model: {model_dir} ({runtime.observation}, {runtime.num_cameras} cameras; "
+            f"localizer {runtime.policy}, floor-prior weight per 1/2/3+ views: {weights})"
+        )
         print(format_table(result.metrics))
     return 0
