@@ -139,3 +139,14 @@ def test_model_trained_on_marks_localizes_the_whole_room_with_the_prior(tmp_path
     encoder_only = score(runtime.encode(test.boxes), test).metrics
     assert with_prior["mean"] < 0.3, with_prior
     assert with_prior["mean"] < 0.6 * encoder_only["mean"], (with_prior, encoder_only)
+
+
+def test_cli_train_on_marks_warns_that_validation_sits_on_the_marks(tmp_path: Path, capsys) -> None:
+    from service.cli import main
+
+    path = _marks(tmp_path, "3x3", 2.0)
+    code = main(["train", str(path), "--out", str(tmp_path / "m"), "--epochs", "2", "--quiet"])
+    assert code == 0
+    captured = capsys.readouterr()
+    assert json.loads(captured.out.strip().splitlines()[-1])["floor_prior"]["policy"] == "prior"
+    assert "same floor marks" in captured.err and "momloc eval" in captured.err
