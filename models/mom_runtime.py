@@ -22,7 +22,7 @@ import numpy as np
 
 from models.errors import MomlocError
 from models.floor_prior import FloorPrior
-from models.prior_policy import POLICY_WEIGHTS, VIEW_CLASSES, blend, view_class
+from models.prior_policy import POLICY_WEIGHTS, VIEW_CLASSES, blend, row_weights
 from models.sampling import InferenceSampler, SamplerConfig, draws_from_json, unit_mean
 
 MODEL_FORMAT = "mom-model-v1"  # same literal as models.export (which imports torch)
@@ -134,14 +134,14 @@ class MomRuntime:
         boxes = self._check_boxes(boxes)
         prior_keypoints = keypoints if self.observation == "keypoints" else None
         prior_xy, _ = self.floor_prior.predict(boxes, prior_keypoints)
-        weight = np.asarray(self.prior_weights)[view_class(boxes)]
+        weight = row_weights(boxes, self.prior_weights)
         need = ~np.isfinite(prior_xy).all(axis=1) | (weight < 1.0)
         encoder_xy = np.full_like(prior_xy, np.nan)
         if need.any():
             encoder_xy[need] = self.encode(
                 boxes[need], None if keypoints is None else np.asarray(keypoints)[need]
             )
-        return blend(encoder_xy, prior_xy, boxes, self.prior_weights).astype(np.float32)
+        return blend(encoder_xy, prior_xy, weight).astype(np.float32)
 
     def encode(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
         """The MoM encoder's floor positions [B, 2] (the D draws averaged in the graph)."""

@@ -66,11 +66,15 @@ def view_class(boxes: np.ndarray) -> np.ndarray:
     return np.clip(views, 1, len(VIEW_CLASSES)) - 1
 
 
-def blend(
-    encoder_xy: np.ndarray, prior_xy: np.ndarray, boxes: np.ndarray, weights: Sequence[float]
-) -> np.ndarray:
-    """Weighted mean of the two localizers' positions; the encoder's where the prior has none."""
-    w = np.asarray(weights, dtype=np.float64)[view_class(boxes)][:, None]
+def row_weights(boxes: np.ndarray, weights: Sequence[float]) -> np.ndarray:
+    """The prior's weight [B] for each row, from its view class."""
+    return np.asarray(weights, dtype=np.float64)[view_class(boxes)]
+
+
+def blend(encoder_xy: np.ndarray, prior_xy: np.ndarray, weight: np.ndarray | float) -> np.ndarray:
+    """Weighted mean of the two localizers' positions (``weight`` of the prior, per row or one
+    for all); the encoder's where the prior has none."""
+    w = np.broadcast_to(np.asarray(weight, dtype=np.float64), prior_xy.shape[:1])[:, None]
     encoder_part = np.where(w < 1.0, (1.0 - w) * encoder_xy, 0.0)  # not computed where w is 1
     mixed = w * prior_xy + encoder_part
     return np.where(np.isfinite(prior_xy).all(axis=1, keepdims=True), mixed, encoder_xy)
@@ -91,10 +95,7 @@ def fit_prior(dataset: MomDataset, observation: str, rows: np.ndarray | None = N
 
 def _mean_errors(encoder_xy, prior_xy, boxes, world) -> np.ndarray:
     """Mean error [rows of WEIGHT_GRID] for each prior weight, over the given rows."""
-    errors = [
-        np.linalg.norm(blend(encoder_xy, prior_xy, boxes, (w,) * len(VIEW_CLASSES)) - world, axis=1)
-        for w in WEIGHT_GRID
-    ]
+    errors = [np.linalg.norm(blend(encoder_xy, prior_xy, w) - world, axis=1) for w in WEIGHT_GRID]
     return np.nanmean(np.stack(errors), axis=1)
 
 
@@ -182,7 +183,7 @@ def _weigh_on_validation(dataset, observation, val_rows, encoder_xy, coverage):
     weights = choose_weights(encoder_xy, prior_xy, boxes, world)
 
     def mean_error(w: Sequence[float]) -> float:
-        served = blend(encoder_xy, prior_xy, boxes, w)
+        served = blend(encoder_xy, prior_xy, row_weights(boxes, w))
         return round(float(np.nanmean(np.linalg.norm(served - world, axis=1))), 4)
 
     validation = {

@@ -13,6 +13,7 @@ from models.prior_policy import (
     choose_policy,
     choose_weights,
     label_coverage,
+    row_weights,
 )
 from models.simulate import simulate
 from service.setup.collector import DatasetAppender, collect, plan_steps
@@ -75,7 +76,7 @@ def test_weights_follow_which_localizer_is_better() -> None:
 def test_blend_uses_the_encoder_where_the_prior_has_no_position() -> None:
     _, boxes, enc, prior = _two_localizers(10, 0.1, 0.1)
     prior[3] = np.nan
-    mixed = blend(enc, prior, boxes, (0.5, 0.5, 0.5))
+    mixed = blend(enc, prior, row_weights(boxes, (0.5, 0.5, 0.5)))
     np.testing.assert_allclose(mixed[3], enc[3])
     np.testing.assert_allclose(mixed[4], (enc[4] + prior[4]) / 2)
 
@@ -98,7 +99,7 @@ def test_dense_data_weighs_the_prior_on_validation_rows(tmp_path: Path) -> None:
     encoder = runtime.encode(test.boxes)
     prior, _ = runtime.floor_prior.predict(test.boxes)
     np.testing.assert_allclose(
-        served, blend(encoder, prior, test.boxes, runtime.prior_weights), atol=1e-4
+        served, blend(encoder, prior, row_weights(test.boxes, runtime.prior_weights)), atol=1e-4
     )
 
 
