@@ -133,7 +133,13 @@ def build_rig(settings: Settings) -> tuple[Any, Any]:
         from capture.synthetic import SyntheticRig, make_scene
 
         syn = settings.synthetic
-        scene = make_scene(syn.preset, seed=syn.seed, people=syn.people, fps=syn.fps)
+        scene = make_scene(
+            syn.preset,
+            seed=syn.seed,
+            people=syn.people,
+            fps=syn.fps,
+            detector_profile=syn.detector_profile,
+        )
         indices = [c.index for c in settings.cameras]
         available = len(scene.cameras)
         for position, index in enumerate(indices):

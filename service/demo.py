@@ -4,9 +4,11 @@ Nothing is special-cased: the demo builds ordinary :class:`~service.settings.Set
 ``synthetic`` cameras and hands them to the same ``build_daemon`` as ``momloc serve``. The only
 choice is where the boxes come from (``synthetic.detections``):
 
-- ``simulated`` (default): the simulator's boxes, with detector-like noise, misses and
-  occlusions, enter the pipeline at the detection stage. Always finds every visible person, so
-  the map shows everyone at the demo's 30 fps even on a small machine.
+- ``simulated`` (default): the simulator's boxes enter the pipeline at the detection stage,
+  as blind as the shipped detector (``synthetic.detector_profile``, default ``nanodet``: misses
+  by size, occlusion and truncation, edge errors, false positives, all persisting over frames;
+  ``--profile ideal`` for the former kind noise). Cheap, so the map runs at the demo's 30 fps
+  even on a small machine.
 - ``rendered``: frames drawn by the simulator go through the real SSDLite detector. Shows the
   whole chain, but the detector finds the drawn figures only at some sizes (see README), so
   people flicker in and out where it misses them, and it costs ~20 ms of CPU per frame set.
@@ -32,6 +34,7 @@ def demo_settings(
     detections: Literal["rendered", "simulated"] | None = None,
     people: int | None = None,
     seed: int | None = None,
+    profile: str | None = None,
 ) -> Settings:
     """Settings for the demo scene; ``MOMLOC_*`` environment variables still apply."""
     config = get_config(DEMO_PRESET)
@@ -43,6 +46,8 @@ def demo_settings(
     }
     if detections is not None:
         synthetic["detections"] = detections
+    if profile is not None:
+        synthetic["detector_profile"] = profile
     return load_settings(
         None,
         cameras=[{"type": "synthetic", "index": k} for k in range(len(config.cameras))],

@@ -101,6 +101,13 @@ class SyntheticSettings(BaseModel):
             "simulated: the simulator's noisy boxes enter the pipeline instead of detector output."
         ),
     )
+    detector_profile: str = Field(
+        "nanodet",
+        description=(
+            "How blind the simulated detector is (simulated detections): a shipped profile "
+            "(nanodet, ssdlite, ideal) or a profile JSON path; see models/simulate/profile.py."
+        ),
+    )
     preview_fps: float = Field(
         5.0,
         ge=0,

@@ -42,6 +42,7 @@ Example::
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import itertools
 import json
@@ -125,6 +126,28 @@ class DetectorProfile:
     false_positives: FalsePositiveModel
     keypoint_sigma: float
     keypoint_pixels: float
+
+    @classmethod
+    def exact(cls) -> DetectorProfile:
+        """No random noise, misses or false positives (truncation and occlusion still apply, as
+        in ``ideal``): for debugging and geometry tests."""
+        ideal = load_profile("ideal")
+        zero = Table((0.0,), (0.0,))
+        return dataclasses.replace(
+            ideal,
+            name="exact",
+            miss=dataclasses.replace(ideal.miss, height=zero),
+            edges=dataclasses.replace(
+                ideal.edges,
+                bottom_sigma=zero,
+                top_sigma=zero,
+                side_sigma=zero,
+                scale_sigma=0.0,
+            ),
+            false_positives=dataclasses.replace(ideal.false_positives, per_frame=0.0),
+            keypoint_sigma=0.0,
+            keypoint_pixels=0.0,
+        )
 
     def reference_height(self, height_px: np.ndarray, image_height: np.ndarray) -> np.ndarray:
         """Box heights as the profile's tables see them (rescaled to the reference frame)."""
