@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from models.prior_policy import (
     attach_floor_prior,
@@ -21,8 +22,8 @@ from service.setup.feeds import SyntheticFeed
 from service.setup.marks import grid_marks
 
 
-def _marks(tmp_path: Path, grid: str = "3x3", seconds: float = 4.0):
-    feed = SyntheticFeed("indoor-2cam", 3)
+def _marks(tmp_path: Path, grid: str = "3x3", seconds: float = 4.0, profile: str | None = None):
+    feed = SyntheticFeed("indoor-2cam", 3, detector_profile=profile)
     steps = plan_steps(grid_marks(grid, "10x10"), seconds, start=(5.0, 5.0))
     feed.prepare(steps)
     return collect(feed, steps, DatasetAppender(tmp_path / "m.npz", feed.image_sizes)).path
@@ -123,22 +124,30 @@ def test_degenerate_marks_fall_back_to_mom(tmp_path: Path) -> None:
     assert prior is None and entry["policy"] == "mom" and "no floor prior" in entry["reason"]
 
 
-def test_model_trained_on_marks_localizes_the_whole_room_with_the_prior(tmp_path: Path) -> None:
-    """Train on 9 marks, test on people walking everywhere: the geometry carries the room."""
+@pytest.mark.parametrize(("profile", "most"), [("nanodet", 0.55), ("ideal", 0.3)])
+def test_model_trained_on_marks_localizes_the_whole_room_with_the_prior(
+    tmp_path: Path, profile: str, most: float
+) -> None:
+    """Train on 9 marks, test on people walking everywhere: the geometry carries the room.
+
+    Mean error measured 2026-12-01: 0.474 m with the default (measured) detector profile
+    ``nanodet`` (prior / encoder alone 0.40), 0.134 m with the former kind noise ``ideal``
+    (0.18), which stays as the tighter gate on the floor prior itself.
+    """
     from models.dataset import MomDataset
     from models.evaluate import score
     from models.mom_runtime import MomRuntime
     from models.train import train_model
 
-    data = MomDataset.load(_marks(tmp_path, "3x3", 6.0))
+    data = MomDataset.load(_marks(tmp_path, "3x3", 6.0, profile))
     metrics = train_model(data, tmp_path / "model", epochs=5, progress=False)
     assert metrics["floor_prior"]["policy"] == "prior"
     runtime = MomRuntime.load(tmp_path / "model")
     assert runtime.policy == "prior"
-    test = simulate("indoor-2cam", frames=400, seed=3).dataset
+    test = simulate("indoor-2cam", frames=400, seed=3, detector_profile=profile).dataset
     with_prior = score(runtime.localize(test.boxes), test).metrics
     encoder_only = score(runtime.encode(test.boxes), test).metrics
-    assert with_prior["mean"] < 0.3, with_prior
+    assert with_prior["mean"] < most, with_prior
     assert with_prior["mean"] < 0.6 * encoder_only["mean"], (with_prior, encoder_only)
 
 
