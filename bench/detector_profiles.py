@@ -1,9 +1,10 @@
 """Detector profiles from measurements → ``models/simulate/profiles/*.json`` and a record of how.
 
-``python -m bench.detector_profiles [--measurements FILE]`` rebuilds the shipped ``ssdlite`` and
-``nanodet`` profiles (``ideal`` is written from :data:`IDEAL`: the simulator's former noise, not a
-measurement) and writes ``bench/results/detector_profiles.md``: for every profile and quantity,
-each source's figure and the one kept.
+``python -m bench.detector_profiles [--measurements FILE]`` (default FILE:
+``bench/results/detector_profile_measurements.json`` when present) rebuilds the shipped
+``ssdlite`` and ``nanodet`` profiles (``ideal`` is written from :data:`IDEAL`: the simulator's
+former noise, not a measurement) and writes ``bench/results/detector_profiles.md``: for every
+profile and quantity, each source's figure and the one kept.
 
 Sources, per detector:
 
@@ -48,6 +49,7 @@ from typing import Any
 from bench.report import RESULTS, markdown_table
 from models.simulate.profile import FORMAT, PROFILE_DIR, parse_profile
 
+MEASUREMENTS = RESULTS / "detector_profile_measurements.json"
 MAD_TO_SIGMA = 1 / 0.6745  # median |x| of N(0, s) is 0.6745 s
 
 ISSUE_11: dict[str, dict[str, Any]] = {
@@ -252,6 +254,13 @@ def _one_line(match: re.Match) -> str:
     return "[" + ", ".join(v.strip() for v in match.group(1).split(",")) + "]"
 
 
+def _shown(path: Path) -> str:
+    try:
+        return str(path.resolve().relative_to(RESULTS.parent.parent))
+    except ValueError:
+        return str(path)
+
+
 def load_measurements(path: Path | None) -> dict[str, list[dict[str, Any]]]:
     """Issue 11's figures, plus the benchmark's per detector when ``path`` is given."""
     sources = {name: [dict(figures)] for name, figures in ISSUE_11.items()}
@@ -265,8 +274,17 @@ def load_measurements(path: Path | None) -> dict[str, list[dict[str, Any]]]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--measurements", type=Path, help="detector benchmark measurements JSON")
+    parser.add_argument(
+        "--measurements",
+        type=Path,
+        default=MEASUREMENTS if MEASUREMENTS.is_file() else None,
+        help="detector benchmark measurements JSON (default: bench/results/"
+        "detector_profile_measurements.json when present)",
+    )
     parser.add_argument("--out", type=Path, default=PROFILE_DIR, help="profile directory")
+    parser.add_argument(
+        "--record", type=Path, default=RESULTS / "detector_profiles.md", help="record (markdown)"
+    )
     args = parser.parse_args(argv)
     rows: list[list[str]] = []
     parse_profile(IDEAL, where="ideal")
@@ -280,8 +298,8 @@ def main(argv: list[str] | None = None) -> int:
     text = [
         "# Detector profiles: how each was measured",
         "",
-        "Written by `python -m bench.detector_profiles"
-        + (f" --measurements {args.measurements}`" if args.measurements else "`")
+        "Written by `python -m bench.detector_profiles`"
+        + (f" from `{_shown(args.measurements)}`" if args.measurements else "")
         + ". Rule and conversions: see the docstring of `bench/detector_profiles.py`; each "
         "profile keeps the less kind figure of its sources.",
         "",
@@ -291,8 +309,8 @@ def main(argv: list[str] | None = None) -> int:
         "sigma 3 %, scale sigma 5 %, no false positives), for comparison only.",
         "",
     ]
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / "detector_profiles.md").write_text("\n".join(text))
+    args.record.parent.mkdir(parents=True, exist_ok=True)
+    args.record.write_text("\n".join(text))
     print(f"wrote {', '.join(sorted(outputs))} to {args.out}", file=sys.stderr)
     return 0
 

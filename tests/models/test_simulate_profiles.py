@@ -350,3 +350,13 @@ def test_unknown_or_unreadable_profiles_are_user_errors(tmp_path: Path, capsys) 
     err = capsys.readouterr().err.strip()
     assert "edges.top_sigma" in err and len(err.splitlines()) == 1 and not out.exists()
     assert main(["simulate", "--frames", "64", "--out", str(out), "--profile", "ideal"]) == 0
+
+
+def test_shipped_profiles_are_what_the_bench_script_builds(tmp_path: Path) -> None:
+    # Profiles are data built from measurements: a hand edit that the script would undo fails.
+    from bench.detector_profiles import main
+
+    assert main(["--out", str(tmp_path), "--record", str(tmp_path / "record.md")]) == 0
+    for name in ("ideal", "ssdlite", "nanodet"):
+        assert json.loads((tmp_path / f"{name}.json").read_text()) == _raw(name), name
+    assert "less kind" in (tmp_path / "record.md").read_text()
