@@ -45,6 +45,7 @@ bench-model: $(VENV)/.stamp-dev
 
 bench-detector: $(VENV)/.stamp-dev
 	$(PY) -m bench.detector_speed
+	$(PY) -m bench.detector_accuracy
 
 bench-service: $(VENV)/.stamp-dev
 	$(PY) -m bench.service_latency
