@@ -20,6 +20,7 @@ height, precision, CPU-ms per pair of 640×480 frames against SSDLite in the sam
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -55,6 +56,15 @@ def anchor_grid(size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(centres), np.concatenate(strides)
 
 
+def _check_size(input_size: tuple[int, int]) -> tuple[int, int]:
+    width, height = (int(v) for v in input_size)
+    if width <= 0 or height <= 0 or width % 32 or height % 32:
+        raise MomlocError(
+            f"detector 'nanodet': input_size {width}x{height} must be positive multiples of 32"
+        )
+    return width, height
+
+
 @register_detector("nanodet")
 class NanoDetDetector(PersonDetector):
     """NanoDet person detector (default).
@@ -84,11 +94,7 @@ class NanoDetDetector(PersonDetector):
         path = Path(model_path) if model_path is not None else DEFAULT_MODEL
         if model_path is None:
             verify_shipped(path)
-        width, height = (int(v) for v in input_size)
-        if width <= 0 or height <= 0 or width % 32 or height % 32:
-            raise MomlocError(
-                f"detector 'nanodet': input_size {width}x{height} must be positive multiples of 32"
-            )
+        width, height = _check_size(input_size)
         self.model_path = path
         self.score_threshold = float(score_threshold)
         self.input_size = (width, height)
@@ -99,6 +105,14 @@ class NanoDetDetector(PersonDetector):
         self.session = open_session(path, threads)
         self._check_interface()
         warm_up(self, path, frames=2)
+
+    def resized(self, input_size: tuple[int, int]) -> NanoDetDetector:
+        """The same network at another input size, sharing this one's onnxruntime session (the
+        graph takes any size), e.g. for :class:`models.detector.windows.WindowRefiner`."""
+        twin = copy.copy(self)
+        twin.input_size = _check_size(input_size)
+        twin.centres, twin.strides = anchor_grid(twin.input_size)
+        return twin
 
     def _check_interface(self) -> None:
         inputs, outputs = self.session.get_inputs(), self.session.get_outputs()
