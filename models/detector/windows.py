@@ -61,9 +61,9 @@ def plan_windows(
             win_h = min(max(box_height * context, min_window), height)
             win_w = min(win_h * aspect, width)
             cx, cy = (box[0] + box[2]) / 2, (box[1] + box[3]) / 2
-            x0 = int(round(np.clip(cx - win_w / 2, 0, width - win_w)))
-            y0 = int(round(np.clip(cy - win_h / 2, 0, height - win_h)))
-            rect = (x0, y0, x0 + int(round(win_w)), y0 + int(round(win_h)))
+            x0 = round(float(np.clip(cx - win_w / 2, 0, width - win_w)))
+            y0 = round(float(np.clip(cy - win_h / 2, 0, height - win_h)))
+            rect = (x0, y0, x0 + round(win_w), y0 + round(win_h))
             windows.append(Window(index, rect, box))
     return windows
 
