@@ -175,7 +175,11 @@ def build_detect_stage(settings: Settings, player: Any) -> Any:
         return SimulatedDetections(player)
     from models.detector import create_detector
 
-    options = {"model_path": settings.detector.model_path, "letterbox": settings.detector.letterbox}
+    options = {
+        "model_path": settings.detector.model_path,
+        "letterbox": settings.detector.letterbox,
+        "input_size": settings.detector.input_size,
+    }
     detector = create_detector(
         settings.detector.kind,
         score_threshold=settings.detector.score_threshold,

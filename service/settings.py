@@ -73,13 +73,24 @@ class DetectorSettings(BaseModel):
     """Person detector options (see ``models.detector.create_detector``)."""
 
     model_config = _STRICT
-    kind: str = Field("ssdlite", description="Detector backend name in the detector registry.")
+    kind: str = Field(
+        "nanodet",
+        description="Detector backend name in the detector registry: nanodet (shipped default), "
+        "ssdlite (shipped, smaller and blinder), yolov8 (bring your own ONNX).",
+    )
     score_threshold: float = Field(
         0.4, ge=0.0, le=1.0, description="Boxes scoring below this are ignored."
     )
     threads: int = Field(2, ge=1, le=64, description="onnxruntime intra-op threads.")
     model_path: Path | None = Field(
-        None, description="ONNX file for detectors you bring (kind: yolov8); ssdlite ships its own."
+        None,
+        description="ONNX file for detectors you bring (kind: yolov8); nanodet and ssdlite ship "
+        "their own.",
+    )
+    input_size: tuple[int, int] | None = Field(
+        None,
+        description="Network input width, height in pixels (nanodet: multiples of 32, default "
+        "320x256; yolov8: for dynamic exports). Default: the kind's.",
     )
     letterbox: bool | None = Field(
         None, description="Pad to the model's square input instead of stretching (default: kind's)."
