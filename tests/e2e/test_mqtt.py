@@ -314,3 +314,41 @@ def test_serve_reads_mqtt_from_yaml_and_environment(mosquitto, tmp_path):
         proc.send_signal(signal.SIGINT)
         proc.wait(timeout=30)
         sub.close()
+
+
+def test_home_assistant_discovery_announces_the_room_and_removes_it_on_request(mosquitto):
+    room, prefix = _room(), f"ha{uuid.uuid4().hex[:6]}"
+    sub = Subscriber(mosquitto.port, f"{prefix}/#")
+    try:
+        ha = {"discovery": True, "prefix": prefix}
+        with mqtt_daemon(mosquitto.port, room, zones=HALVES, home_assistant=ha) as server:
+            expected = {
+                f"{prefix}/binary_sensor/momloc_{room}/west_occupancy/config",
+                f"{prefix}/binary_sensor/momloc_{room}/east_occupancy/config",
+                f"{prefix}/sensor/momloc_{room}/west_count/config",
+                f"{prefix}/sensor/momloc_{room}/east_count/config",
+                f"{prefix}/sensor/momloc_{room}/people/config",
+            }
+            sub.wait_for(lambda s: expected <= {m.topic for m in s.messages}, what="configs")
+            late = Subscriber(mosquitto.port, f"{prefix}/#")  # as HA after its own restart
+            try:
+                late.wait_for(lambda s: expected <= {m.topic for m in s.messages if m.retain})
+            finally:
+                late.close()
+            config = _json(sub.on(f"{prefix}/binary_sensor/momloc_{room}/west_occupancy/config")[0])
+            assert config["state_topic"] == f"momloc/{room}/zones/west"
+            assert server.http  # the daemon serves the removal route
+            removed = httpx.post(server.http + "/v1/mqtt/discovery/remove", timeout=10).json()
+            assert removed == {"removed": 5}
+            sub.wait_for(
+                lambda s: all(s.on(t) and s.on(t)[-1].payload == b"" for t in expected),
+                what="empty configs",
+            )
+        gone = Subscriber(mosquitto.port, f"{prefix}/#")
+        try:
+            time.sleep(1.0)  # an empty retained message deletes the retained config
+            assert not [m for m in gone.messages if m.retain and m.payload]
+        finally:
+            gone.close()
+    finally:
+        sub.close()
