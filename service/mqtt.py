@@ -80,6 +80,7 @@ class MqttPublisher:
         self._client: Any = None
         self._thread: threading.Thread | None = None
         self.connected = False
+        self._hungry = True  # the sender is due to send a position and waits for one
         self.counters = {
             "connects": 0,
             "disconnects": 0,
@@ -151,7 +152,8 @@ class MqttPublisher:
 
     def offer(self, snapshot: Snapshot) -> None:
         self._positions.put(snapshot)
-        self._wake.set()
+        if self._hungry:  # wake the sender only when it waits for a position, not per frame
+            self._wake.set()
 
     def on_zone_events(self, events: list[dict[str, Any]], occupancy: list[dict[str, Any]]) -> None:
         changed = {e["zone"] for e in events}
@@ -219,14 +221,18 @@ class MqttPublisher:
         while not self._stopping.is_set():
             now = time.monotonic()
             timeout = max(0.0, min(self._next_health - now, 1.0))
-            if self._positions.peek() is not None:
-                timeout = min(timeout, max(0.0, next_position - now))
+            self._hungry = now >= next_position
+            if not self._hungry:
+                timeout = min(timeout, next_position - now)
+            elif self._positions.peek() is not None:
+                timeout = 0.0
             self._wake.wait(timeout)
             self._wake.clear()
             try:
                 if not self.connected:
                     if self._positions.take() is not None:
                         self.counters["positions_dropped_offline"] += 1
+                    next_position = time.monotonic() + interval
                     continue
                 self._send_zones_and_events()
                 now = time.monotonic()
