@@ -234,7 +234,7 @@ def measure_fanout(daemon: Any, port: int, topic: str, n: int, seconds: float) -
     }
 
 
-def measure_fps(daemon: Any, seconds: float, rounds: int = 3) -> dict[str, float]:
+def measure_fps(daemon: Any, seconds: float, rounds: int = 5) -> dict[str, float]:
     """Pipeline fps with the MQTT publisher detached / attached, alternating phases."""
     hub, publisher, zones = daemon.hub, daemon.outputs.mqtt, daemon.outputs.zones
     phases: dict[str, list[float]] = {"off": [], "on": []}
