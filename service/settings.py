@@ -29,6 +29,7 @@ from pydantic import BaseModel, ConfigDict, Field, SecretStr, ValidationError, m
 from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict
 
 from models.errors import MomlocError
+from service.output_settings import MqttSettings, ZoneList
 
 DEMO_MODEL_DIR = Path(__file__).resolve().parent.parent / "models" / "demo_model"
 _STRICT = ConfigDict(extra="forbid")
@@ -217,6 +218,11 @@ class Settings(BaseSettings):
     watch_model: bool = Field(
         True, description="Reload the model when momloc train rewrites model_dir."
     )
+    # -- outputs beyond the API: zones and MQTT (models in service.output_settings) --------------
+    zones: ZoneList = Field(
+        default_factory=list, description="Named floor polygons with occupancy and events."
+    )
+    mqtt: MqttSettings | None = Field(None, description="MQTT publisher; absent: off.")
 
     @classmethod
     def settings_customise_sources(
