@@ -69,8 +69,8 @@ def _flag_rates(evaluation: Evaluation) -> dict[str, dict[str, object]]:
 
 
 def _json_clean(value: object) -> object:
-    if isinstance(value, float) and not np.isfinite(value):
-        return None
+    if isinstance(value, float):
+        return round(value, 4) if np.isfinite(value) else None
     if isinstance(value, dict):
         return {k: _json_clean(v) for k, v in value.items()}
     if isinstance(value, list):
@@ -100,7 +100,7 @@ class Report:
         md = RESULTS / f"detector_accuracy{self.suffix}.md"
         md.write_text(self.markdown(png.name))
         js = RESULTS / f"detector_profile_measurements{self.suffix}.json"
-        js.write_text(json.dumps(_json_clean(self.profiles()), indent=1) + "\n")
+        js.write_text(json.dumps(_json_clean(self.profiles()), indent=1, ensure_ascii=False) + "\n")
         return [md, png, js]
 
     # -- Markdown ---------------------------------------------------------------------------
@@ -132,7 +132,7 @@ class Report:
         header = ["detector", "threads", "wall median ms", "wall p90 ms", "CPU median ms",
                   "CPU p90 ms", f"wall ÷ {REFERENCE}", f"CPU ÷ {REFERENCE}"]  # fmt: skip
         rows = [
-            [r["kind"], r["threads"], _f(r["wall_median"], 1), _f(r["wall_p90"], 1),
+            [r["detector"], r["threads"], _f(r["wall_median"], 1), _f(r["wall_p90"], 1),
              _f(r["cpu_median"], 1), _f(r["cpu_p90"], 1), _f(r.get("wall_ratio", float("nan"))),
              _f(r.get("cpu_ratio", float("nan")))]
             for r in self.speed
