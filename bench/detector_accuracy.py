@@ -4,10 +4,11 @@ Run with ``make bench-detector`` or ``python -m bench.detector_accuracy [--quick
 [--model KIND=PATH ...]``. Every detector kind in the registry (``available_detectors()``) that
 can be built without a user file is measured — a kind the lead registers later shows up here by
 itself; kinds that need a file (``yolov8``) run when ``--model yolov8=/path/to/model.onnx`` names
-one. Writes ``bench/results/detector_accuracy.md`` (tables, machine, date),
-``detector_recall_by_height.png`` and ``detector_profile_measurements.json`` (per-height miss
-rates and edge errors for the simulator's detector-noise profiles; ``_quick`` names with
-``--quick``).
+one. Variants of a kind (other options, e.g. NanoDet's input size) run with ``--variant
+KIND:OPTION=VALUE`` (by default NanoDet at 416×320 and 256×192 besides its default). Writes
+``bench/results/detector_accuracy.md`` (tables, machine, date), ``detector_recall_by_height.png``
+and ``detector_profile_measurements.json`` (per-height miss rates and edge errors for the
+simulator's detector-noise profiles; ``_quick`` names with ``--quick``).
 
 Method, decided once:
 
@@ -50,6 +51,8 @@ from models.errors import MomlocError
 SCORE_THRESHOLDS = (0.3, 0.4, 0.5)
 IOU_THRESHOLDS = (0.5, 0.3)
 REFERENCE = "ssdlite"
+# Input sizes issue 11 asks about for NanoDet (measured only when the kind is registered).
+DEFAULT_VARIANTS = ("nanodet:input_size=416,320", "nanodet:input_size=256,192")
 
 
 @dataclass
@@ -66,9 +69,12 @@ class DetectorRun:
         return evaluate(self.detections[dataset], score, iou)
 
 
-def build(kind: str, threads: int, model_paths: dict[str, str]) -> PersonDetector:
+def build(
+    kind: str, threads: int, model_paths: dict[str, str], extra: dict[str, object] | None = None
+) -> PersonDetector:
     """A detector of ``kind`` at the lowest threshold; raises MomlocError when it needs a file."""
     options: dict[str, object] = {"threads": threads, "score_threshold": min(SCORE_THRESHOLDS)}
+    options.update(extra or {})
     if kind in model_paths:
         options["model_path"] = model_paths[kind]
     try:
@@ -125,7 +131,7 @@ def speed_summary(runs: dict[str, DetectorRun]) -> list[dict[str, object]]:
             t = run.timing.get(threads)
             if not t:
                 continue
-            row: dict[str, object] = {"kind": kind, "threads": threads}
+            row: dict[str, object] = {"detector": kind, "threads": threads}
             for key in ("wall", "cpu"):
                 row[f"{key}_median"] = statistics.median(t[key])
                 row[f"{key}_p90"] = float(np.percentile(t[key], 90))
@@ -145,6 +151,27 @@ def parse_models(values: Sequence[str]) -> dict[str, str]:
     return paths
 
 
+def parse_variant(value: str) -> tuple[str, str, dict[str, object]]:
+    """``"nanodet:input_size=416,320"`` → (label ``"nanodet 416x320"``, kind, options)."""
+    kind, sep, assignment = value.partition(":")
+    key, eq, raw = assignment.partition("=")
+    if not sep or not eq or not kind or not key:
+        raise MomlocError(f"--variant {value!r}: expected KIND:OPTION=VALUE")
+    parts = [p.strip() for p in raw.split(",")]
+
+    def number(text: str) -> object:
+        for cast in (int, float):
+            try:
+                return cast(text)
+            except ValueError:
+                pass
+        return {"true": True, "false": False}.get(text.lower(), text)
+
+    parsed = tuple(number(p) for p in parts) if len(parts) > 1 else number(parts[0])
+    shown = "x".join(parts) if key == "input_size" else f"{key}={raw}"
+    return f"{kind} {shown}", kind, {key: parsed}
+
+
 def main(argv: list[str] | None = None) -> int:
     from bench import detector_report
 
@@ -153,11 +180,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--model", action="append", default=[], metavar="KIND=PATH", help="model file for a kind"
     )
+    parser.add_argument(
+        "--variant", action="append", default=None, metavar="KIND:OPTION=VALUE",
+        help=f"also measure a kind with other options (default: {' '.join(DEFAULT_VARIANTS)})",
+    )  # fmt: skip
+    parser.add_argument("--no-variants", action="store_true", help="only each kind's defaults")
     parser.add_argument("--repeats", type=int, default=None, help="timing repeats per config")
     parser.add_argument("--kinds", nargs="*", default=None, help="only these kinds")
     args = parser.parse_args(argv)
     try:
         model_paths = parse_models(args.model)
+        variants = (
+            [] if args.no_variants else [parse_variant(v) for v in args.variant or DEFAULT_VARIANTS]
+        )
     except MomlocError as error:
         parser.error(str(error))
     repeats = args.repeats or (8 if args.quick else 40)
@@ -180,25 +215,28 @@ def main(argv: list[str] | None = None) -> int:
     runs: dict[str, DetectorRun] = {}
     skipped: dict[str, str] = {}
     timed: dict[tuple[str, int], PersonDetector] = {}
-    for kind in args.kinds or available_detectors():
+    kinds = args.kinds or available_detectors()
+    configs = [(kind, kind, {}) for kind in kinds]
+    configs += [v for v in variants if v[1] in kinds and v[1] in available_detectors()]
+    for label, kind, extra in configs:
         try:
-            detector = build(kind, 1, model_paths)
-            timed[(kind, 1)] = detector
-            timed[(kind, 2)] = build(kind, 2, model_paths)
+            detector = build(kind, 1, model_paths, extra)
+            timed[(label, 1)] = detector
+            timed[(label, 2)] = build(kind, 2, model_paths, extra)
         except MomlocError as error:
-            skipped[kind] = str(error)
-            print(f"skip {kind}: {error}", flush=True)
+            skipped[label] = str(error)
+            print(f"skip {label}: {error}", flush=True)
             continue
-        run = runs[kind] = DetectorRun(kind, detector.describe())
+        run = runs[label] = DetectorRun(label, detector.describe())
         for name, samples in datasets.items():
             start = time.perf_counter()
             run.detections[name] = detect_all(detector, samples)
             run.seconds[name] = time.perf_counter() - start
-        print(f"{kind}: detections done ({run.describe})", flush=True)
+        print(f"{label}: detections done ({run.describe})", flush=True)
 
     pair = [s.image for s in datasets["vtest"][10:12]]
-    for (kind, threads), samples in measure_speed(timed, pair, repeats).items():
-        runs[kind].timing[threads] = samples
+    for (label, threads), samples in measure_speed(timed, pair, repeats).items():
+        runs[label].timing[threads] = samples
 
     counts = {k: len(v) for k, v in datasets.items()}
     report = detector_report.Report(
