@@ -41,6 +41,7 @@ class Daemon:
     started: float = field(default_factory=time.time)
     watcher: ModelWatcher | None = None
     setup: SetupSession | None = None
+    outputs: Any = None  # service.outputs.Outputs: zones, MQTT
 
     def camera_states(self) -> list[dict[str, Any]]:
         states = self.pipeline.rig.states()
@@ -81,6 +82,7 @@ class Daemon:
             "clients": self.hub.subscriber_count,
             "stream": self.hub.stream_stats(),
             "model_reload": None if self.watcher is None else self.watcher.last_reload,
+            **({} if self.outputs is None else self.outputs.health()),
             **self.extras,
         }
 
@@ -90,6 +92,9 @@ class Daemon:
             "floor": self.floor,
             "stream_rate": self.stream_rate,
             "auth": self.token is not None,
+            "zones": []
+            if self.outputs is None
+            else [z.as_dict() for z in self.outputs.zones.zones],
             **self.extras,
         }
 
@@ -181,7 +186,11 @@ def build_detect_stage(settings: Settings, player: Any) -> Any:
         return SimulatedDetections(player)
     from models.detector import create_detector
 
-    options = {"model_path": settings.detector.model_path, "letterbox": settings.detector.letterbox}
+    options = {
+        "model_path": settings.detector.model_path,
+        "letterbox": settings.detector.letterbox,
+        "input_size": settings.detector.input_size,
+    }
     detector = create_detector(
         settings.detector.kind,
         score_threshold=settings.detector.score_threshold,
@@ -237,7 +246,7 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
     extras = {}
     if player is not None:
         extras["source"] = {"synthetic": settings.synthetic.model_dump()}
-    return Daemon(
+    daemon = Daemon(
         hub=hub,
         pipeline=pipeline,
         camera_names=[camera_name(c) for c in settings.cameras],
@@ -255,6 +264,10 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
             detach=pipeline.remove_detection_listener,
         ),
     )
+    from service.outputs import build_outputs
+
+    daemon.outputs = build_outputs(settings, daemon)
+    return daemon
 
 
 def _known_sizes(pipeline: Pipeline) -> list[tuple[int, int]] | None:
