@@ -68,11 +68,11 @@ def test_positions_follow_ground_truth(server):
     assert visible > 0 and reported >= 0.8 * visible, (reported, visible)
     # The demo's default detector profile is the measured nanodet one (the deterministic gate is
     # tests/service/test_demo_accuracy.py). Measured here on a loaded 2-core host, 2026-12-01:
-    # median 0.337 / 0.317 m, 64.9 / 65.9 % within 0.5 m in two runs (about twice as many people
-    # reported as detected: tracks on lasting false boxes). Under the former kind noise the
-    # gates were < 0.2 m and > 90 %.
-    assert np.median(errors) < 0.42, np.median(errors)
-    assert np.mean(errors < 0.5) > 0.58, np.mean(errors < 0.5)
+    # median 0.283 / 0.292 m, 72.0 / 69.1 % within 0.5 m in two runs (about 1.6 times as many
+    # people reported as detected: tracks on lasting false boxes). Under the former kind noise
+    # the gates were < 0.2 m and > 90 %.
+    assert np.median(errors) < 0.36, np.median(errors)
+    assert np.mean(errors < 0.5) > 0.62, np.mean(errors < 0.5)
 
 
 def test_positions_endpoint_and_rate_limit(server):

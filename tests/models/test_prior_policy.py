@@ -126,7 +126,7 @@ def test_model_trained_on_marks_localizes_the_whole_room_with_the_prior(tmp_path
 
     Pinned to the ``ideal`` profile (the former kind noise): this checks the floor prior and the
     policy, measured 0.134 m (0.18 of the encoder alone's error). With the measured default
-    ``nanodet`` the *collection* breaks it (2026-12-01: 3.41 m, encoder alone 1.59 m): when the
+    ``nanodet`` the *collection* breaks it (2026-12-01: 1.68 m, encoder alone 1.23 m): when the
     person is missed in a camera and a lasting false box is there, collect records the false
     box as the person, and those rows ruin the floor-mark fit. That is a collector problem
     (robust marks), not the prior's; the user-facing figure is in tests/e2e/test_room_setup.py.

@@ -183,7 +183,7 @@ def trained_runtime(tmp_path_factory: pytest.TempPathFactory):
     Pinned to the ``ideal`` detector profile (the former kind noise) on purpose: these tests
     check the association algorithm with a real model, not the detector; what the measured
     detector costs association is in ``bench/association.py``. (Measured 2026-12-01 with this
-    model and test: ideal 54/60 frames right, median 0.093 m; nanodet 48/59, 0.270 m.)
+    model and test: ideal 54/60 frames right, median 0.093 m; nanodet 47/59, 0.357 m.)
     """
     from models.mom_runtime import MomRuntime
     from models.simulate import simulate
