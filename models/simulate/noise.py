@@ -45,8 +45,6 @@ False positives (boxes where nobody is) are drawn by :mod:`models.simulate.false
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 from scipy.special import ndtr
 
@@ -155,13 +153,16 @@ def detect(
     covered = _covered(samples, regions, nearer)
     occluded = covered.mean(-1)
     free = ~covered
-    big = np.where(free[..., None], samples, np.nan)
     cell = np.stack([(x1 - x0) / _GRID_X / 2, (y1 - y0) / _GRID_Y / 2], -1)[..., 0, :]
-    with warnings.catch_warnings():  # all-covered boxes give all-NaN slices, which is fine
-        warnings.simplefilter("ignore", RuntimeWarning)
-        visible_box = np.concatenate(
-            [np.nanmin(big, axis=-2) - cell, np.nanmax(big, axis=-2) + cell], -1
-        )
+    # min / max over the uncovered samples; an all-covered box gives NaN (it is missed anyway).
+    # Masked with ±inf rather than nanmin, which warns, and silencing warnings is not
+    # thread-safe (live demo camera workers share a scene).
+    low = np.where(free[..., None], samples, np.inf).min(axis=-2)
+    high = np.where(free[..., None], samples, -np.inf).max(axis=-2)
+    none_free = ~free.any(-1)[..., None]
+    visible_box = np.concatenate(
+        [np.where(none_free, np.nan, low - cell), np.where(none_free, np.nan, high + cell)], -1
+    )
     shrink = (occluded >= profile.shrink_above) & found
     blend = rng.uniform(*profile.shrink_blend, (f, k, p))[..., None]
     boxes = np.where(shrink[..., None], clipped + blend * (visible_box - clipped), clipped)

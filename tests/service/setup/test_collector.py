@@ -106,7 +106,10 @@ def test_synthetic_collect_cli_records_every_mark(tmp_path: Path) -> None:
     data = MomDataset.load(out)
     marks = {(m.x, m.y) for m in grid_marks("2x2", "10x10")}
     assert {tuple(p) for p in np.round(data.world.astype(float), 4)} == marks
-    assert data.n > 0.8 * 4 * 4 * 15  # 4 marks x 4 s x 15 fps, a few frames unseen
+    # 4 marks x 4 s x 15 fps; with the measured default detector profile (nanodet) 172 of 240
+    # frames kept on 2026-12-01 (> 80 % under the former kind noise): a frame where a camera
+    # misses the person and shows a false box, or shows two boxes, is not kept.
+    assert data.n > 0.6 * 4 * 4 * 15
     again = _momloc(*args, "--grid", "2x2", "--seconds", "4", "--out", str(out))
     assert again.returncode == 0 and "already in" in again.stdout
 
