@@ -8,6 +8,7 @@ from fastapi import APIRouter, Body, HTTPException
 from pydantic import BaseModel, ConfigDict, Field
 
 from models.errors import MomlocError
+from service.api_errors import error_responses
 from service.setup.marks import MAX_MARKS, MarkIn, grid_marks, marks_from_entries
 from service.setup.session import SetupSession
 
@@ -30,10 +31,20 @@ class StartRequest(BaseModel):
     )
 
 
+class StopRequest(BaseModel):
+    """No parameters: a JSON object ``{}`` (state changes take JSON bodies, see request_guard)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
 def create_setup_router(session: SetupSession) -> APIRouter:
     router = APIRouter(prefix="/v1/setup", tags=["setup"])
 
-    @router.post("/start", summary="Start a guided collection at floor marks")
+    @router.post(
+        "/start",
+        summary="Start a guided collection at floor marks",
+        responses=error_responses(409, 413, 415, 422),
+    )
     def start(request: Annotated[StartRequest, Body()]) -> dict[str, Any]:
         try:
             if request.marks:
@@ -57,8 +68,12 @@ def create_setup_router(session: SetupSession) -> APIRouter:
     def status() -> dict[str, Any]:
         return session.status()
 
-    @router.post("/stop", summary="Stop the collection, keeping what was recorded")
-    def stop() -> dict[str, Any]:
+    @router.post(
+        "/stop",
+        summary="Stop the collection, keeping what was recorded",
+        responses=error_responses(413, 415, 422),
+    )
+    def stop(body: Annotated[StopRequest, Body()]) -> dict[str, Any]:
         return session.stop()
 
     return router

@@ -48,7 +48,7 @@ $("start").addEventListener("click", async () => {
     $("error").textContent = err.message;
   }
 });
-$("stop").addEventListener("click", async () => render(await call("POST", "/v1/setup/stop")));
+$("stop").addEventListener("click", async () => render(await call("POST", "/v1/setup/stop", {})));
 $("reload").addEventListener("click", async () => {
   try {
     const info = await call("POST", "/v1/model/reload", { model_dir: modelDir });

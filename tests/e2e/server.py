@@ -49,11 +49,14 @@ def running_server(**settings: Any) -> Iterator[RunningServer]:
     """The demo daemon (synthetic scene, shipped model) on a free loopback port."""
     token = settings.pop("token", None)
     model_dir = settings.pop("model_dir", None)
+    guard = {k: settings.pop(k) for k in ("allowed_origins", "allowed_hosts") if k in settings}
     config = demo_settings(host="127.0.0.1", **settings)
     if model_dir:
         config = config.model_copy(update={"model_dir": Path(model_dir)})
     daemon = build_daemon(config)
     daemon.token = token
+    for key, value in guard.items():
+        setattr(daemon, key, list(value))
     background = serve_in_thread(daemon)
     try:
         yield RunningServer(daemon, background.port, token)
