@@ -12,16 +12,27 @@ from service.api_errors import error_responses
 from service.setup.marks import MAX_MARKS, MarkIn, grid_marks, marks_from_entries
 from service.setup.session import SetupSession
 
+_GRID = r"^\s*[0-9]{1,6}\s*[xX×]\s*[0-9]{1,6}\s*$"
+_ROOM = r"^\s*[0-9]{1,6}(\.[0-9]{1,6})?\s*[xX×]\s*[0-9]{1,6}(\.[0-9]{1,6})?\s*$"
+
 
 class StartRequest(BaseModel):
     """Either ``marks`` or ``grid`` + ``room``."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(
+        extra="forbid",
+        # the either-or in the schema too, so /docs and schema-driven clients know it
+        json_schema_extra={"anyOf": [{"required": ["marks"]}, {"required": ["grid", "room"]}]},
+    )
     marks: list[MarkIn] | None = Field(
         None, max_length=MAX_MARKS, description=f"Explicit floor marks (at most {MAX_MARKS})."
     )
-    grid: str | None = Field(None, max_length=32, description="Grid of marks RxC, e.g. 3x3.")
-    room: str | None = Field(None, max_length=32, description="Room WxD in metres, for grid.")
+    grid: str | None = Field(
+        None, max_length=32, pattern=_GRID, description="Grid of marks RxC, e.g. 3x3."
+    )
+    room: str | None = Field(
+        None, max_length=32, pattern=_ROOM, description="Room WxD in metres, for grid."
+    )
     seconds: float = Field(20.0, gt=0, le=600, description="Seconds recorded on each mark.")
     walk: bool = Field(False, description="Also record walks between marks (interpolated).")
     countdown: float = Field(3.0, ge=0, le=30, description="Seconds before recording starts.")

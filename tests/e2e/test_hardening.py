@@ -12,6 +12,7 @@ import time
 import httpx
 import pytest
 import websockets
+from websockets.asyncio.client import connect
 
 from service.settings import DEMO_MODEL_DIR
 from tests.e2e.server import running_server
@@ -35,7 +36,7 @@ def post(server, path: str, content: str | None = None, **headers: str) -> httpx
 async def handshake(url: str, **kw) -> int | str:
     """HTTP status of a refused handshake, or the close code, or "open" when a snapshot came."""
     try:
-        async with websockets.connect(url, **kw) as ws:
+        async with connect(url, **kw) as ws:
             try:
                 await asyncio.wait_for(ws.recv(), 10)
             except websockets.exceptions.ConnectionClosed as closed:

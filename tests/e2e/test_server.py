@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 import websockets
 from scipy.optimize import linear_sum_assignment
+from websockets.asyncio.client import connect
 
 from service.settings import DEMO_MODEL_DIR
 from tests.e2e.server import running_server
@@ -29,7 +30,7 @@ def server():
 
 
 async def receive(url: str, count: int, **kw) -> list[dict]:
-    async with websockets.connect(url, **kw) as ws:
+    async with connect(url, **kw) as ws:
         return [json.loads(await asyncio.wait_for(ws.recv(), 10)) for _ in range(count)]
 
 
@@ -81,9 +82,7 @@ def test_positions_endpoint_and_rate_limit(server):
 def test_stalled_client_does_not_stop_others(server):
     async def scenario() -> list[dict]:
         # max_queue=1 and tiny buffers: this client stops reading after one message
-        stalled = await websockets.connect(
-            server.ws + "/v1/stream", max_queue=1, ping_interval=None
-        )
+        stalled = await connect(server.ws + "/v1/stream", max_queue=1, ping_interval=None)
         try:
             await asyncio.sleep(1.0)
             fresh = await receive(server.ws + "/v1/stream", 60)
@@ -113,7 +112,7 @@ def test_health_fields(server):
 
 async def closed_code(url: str, **kw) -> int:
     """The close code of a stream the daemon accepts and then closes at once."""
-    async with websockets.connect(url, **kw) as ws:
+    async with connect(url, **kw) as ws:
         with pytest.raises(websockets.exceptions.ConnectionClosed) as info:
             await asyncio.wait_for(ws.recv(), 10)
         return info.value.rcvd.code
