@@ -7,7 +7,7 @@ PIP := $(PY) -m pip install --quiet
 HOST ?= 127.0.0.1
 PORT ?= 8765
 
-.PHONY: demo test lint format bench bench-model bench-detector bench-service bench-setup test-keypoints test-floors clean
+.PHONY: demo test lint format bench bench-model bench-detector bench-service bench-setup test-keypoints test-floors test-docker clean
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -77,6 +77,10 @@ $(FLOOR_VENV)/.stamp: pyproject.toml tools/floor_requirements.py
 test-floors: $(FLOOR_VENV)/.stamp
 	$(FLOOR_VENV)/bin/python -m pytest -q -p no:cacheprovider tests/service/test_dependency_floors.py \
 		tests/e2e/test_hardening.py tests/e2e/test_sigterm.py tests/examples
+
+# The Docker image built and run for real (tests/e2e/test_docker.py); skips where no engine runs.
+test-docker: $(VENV)/.stamp-dev
+	MOMLOC_DOCKER_TESTS=1 tools/with_dockerd.sh $(PY) -m pytest -q -p no:cacheprovider tests/e2e/test_docker.py
 
 clean:
 	rm -rf $(VENV) $(KP_VENV) $(FLOOR_VENV) .pytest_cache .ruff_cache
