@@ -127,3 +127,32 @@ def test_monitor_ignores_a_short_spike_and_unseen_frames() -> None:
     monitor.update(t, np.array([[np.nan]]))
     t = _feed(monitor, t, 3.0, [3.0])
     assert not monitor.status()[0].moved
+
+
+def test_monitor_status_is_safe_while_the_pipeline_updates() -> None:
+    """/v1/health reads status() while the pipeline thread updates (once a 500 in the suite)."""
+    import sys
+    import threading
+    import time
+
+    monitor = CameraMotionMonitor(2, window_s=0.5)  # ~500 samples: reads take a while
+    stop = threading.Event()
+
+    def pipeline() -> None:
+        t = 0.0
+        while not stop.is_set():
+            t += 0.001
+            monitor.update(t, np.full((1, 2), 5.0))
+
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(1e-5)  # switch threads often, as a loaded machine does
+    thread = threading.Thread(target=pipeline)
+    thread.start()
+    try:
+        deadline = time.monotonic() + 1.5
+        while time.monotonic() < deadline:
+            assert len(monitor.status()) == 2
+    finally:
+        stop.set()
+        thread.join()
+        sys.setswitchinterval(interval)
