@@ -59,11 +59,12 @@ class LockstepRig(SyntheticRig):
     """
 
     def __init__(self, rig: SyntheticRig, hub: Any) -> None:
-        super().__init__(rig.scene, rig.cameras, fps=rig.fps, render_every=1)
+        super().__init__(rig.scene, rig.cameras, fps=rig.fps, render_every=rig.render_every)
         self.hub = hub
 
     def produce(self, index: int) -> FrameSet:
-        images = [self.render(index, camera) for camera in self.cameras]
+        drawn = self.render_every > 0 and index % self.render_every == 0
+        images = [self.render(index, camera) if drawn else None for camera in self.cameras]
         timestamp = self.tick_time(index)  # scene time: the tracker's clock follows the scene
         self.stamp(index, timestamp)
         self._produced = [*self._produced[-59:], time.time()]
