@@ -193,14 +193,6 @@ class Settings(BaseSettings):
         DEMO_MODEL_DIR, description="Directory with encoder.onnx and model.json (momloc train)."
     )
 
-    @field_validator("model_dir")
-    @classmethod
-    def _path_fits_the_os(cls, value: Path) -> Path:
-        """A path the OS cannot hold is a settings error, not an OSError deep in loading."""
-        if len(str(value)) > 4096 or any(len(part.encode()) > 255 for part in value.parts):
-            raise ValueError("path too long (at most 255 bytes per name, 4096 in all)")
-        return value
-
     detector: DetectorSettings = Field(
         default_factory=DetectorSettings, description="Person detector options."
     )
@@ -253,6 +245,14 @@ class Settings(BaseSettings):
         file_secret_settings: PydanticBaseSettingsSource,
     ) -> tuple[PydanticBaseSettingsSource, ...]:
         return init_settings, env_settings, _YamlSource(settings_cls)
+
+    @field_validator("model_dir")
+    @classmethod
+    def _path_fits_the_os(cls, value: Path) -> Path:
+        """A path the OS cannot hold is a settings error, not an OSError deep in loading."""
+        if len(str(value)) > 4096 or any(len(part.encode()) > 255 for part in value.parts):
+            raise ValueError("path too long (at most 255 bytes per name, 4096 in all)")
+        return value
 
     @model_validator(mode="after")
     def _synthetic_indices_unique(self) -> Settings:
