@@ -55,6 +55,7 @@ from service.api_errors import error_response, error_responses, install_error_ha
 from service.daemon import Daemon
 from service.metrics import metrics_text
 from service.request_guard import BodyTooLarge, RequestGuard
+from service.routes_zones import create_zones_router
 from service.setup.routes import create_setup_router
 from service.snapshot_image import render_camera_jpeg
 
@@ -151,6 +152,10 @@ def create_app(daemon: Daemon, *, manage_pipeline: bool = True) -> FastAPI:
 
     if daemon.setup is not None:
         app.include_router(create_setup_router(daemon.setup), dependencies=secured, responses=auth)
+    # zones, events, MQTT (own auth, lifespan); the guard covers its WebSocket and POST too
+    app.include_router(
+        create_zones_router(daemon), responses=error_responses(401, 403, 409, 413, 415, 422, 503)
+    )
 
     @app.get("/v1/positions", dependencies=secured, responses=auth, summary="Newest snapshot")
     def positions() -> JSONResponse:

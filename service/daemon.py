@@ -46,6 +46,7 @@ class Daemon:
     bind_host: str = "127.0.0.1"  # with the two lists below: see service.request_guard
     allowed_hosts: list[str] = field(default_factory=list)
     allowed_origins: list[str] = field(default_factory=list)
+    outputs: Any = None  # service.outputs.Outputs: zones, MQTT
 
     def camera_states(self) -> list[dict[str, Any]]:
         states = self.pipeline.rig.states()
@@ -86,6 +87,7 @@ class Daemon:
             "clients": self.hub.subscriber_count,
             "stream": self.hub.stream_stats(),
             "model_reload": None if self.watcher is None else self.watcher.last_reload,
+            **({} if self.outputs is None else self.outputs.health()),
             **self.extras,
         }
 
@@ -95,6 +97,9 @@ class Daemon:
             "floor": self.floor,
             "stream_rate": self.stream_rate,
             "auth": self.token is not None,
+            "zones": []
+            if self.outputs is None
+            else [z.as_dict() for z in self.outputs.zones.zones],
             **self.extras,
         }
 
@@ -180,7 +185,11 @@ def build_detect_stage(settings: Settings, player: Any) -> Any:
         return SimulatedDetections(player)
     from models.detector import create_detector
 
-    options = {"model_path": settings.detector.model_path, "letterbox": settings.detector.letterbox}
+    options = {
+        "model_path": settings.detector.model_path,
+        "letterbox": settings.detector.letterbox,
+        "input_size": settings.detector.input_size,
+    }
     detector = create_detector(
         settings.detector.kind,
         score_threshold=settings.detector.score_threshold,
@@ -236,7 +245,7 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
     extras = {}
     if player is not None:
         extras["source"] = {"synthetic": settings.synthetic.model_dump()}
-    return Daemon(
+    daemon = Daemon(
         hub=hub,
         pipeline=pipeline,
         camera_names=[camera_name(c) for c in settings.cameras],
@@ -257,6 +266,10 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
             detach=pipeline.remove_detection_listener,
         ),
     )
+    from service.outputs import build_outputs
+
+    daemon.outputs = build_outputs(settings, daemon)
+    return daemon
 
 
 def _known_sizes(pipeline: Pipeline) -> list[tuple[int, int]] | None:

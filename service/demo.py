@@ -14,6 +14,7 @@ choice is where the boxes come from (``synthetic.detections``):
 
 from __future__ import annotations
 
+import os
 from typing import Literal
 
 from models.simulate import get_config
@@ -23,6 +24,15 @@ DEMO_PRESET = "indoor-2cam"
 DEMO_SEED = 7
 DEMO_PEOPLE = 3
 DEMO_FPS = 30.0
+# Two zones in the 10 m x 10 m demo room, so the map, /v1/zones and MQTT have something to show:
+# a rectangle and a concave L (MOMLOC_ZONES replaces them).
+DEMO_ZONES = [
+    {"name": "kitchen", "polygon": [[0.5, 0.5], [4.0, 0.5], [4.0, 4.0], [0.5, 4.0]]},
+    {
+        "name": "lounge",
+        "polygon": [[5.0, 5.0], [9.5, 5.0], [9.5, 9.5], [7.5, 9.5], [7.5, 7.0], [5.0, 7.0]],
+    },
+]
 
 
 def demo_settings(
@@ -50,4 +60,5 @@ def demo_settings(
         synthetic=synthetic,
         host=host,
         port=port,
+        zones=None if "MOMLOC_ZONES" in os.environ else DEMO_ZONES,
     )

@@ -37,6 +37,7 @@ from pydantic import (
 from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict
 
 from models.errors import MomlocError
+from service.output_settings import MqttSettings, ZoneList
 
 DEMO_MODEL_DIR = Path(__file__).resolve().parent.parent / "models" / "demo_model"
 _STRICT = ConfigDict(extra="forbid")
@@ -83,13 +84,24 @@ class DetectorSettings(BaseModel):
     """Person detector options (see ``models.detector.create_detector``)."""
 
     model_config = _STRICT
-    kind: str = Field("ssdlite", description="Detector backend name in the detector registry.")
+    kind: str = Field(
+        "nanodet",
+        description="Detector backend name in the detector registry: nanodet (shipped default), "
+        "ssdlite (shipped, smaller and blinder), yolov8 (bring your own ONNX).",
+    )
     score_threshold: float = Field(
         0.4, ge=0.0, le=1.0, description="Boxes scoring below this are ignored."
     )
     threads: int = Field(2, ge=1, le=64, description="onnxruntime intra-op threads.")
     model_path: Path | None = Field(
-        None, description="ONNX file for detectors you bring (kind: yolov8); ssdlite ships its own."
+        None,
+        description="ONNX file for detectors you bring (kind: yolov8); nanodet and ssdlite ship "
+        "their own.",
+    )
+    input_size: tuple[int, int] | None = Field(
+        None,
+        description="Network input width, height in pixels (nanodet: multiples of 32, default "
+        "320x256; yolov8: for dynamic exports). Default: the kind's.",
     )
     letterbox: bool | None = Field(
         None, description="Pad to the model's square input instead of stretching (default: kind's)."
@@ -234,6 +246,11 @@ class Settings(BaseSettings):
     watch_model: bool = Field(
         True, description="Reload the model when momloc train rewrites model_dir."
     )
+    # -- outputs beyond the API: zones and MQTT (models in service.output_settings) --------------
+    zones: ZoneList = Field(
+        default_factory=list, description="Named floor polygons with occupancy and events."
+    )
+    mqtt: MqttSettings | None = Field(None, description="MQTT publisher; absent: off.")
 
     @classmethod
     def settings_customise_sources(

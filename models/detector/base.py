@@ -21,6 +21,7 @@ Example::
 
 from __future__ import annotations
 
+import hashlib
 import inspect
 import os
 from abc import ABC, abstractmethod
@@ -69,6 +70,7 @@ class PersonDetector(ABC):
 
 
 _REGISTRY: dict[str, Callable[..., PersonDetector]] = {}
+DEFAULT_DETECTOR = "nanodet"  # chosen by bench/detector_accuracy.py (README, Perception)
 
 
 def register_detector(kind: str) -> Callable[[type[PersonDetector]], type[PersonDetector]]:
@@ -87,8 +89,8 @@ def available_detectors() -> list[str]:
     return sorted(_REGISTRY)
 
 
-def create_detector(kind: str = "ssdlite", **options: object) -> PersonDetector:
-    """Build a detector by type name (``"ssdlite"`` default, ``"yolov8"``).
+def create_detector(kind: str = DEFAULT_DETECTOR, **options: object) -> PersonDetector:
+    """Build a detector by type name (``"nanodet"`` default, ``"ssdlite"``, ``"yolov8"``).
 
     ``options`` go to the detector's constructor (``model_path``, ``score_threshold``,
     ``letterbox``, ``threads``, ...). ``keypoints=True`` wraps it with the optional MediaPipe pose
@@ -117,7 +119,26 @@ def create_detector(kind: str = "ssdlite", **options: object) -> PersonDetector:
 
 def _load_builtin_detectors() -> None:
     # Imported here, not at module top, so base.py has no import cycle with its plugins.
-    from models.detector import ssdlite, yolov8  # noqa: F401
+    from models.detector import nanodet, ssdlite, yolov8  # noqa: F401
+
+
+def file_sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as stream:
+        for block in iter(lambda: stream.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def verify_shipped(path: Path) -> None:
+    """Check a shipped model against the SHA-256 in ``<name>.sha256`` beside it, so a truncated
+    clone or a Git LFS pointer fails at start with one clear line rather than with odd boxes."""
+    checksum_file = path.with_name(path.name + ".sha256")
+    if path.is_file() and file_sha256(path) != checksum_file.read_text().split()[0]:
+        raise MomlocError(
+            f"detector model {path}: checksum mismatch (damaged or a Git LFS pointer; "
+            "reinstall momloc)"
+        )
 
 
 def warm_up(detector: PersonDetector, path: Path, frames: int) -> None:

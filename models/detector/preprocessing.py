@@ -58,9 +58,10 @@ def check_frame(frame: np.ndarray, index: int) -> None:
 
 
 def fit_frame(
-    frame: np.ndarray, size: tuple[int, int], letterbox: bool
+    frame: np.ndarray, size: tuple[int, int], letterbox: bool, rgb: bool = True
 ) -> tuple[np.ndarray, Geometry]:
-    """Resize a BGR frame to ``size`` (width, height) of the network and return RGB + geometry."""
+    """Resize a BGR frame to ``size`` (width, height) of the network; return it (RGB unless
+    ``rgb`` is False, for networks trained on BGR) and its geometry."""
     height, width = frame.shape[:2]
     net_w, net_h = size
     if letterbox:
@@ -78,18 +79,19 @@ def fit_frame(
         else:
             canvas = cv2.resize(frame, (net_w, net_h), interpolation=_interpolation(scale_x))
         geometry = Geometry(scale_x, scale_y, 0.0, 0.0, width, height)
-    return cv2.cvtColor(canvas, cv2.COLOR_BGR2RGB), geometry
+    return (cv2.cvtColor(canvas, cv2.COLOR_BGR2RGB) if rgb else canvas), geometry
 
 
 def make_batch(
-    frames: Sequence[np.ndarray], size: tuple[int, int], letterbox: bool
+    frames: Sequence[np.ndarray], size: tuple[int, int], letterbox: bool, rgb: bool = True
 ) -> tuple[np.ndarray, list[Geometry]]:
-    """Stack frames of any sizes into one uint8 RGB batch [N, H, W, 3] for a single call."""
+    """Stack frames of any sizes into one uint8 batch [N, H, W, 3] (RGB unless ``rgb`` is
+    False) for a single call."""
     batch = np.empty((len(frames), size[1], size[0], 3), np.uint8)
     geometries = []
     for index, frame in enumerate(frames):
         check_frame(frame, index)
-        batch[index], geometry = fit_frame(frame, size, letterbox)
+        batch[index], geometry = fit_frame(frame, size, letterbox, rgb)
         geometries.append(geometry)
     return batch, geometries
 

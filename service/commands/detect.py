@@ -18,10 +18,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "detect",
         help="run the person detector on images, print boxes, write annotated copies",
-        description="Detect people in images with the shipped SSDLite (or your YOLOv8 ONNX).",
+        description="Detect people in images with the shipped NanoDet (or SSDLite, or your "
+        "YOLOv8 ONNX).",
     )
     parser.add_argument("images", nargs="+", type=Path, metavar="IMAGE")
-    parser.add_argument("--detector", default="ssdlite", help="detector type (ssdlite, yolov8)")
+    parser.add_argument(
+        "--detector", default="nanodet", help="detector type (nanodet, ssdlite, yolov8)"
+    )
     parser.add_argument("--model", type=Path, help="ONNX file (required for yolov8)")
     parser.add_argument("--threshold", type=float, help="minimum score (detector default)")
     parser.add_argument(

@@ -23,6 +23,7 @@ from typing import Annotated, Any
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from models.atomic import atomic_write_text
 from models.errors import MomlocError, shorten
 
 MAX_MARKS = 400  # a few hundred marks is already hours of recording; more is a mistake
@@ -118,7 +119,7 @@ def _plain(item: Any) -> str:
 
 def save_marks(marks: list[FloorMark], path: str | Path) -> None:
     entries = [{"name": m.name, "x": m.x, "y": m.y} for m in marks]
-    Path(path).write_text(yaml.safe_dump({"marks": entries}, sort_keys=False))
+    atomic_write_text(path, yaml.safe_dump({"marks": entries}, sort_keys=False))
 
 
 _NUMBER = r"([0-9]{1,6}(?:\.[0-9]{1,6})?)"

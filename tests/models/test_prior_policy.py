@@ -8,12 +8,12 @@ from pathlib import Path
 import numpy as np
 
 from models.prior_policy import (
-    attach_floor_prior,
     blend,
     choose_policy,
     choose_weights,
     label_coverage,
     row_weights,
+    summary,
 )
 from models.simulate import simulate
 from service.setup.collector import DatasetAppender, collect, plan_steps
@@ -103,16 +103,14 @@ def test_dense_data_weighs_the_prior_on_validation_rows(tmp_path: Path) -> None:
     )
 
 
-def test_attach_writes_the_entry_into_model_json(tmp_path: Path) -> None:
+def test_summary_leaves_out_the_fitted_prior(tmp_path: Path) -> None:
     from models.dataset import MomDataset
 
     data = MomDataset.load(_marks(tmp_path, "2x2"))
-    (tmp_path / "model.json").write_text(json.dumps({"format": "mom-model-v1"}))
-    summary = attach_floor_prior(data, tmp_path, "bbox")
-    meta = json.loads((tmp_path / "model.json").read_text())
-    assert meta["format"] == "mom-model-v1"
-    assert meta["floor_prior"]["policy"] == summary["policy"] == "prior"
-    assert "prior" not in summary and meta["floor_prior"]["prior"]["cameras"]
+    entry, _ = choose_policy(data, "bbox")
+    brief = summary(entry)
+    assert brief["policy"] == entry["policy"] == "prior"
+    assert "prior" not in brief and entry["prior"]["cameras"]
 
 
 def test_degenerate_marks_fall_back_to_mom(tmp_path: Path) -> None:
