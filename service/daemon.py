@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import os
 import socket
 import threading
 import time
@@ -23,6 +24,7 @@ from service.setup.camera_monitor import CameraMoved
 from service.setup.session import SetupSession
 
 log = logging.getLogger("momloc")
+GRACEFUL_SHUTDOWN_S = 3
 
 
 @dataclass
@@ -41,6 +43,9 @@ class Daemon:
     started: float = field(default_factory=time.time)
     watcher: ModelWatcher | None = None
     setup: SetupSession | None = None
+    bind_host: str = "127.0.0.1"  # with the two lists below: see service.request_guard
+    allowed_hosts: list[str] = field(default_factory=list)
+    allowed_origins: list[str] = field(default_factory=list)
     outputs: Any = None  # service.outputs.Outputs: zones, MQTT
 
     def camera_states(self) -> list[dict[str, Any]]:
@@ -251,6 +256,9 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
         floor=floor_extent(settings, runtime, player),
         extras=extras,
         watcher=ModelWatcher(pipeline) if settings.watch_model else None,
+        bind_host=settings.host,
+        allowed_hosts=list(settings.allowed_hosts),
+        allowed_origins=list(settings.allowed_origins),
         setup=SetupSession(
             settings.data_dir,
             image_sizes=lambda: _known_sizes(pipeline),
@@ -301,6 +309,9 @@ def make_server(daemon: Daemon, host: str, port: int) -> Any:
         ws_ping_timeout=daemon.ping_timeout,
         # snapshots are a few hundred bytes: per-client zlib costs more CPU than it saves
         ws_per_message_deflate=False,
+        # SIGTERM must stop the daemon within seconds, whatever a client is doing (a slow body,
+        # a long request): open connections get this long, then they are cut
+        timeout_graceful_shutdown=GRACEFUL_SHUTDOWN_S,
     )
     return uvicorn.Server(config)
 
@@ -312,6 +323,20 @@ def run_server(daemon: Daemon, host: str, port: int, on_ready: Any = None) -> No
     if on_ready is not None:
         on_ready(sock.getsockname()[1])
     server.run(sockets=[sock])
+    _exit_soon_if_stuck(GRACEFUL_SHUTDOWN_S + 5)
+
+
+def _exit_soon_if_stuck(seconds: float) -> None:
+    """After serving, make sure the process ends: a request still running in a worker thread
+    (those threads are not daemons) would otherwise keep it alive after SIGTERM."""
+
+    def deadline() -> None:
+        time.sleep(seconds)
+        log.warning("momloc: a request was still running %.0f s after stopping; exiting", seconds)
+        logging.shutdown()
+        os._exit(0)
+
+    threading.Thread(target=deadline, name="momloc-exit-deadline", daemon=True).start()
 
 
 @dataclass

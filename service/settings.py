@@ -25,7 +25,15 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, SecretStr, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    SecretStr,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict
 
 from models.errors import MomlocError
@@ -33,6 +41,8 @@ from service.output_settings import MqttSettings, ZoneList
 
 DEMO_MODEL_DIR = Path(__file__).resolve().parent.parent / "models" / "demo_model"
 _STRICT = ConfigDict(extra="forbid")
+_ORIGIN = r"^(\*|https?://[A-Za-z0-9.\-\[\]:]+)$"
+_HOST = r"^(\*|[A-Za-z0-9.\-]+|\[?[0-9A-Fa-f:.]+\]?)$"
 
 
 class V4l2Camera(BaseModel):
@@ -194,13 +204,31 @@ class Settings(BaseSettings):
     model_dir: Path = Field(
         DEMO_MODEL_DIR, description="Directory with encoder.onnx and model.json (momloc train)."
     )
+
     detector: DetectorSettings = Field(
         default_factory=DetectorSettings, description="Person detector options."
     )
     host: str = Field("127.0.0.1", min_length=1, description="Bind address (0.0.0.0: all).")
     port: int = Field(8765, ge=1, le=65535, description="TCP port of the HTTP/WebSocket API.")
     token: SecretStr | None = Field(
-        None, description="API token; when set, every request must carry it."
+        None, description="API token; when set, every /v1 request and /metrics must carry it."
+    )
+    allowed_origins: list[Annotated[str, Field(pattern=_ORIGIN, max_length=200)]] = Field(
+        default_factory=list,
+        max_length=100,
+        description=(
+            "Web origins (scheme://host[:port]) besides the daemon's own whose pages may use the "
+            "API and the stream, e.g. http://localhost:3000; '*' allows every origin. Requests "
+            "without an Origin header (game engines, scripts, curl) are always allowed."
+        ),
+    )
+    allowed_hosts: list[Annotated[str, Field(pattern=_HOST, max_length=253)]] = Field(
+        default_factory=list,
+        max_length=100,
+        description=(
+            "Host names (besides IP addresses, localhost, this machine's name and the bind "
+            "address) that requests may be addressed to; guards against DNS rebinding. '*': any."
+        ),
     )
     stream: StreamSettings = Field(
         default_factory=StreamSettings, description="WebSocket stream options."
@@ -234,6 +262,14 @@ class Settings(BaseSettings):
         file_secret_settings: PydanticBaseSettingsSource,
     ) -> tuple[PydanticBaseSettingsSource, ...]:
         return init_settings, env_settings, _YamlSource(settings_cls)
+
+    @field_validator("model_dir")
+    @classmethod
+    def _path_fits_the_os(cls, value: Path) -> Path:
+        """A path the OS cannot hold is a settings error, not an OSError deep in loading."""
+        if len(str(value)) > 4096 or any(len(part.encode()) > 255 for part in value.parts):
+            raise ValueError("path too long (at most 255 bytes per name, 4096 in all)")
+        return value
 
     @model_validator(mode="after")
     def _synthetic_indices_unique(self) -> Settings:
