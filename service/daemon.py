@@ -182,7 +182,20 @@ def build_detect_stage(settings: Settings, player: Any) -> Any:
         threads=settings.detector.threads,
         **{key: value for key, value in options.items() if value is not None},
     )
-    return DetectorStage(detector, settings.detector.score_threshold)
+    schedule = None
+    if settings.detection.schedule == "auto":
+        from service.detection_schedule import DetectionScheduler
+
+        options = settings.detection
+        schedule = DetectionScheduler(
+            detector,
+            settings.detector.score_threshold,
+            max_duty=options.max_duty,
+            cameras_per_call=options.cameras_per_call,
+            nice=options.nice,
+            carrier={"flow": options.flow, "max_age_s": options.max_age_s},
+        )
+    return DetectorStage(detector, settings.detector.score_threshold, schedule)
 
 
 def floor_extent(settings: Settings, runtime: Any, player: Any) -> dict[str, float] | None:
