@@ -176,10 +176,14 @@ def build_detect_stage(settings: Settings, player: Any) -> Any:
     from models.detector import create_detector
 
     options = {"model_path": settings.detector.model_path, "letterbox": settings.detector.letterbox}
+    threads = settings.detector.threads
+    explicit = settings.detector.model_fields_set
+    if settings.detection.schedule == "auto" and "threads" not in explicit:
+        threads = 1  # beside the pipeline, one thread leaves a core free (bench/realtime.py)
     detector = create_detector(
         settings.detector.kind,
         score_threshold=settings.detector.score_threshold,
-        threads=settings.detector.threads,
+        threads=threads,
         **{key: value for key, value in options.items() if value is not None},
     )
     schedule = None

@@ -229,7 +229,7 @@ class DetectionScheduler:
         self.jobs = 0
         self.frames_detected = 0
         self.boxes_out = 0
-        self.boxes_carried = 0
+        self.age_sum = 0.0  # seconds, over published boxes
 
     # -- the stage ---------------------------------------------------------------------------------
 
@@ -243,7 +243,7 @@ class DetectionScheduler:
         out = self._inline(frames) if self.mode == "every_frame" else self._scheduled(frames)
         self.last = out
         self.boxes_out += sum(len(d) for d in out)
-        self.boxes_carried += sum(int(np.count_nonzero(d.age)) for d in out if d.age is not None)
+        self.age_sum += sum(float(np.sum(d.age)) for d in out if d.age is not None)
         return out
 
     def _inline(self, frames: Sequence[Any]) -> list[CarriedDetections]:
@@ -324,14 +324,14 @@ class DetectionScheduler:
     # -- service -----------------------------------------------------------------------------------
 
     def stats(self) -> dict[str, Any]:
-        """For ``/v1/health``: schedule, detector cost, shares of frames detected, boxes carried."""
+        """For ``/v1/health``: schedule, detector cost, share of frames detected, mean box age."""
         sets = max(self.frame_sets, 1)
         cameras = max(len(self.last), 1)
         return {
             "schedule": self.mode,
             "detector_ms": None if self.cost_s is None else round(self.cost_s * 1e3, 2),
             "detected_share": round(self.frames_detected / (sets * cameras), 3),
-            "carried_share": round(self.boxes_carried / max(self.boxes_out, 1), 3),
+            "box_age_ms": round(self.age_sum / max(self.boxes_out, 1) * 1e3, 1),
             "jobs": self.jobs,
         }
 

@@ -95,7 +95,8 @@ class DetectionSettings(BaseModel):
         description=(
             "auto: the detector runs beside the pipeline on the newest frame set whenever it is "
             "free, and boxes are carried between detections (Kalman filter + optical flow), so "
-            "every frame set is published at the cameras' rate; every_frame: one inline "
+            "every frame set is published at the cameras' rate (the detector then uses one "
+            "onnxruntime thread unless detector.threads is set); every_frame: one inline "
             "detector call per frame set (slower than the cameras on small machines)."
         ),
     )
