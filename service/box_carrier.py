@@ -132,13 +132,14 @@ class BoxCarrier:
         det_noise: float = 0.03,
         flow_noise: float = 0.03,
         grid: tuple[int, int] = (3, 5),
+        region: tuple[float, float, float, float] = (0.2, 0.8, 0.1, 0.9),
         levels: int = 2,
         ring: int = 8,
     ) -> None:
         self.flow, self.max_age_s, self.max_misses = flow, float(max_age_s), int(max_misses)
         self.match_iou, self.accel = float(match_iou), float(accel)
         self.det_noise, self.flow_noise = float(det_noise), float(flow_noise)
-        self.grid, self.levels = grid, int(levels)
+        self.grid, self.levels, self.region = grid, int(levels), region
         self.tracks: list[_Track] = []
         self.time: float | None = None
         self._grey: deque[tuple[float, np.ndarray]] = deque(maxlen=ring)
@@ -153,12 +154,15 @@ class BoxCarrier:
         for track in self.tracks:
             self._predict(track, t)
         if self.flow and grey is not None and previous is not None and self.tracks:
-            shifts = self._flow(
-                previous, grey, [tr.box_at(self._grey[-2][0]) for tr in self.tracks]
-            )
-            for track, z in zip(self.tracks, shifts, strict=True):
-                if z is not None:
-                    self._update(track, z, self.flow_noise)
+            before = self._grey[-2][0]
+            origins = [tr.box_at(before) for tr in self.tracks]
+            dt = max(t - before, 1e-3)
+            for track, box, z in zip(
+                self.tracks, origins, self._flow(previous, grey, origins), strict=True
+            ):
+                if z is not None:  # flow measures the motion: position and rate both
+                    rate = (z - _to_state(box)) / dt
+                    self._update(track, np.r_[z, rate], self.flow_noise, rate_noise=1.0 / dt)
         self.time = t
         for track in self.tracks:
             track.history.append((t, track.box))
@@ -250,11 +254,17 @@ class BoxCarrier:
         q[[2, 3, 6, 7], [2, 3, 6, 7]] *= 0.25  # sizes change slower than positions move
         track.x, track.p, track.t = f @ track.x, f @ track.p @ f.T + q, t
 
-    def _update(self, track: _Track, z: np.ndarray, noise: float) -> None:
-        rows = 4
+    def _update(
+        self, track: _Track, z: np.ndarray, noise: float, rate_noise: float | None = None
+    ) -> None:
+        """Kalman update with ``z`` = box state (4) or box state and rates (8); ``rate_noise``
+        scales the rates' standard deviation (per second) from the position's."""
+        rows = 4 if rate_noise is None else 8
         h = np.eye(_F_DIM)[:rows]
         sigma = noise * max(track.x[3], 10.0)
         r = np.eye(rows) * sigma**2
+        if rate_noise is not None:
+            r[4:, 4:] *= rate_noise**2
         s = h @ track.p @ h.T + r
         k = track.p @ h.T @ np.linalg.inv(s)
         track.x = track.x + k @ (np.asarray(z[:rows], float) - h @ track.x)
@@ -314,8 +324,9 @@ class BoxCarrier:
     ) -> list[np.ndarray | None]:
         """Per box: the box state ``(cx, cy, w, h)`` moved by flow from ``old`` to ``new``."""
         gx, gy = self.grid
-        u = (np.arange(gx) + 0.5) / gx * 0.6 + 0.2  # inner 60 % of the width
-        v = (np.arange(gy) + 0.5) / gy * 0.8 + 0.1  # inner 80 % of the height
+        u0, u1, v0, v1 = self.region
+        u = u0 + (np.arange(gx) + 0.5) / gx * (u1 - u0)
+        v = v0 + (np.arange(gy) + 0.5) / gy * (v1 - v0)
         rel = np.stack(np.meshgrid(u, v), -1).reshape(-1, 2)
         points = [np.asarray(b[:2]) + rel * (np.asarray(b[2:]) - np.asarray(b[:2])) for b in boxes]
         p0 = np.concatenate(points).astype(np.float32).reshape(-1, 1, 2)

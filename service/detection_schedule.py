@@ -27,7 +27,9 @@ Design (``mode="auto"``):
   the price of one call's overhead per camera.
 - Every box says how it was obtained: :class:`service.box_carrier.CarriedDetections` adds
   ``age`` (seconds since the detector found it; 0 = found in this frame) to the public
-  ``Detections`` fields, available per camera in :attr:`DetectionScheduler.last`.
+  ``Detections`` fields, available per camera in :attr:`DetectionScheduler.last`. A carried box
+  expires after ``max_age_s`` without a detection, stretched to 2.5 detector periods when the
+  detector is slower than that, so boxes do not vanish just because the detector is slow.
 
 ``mode="every_frame"`` is the old behaviour: one inline batched call per frame set, ages 0.
 
@@ -217,6 +219,7 @@ class DetectionScheduler:
         self.max_duty, self.cameras_per_call = float(max_duty), int(cameras_per_call)
         self.clock = clock
         self._carrier_options = dict(carrier or {})
+        self._max_age_s = float(self._carrier_options.get("max_age_s", 0.5))
         self.carriers: list[BoxCarrier] = []
         self.runner: Runner | None = None
         if mode == "auto":
@@ -308,6 +311,11 @@ class DetectionScheduler:
         if result.error is not None:
             raise RuntimeError(f"detector: {result.error}") from result.error
         assert result.detections is not None
+        # a box must outlive the time the detector takes to look again, or a slow detector's
+        # boxes would all expire between its calls
+        period = (self.cost_s or 0.0) / self.max_duty
+        for carrier in self.carriers:
+            carrier.max_age_s = max(self._max_age_s, 2.5 * period)
         for (camera, t, _), det in zip(result.job.frames, result.detections, strict=True):
             det = self._filtered(det)
             self.carriers[camera].correct(t, det.boxes, det.scores, det.keypoints)
