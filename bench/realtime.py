@@ -43,7 +43,10 @@ VTEST = Path("/usr/share/doc/opencv-doc/examples/data/vtest.avi")
 def find_vtest() -> Path:
     """vtest.avi from Debian's opencv-doc (installed here when missing: the bench set-up)."""
     if not VTEST.is_file():
-        subprocess.run(["apt-get", "install", "-y", "-qq", "opencv-doc"], check=False)
+        install = ["apt-get", "install", "-y", "-qq", "opencv-doc"]
+        if subprocess.run(install, check=False).returncode != 0:
+            subprocess.run(["apt-get", "update", "-qq"], check=False)
+            subprocess.run(install, check=False)
     if not VTEST.is_file():
         listed = subprocess.run(["dpkg", "-L", "opencv-doc"], capture_output=True, text=True)
         hits = [line for line in listed.stdout.splitlines() if line.endswith("vtest.avi")]
