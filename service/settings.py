@@ -116,10 +116,13 @@ class DetectionSettings(BaseModel):
         0.5, gt=0.0, le=10.0, description="auto: drop a box the detector has not seen this long."
     )
     nice: int = Field(
-        0,
+        10,
         ge=0,
         le=19,
-        description="auto: lower the detector thread's priority by this much (Linux).",
+        description=(
+            "auto: lower the detector thread's priority by this much (Linux), so the cameras and "
+            "the pipeline run first when the CPU is short (0: same priority)."
+        ),
     )
 
 

@@ -26,9 +26,11 @@ from tests.service.fake_frames import FPS, BoxWorld, Clock, FakeDetector
 
 
 def _scheduler(world: BoxWorld, cost: float, **options) -> tuple[DetectionScheduler, Clock]:
+    """A scheduler on a hand clock; frames reach it on time (wall clock = the frame's stamp)."""
     clock = Clock()
     detector = FakeDetector(world)
     runner = DeferredRunner(detector.detect, clock, cost=lambda job: cost)
+    options.setdefault("wall", clock)
     return DetectionScheduler(detector, 0.0, runner=runner, clock=clock, **options), clock
 
 
@@ -93,6 +95,17 @@ def test_carried_boxes_expire_once_the_detector_stops_finding_them() -> None:
     # miss in a row (more than max_misses = 2) removes the box
     assert counts[3:21] == [1] * 18
     assert counts[21:] == [0] * 19
+
+
+def test_late_frame_sets_are_carried_without_flow() -> None:
+    world = BoxWorld()
+    on_time, clock = _scheduler(world, cost=0.09)
+    _run(on_time, clock, world, 10)
+    assert on_time.stats()["flow_skipped_share"] == 0.0
+    late, clock = _scheduler(world, cost=0.09, wall=lambda: clock.t + 0.05)
+    published = _run(late, clock, world, 20)
+    assert late.stats()["flow_skipped_share"] == 1.0
+    assert all(len(d) == 1 for out in published[3:] for d in out)  # the filter still carries
 
 
 def test_duty_cycle_leaves_time_between_calls() -> None:
