@@ -17,7 +17,7 @@ table measures how well carried boxes follow people (detector every 3rd frame se
 sets of delay, compared with the detector's boxes on the frames in between) for the Kalman filter
 alone, filter + optical flow, and holding the last box, with the carry cost per camera frame.
 
-    .venv/bin/python -m bench.realtime [--seconds 20] [--clip 150]
+    .venv/bin/python -m bench.realtime [--seconds 20] [--rounds 4] [--clip 150]
 
 Writes bench/results/realtime.md.
 """
@@ -164,19 +164,19 @@ def make_detector(threads: int) -> Any:
     return create_detector("ssdlite", score_threshold=0.4, threads=threads)
 
 
-def run_pipeline(rig: ClipRig, detect: Any, seconds: float, warmup: float = 3.0) -> dict:
-    """The daemon's pipeline (demo model, association, tracker, hub) on ``rig`` for ``seconds``."""
+def run_pipeline(rig: ClipRig, detect: Any, seconds: float, warmup: float = 2.0) -> dict:
+    """The daemon's pipeline (demo model, association, tracker, hub) on ``rig`` for ``seconds``;
+    raw measurements (see :func:`summary`)."""
     from models.mom_runtime import MomRuntime
     from service.hub import Hub
     from service.pipeline import Pipeline
     from service.settings import DEMO_MODEL_DIR
     from service.tracking import Tracker
 
-    hub = Hub()
     pipeline = Pipeline(
         rig,
         detect,
-        hub,
+        Hub(),
         num_cameras=len(rig.clips),
         runtime=MomRuntime.load(DEMO_MODEL_DIR),
         tracker=Tracker(fps_hint=30.0),
@@ -190,17 +190,31 @@ def run_pipeline(rig: ClipRig, detect: Any, seconds: float, warmup: float = 3.0)
     n0 = len(boxes)
     time.sleep(seconds)
     cpu1, wall1, done1 = os.times(), time.time(), pipeline.frames_processed
-    latency = np.array(pipeline._latency, float) * 1e3
+    latency = list(np.array(pipeline._latency, float) * 1e3)
     stats = pipeline.stats()
     pipeline.stop()
-    cpu = (cpu1.user + cpu1.system - cpu0.user - cpu0.system) / (wall1 - wall0)
     return {
-        "fps": (done1 - done0) / (wall1 - wall0),
+        "frames": done1 - done0,
+        "wall": wall1 - wall0,
+        "latency": latency,
+        "boxes": boxes[n0:],
+        "cpu": cpu1.user + cpu1.system - cpu0.user - cpu0.system,
+        "detection": stats.get("detection"),
+    }
+
+
+def summary(runs: list[dict]) -> dict:
+    """Slices of one configuration pooled: fps, latency percentiles, boxes, CPU cores."""
+    wall = sum(r["wall"] for r in runs)
+    latency = np.concatenate([r["latency"] for r in runs])
+    boxes = [b for r in runs for b in r["boxes"]]
+    return {
+        "fps": sum(r["frames"] for r in runs) / wall,
         "p50": float(np.percentile(latency, 50)),
         "p95": float(np.percentile(latency, 95)),
-        "boxes": float(np.mean(boxes[n0:])) if len(boxes) > n0 else 0.0,
-        "cpu": cpu,
-        "detection": stats.get("detection"),
+        "boxes": float(np.mean(boxes)) if boxes else 0.0,
+        "cpu": sum(r["cpu"] for r in runs) / wall,
+        "detection": runs[-1]["detection"],
     }
 
 
@@ -225,17 +239,27 @@ VARIANTS: list[tuple[str, int, dict[str, Any] | None]] = [
 ]
 
 
-def live_table(name: str, clips: list, baseline: Any, baseline_name: str, seconds: float) -> list:
+def live_table(
+    name: str, clips: list, baseline: Any, baseline_name: str, seconds: float, rounds: int
+) -> list:
+    """Every configuration in ``rounds`` interleaved slices, so changing load on the shared
+    machine falls on all of them alike."""
     from service.pipeline import DetectorStage
 
-    rows = []
-    base = run_pipeline(ClipRig(clips), baseline, seconds)
-    rows.append([name, baseline_name, base, base])
     detectors = {1: make_detector(1), 2: make_detector(2)}
+    stages = [(baseline_name, baseline)]
     for label, threads, options in VARIANTS:
         det = detectors[threads]
         stage = DetectorStage(det, 0.4) if options is None else scheduled(det, **dict(options))
-        rows.append([name, label, run_pipeline(ClipRig(clips), stage, seconds), base])
+        stages.append((label, stage))
+    raw: dict[str, list[dict]] = {label: [] for label, _ in stages}
+    for _ in range(rounds):
+        for label, stage in stages:
+            raw[label].append(run_pipeline(ClipRig(clips), stage, seconds / rounds))
+    base = summary(raw[baseline_name])
+    rows = []
+    for label, _ in stages:
+        rows.append([name, label, summary(raw[label]), base])
         print(name, label, {k: v for k, v in rows[-1][2].items()}, flush=True)
     return rows
 
@@ -322,6 +346,7 @@ def fmt_live(rows: list) -> list[str]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seconds", type=float, default=20.0, help="measured seconds per row")
+    parser.add_argument("--rounds", type=int, default=4, help="interleaved slices per row")
     parser.add_argument("--clip", type=int, default=150, help="frames per replayed clip")
     parser.add_argument("--out", type=Path, default=RESULTS)
     parser.add_argument("--only", nargs="*", help="run only variants whose label has one of these")
@@ -336,17 +361,17 @@ def main(argv: list[str] | None = None) -> int:
     video_ref = detector_boxes(detector, video, 0.4)
     drawn_ref = detector_boxes(detector, drawn, 0.4)
     sim = simulated_boxes(scene, args.clip)
-    rows = live_table("drawn", drawn, ReplayedBoxes(sim), "simulated (baseline)", args.seconds)
-    rows += live_table(
-        "video", video, ReplayedBoxes(video_ref), "replayed (baseline)", args.seconds
-    )
+    timing = (args.seconds, args.rounds)
+    rows = live_table("drawn", drawn, ReplayedBoxes(sim), "simulated (baseline)", *timing)
+    rows += live_table("video", video, ReplayedBoxes(video_ref), "replayed (baseline)", *timing)
     carry = [["drawn", *r] for r in carry_quality(drawn, drawn_ref)]
     carry += [["video", *r] for r in carry_quality(video, video_ref)]
     lines = [
         "# Real-time: the daemon with the real detector, with and without scheduling",
         "",
-        f"Machine: {header}. Run {started}; {args.seconds:.0f} s measured per row after 3 s "
-        f"warm-up, clips of {args.clip} frames per camera replayed at 30 fps. "
+        f"Machine: {header}. Run {started}; {args.seconds:.0f} s measured per row, in "
+        f"{args.rounds} slices interleaved with the other rows (each after 2 s warm-up), clips of "
+        f"{args.clip} frames per camera replayed at 30 fps. "
         "Produced by `python -m bench.realtime`.",
         "",
         "Two 640x480 cameras at 30 fps; shipped SSDLite (score 0.4), shipped demo MoM model, "
