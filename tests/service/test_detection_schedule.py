@@ -108,6 +108,28 @@ def test_late_frame_sets_are_carried_without_flow() -> None:
     assert all(len(d) == 1 for out in published[3:] for d in out)  # the filter still carries
 
 
+def test_flow_is_dropped_while_it_costs_more_than_its_budget(monkeypatch) -> None:
+    from service.box_carrier import BoxCarrier
+
+    world = BoxWorld()
+    scheduler, clock = _scheduler(world, cost=0.09, flow_budget_s=0.005)
+    advance = BoxCarrier.advance
+
+    def slow_flow(self, t, image=None):  # flow costs 10 ms of the hand clock per camera frame
+        if image is not None:
+            clock.t += 0.010
+        return advance(self, t, image)
+
+    monkeypatch.setattr(BoxCarrier, "advance", slow_flow)
+    for i in range(60):
+        clock.t = i / FPS
+        scheduler.step(world.frame_set(i))
+    stats = scheduler.stats()
+    assert stats["flow_ms"] == pytest.approx(10.0)
+    # measured on the first frame set, then only on every 30th one
+    assert stats["flow_skipped_share"] == pytest.approx(58 / 60, abs=0.02)
+
+
 def test_duty_cycle_leaves_time_between_calls() -> None:
     world = BoxWorld()
     scheduler, clock = _scheduler(world, cost=0.09, max_duty=0.5)
