@@ -22,32 +22,29 @@ Design (``mode="auto"``):
   average); with ``max_duty < 1`` the next job waits ``cost * (1 / max_duty - 1)`` after the
   last one finished, leaving that share of time to the rest of the machine. The detection rate
   therefore follows whatever the detector costs on this machine under its current load.
-- **The detector yields.** Its thread runs at ``nice`` 10: on a host at load 7 (2 cores) that
-  kept 30 fps with p95 32 ms on drawn frames where the same schedule at normal priority gave
-  27 fps, p95 75 ms; on an idle host it changes nothing.
-- ``cameras_per_call=1`` alternates cameras (one frame per call, round-robin, oldest-refreshed
-  first) instead of one batched call for all: shorter jobs, so each correction is fresher, at
-  the price of one call's overhead per camera.
+- **The detector yields.** Its thread runs at ``nice`` 10 and, in the daemon, on one
+  onnxruntime thread (which computes on the calling thread, so all of it runs at that priority),
+  leaving the other core to the cameras and the pipeline.
 - **Flow only when there is time.** A camera frame is carried by the filter alone when its
   frame set reaches the stage already later than ``flow_max_lag_s`` (15 ms), or while flow has
   been costing more than ``flow_budget_s`` (5 ms) per camera frame (re-measured every 30th frame
-  set). On an idle 2-core host flow cost 2-4 ms per camera frame, on one at load 8 it cost
-  10-20 ms, while the filter alone (~1 ms) was only slightly worse (bench/results/realtime.md).
-- **The detector yields.** Its thread runs at ``nice`` 10: on a host at load 7 (2 cores) that
-  kept 30 fps with p95 32 ms on drawn frames where the same schedule at normal priority gave
-  27 fps, p95 75 ms; on an idle host it changes nothing.
+  set): on an idle 2-core host flow cost 2-4 ms per camera frame, at load 8 10-20 ms.
 - ``cameras_per_call=1`` alternates cameras (one frame per call, round-robin, oldest-refreshed
-  first) instead of one batched call for all: shorter jobs, so each correction is fresher, at
-  the price of one call's overhead per camera.
-- **Flow only when there is time.** A frame set that reaches the stage already later than
-  ``flow_max_lag_s`` (15 ms: the machine is short of CPU) is carried by the filter alone: on a
-  loaded host flow cost 10-20 ms per camera frame, the filter ~1 ms, and the filter's boxes
-  were only slightly worse (``bench/results/realtime.md``).
+  first) instead of one batched call for all: shorter jobs, fresher corrections, one call's
+  overhead per camera.
 - Every box says how it was obtained: :class:`service.box_carrier.CarriedDetections` adds
   ``age`` (seconds since the detector found it; 0 = found in this frame) to the public
   ``Detections`` fields, available per camera in :attr:`DetectionScheduler.last`. A carried box
-  expires after ``max_age_s`` without a detection, stretched to 2.5 detector periods when the
-  detector is slower than that, so boxes do not vanish just because the detector is slow.
+  expires after ``max_age_s`` without a detection, stretched to 2.5 times the interval between
+  two detections of its camera when the detector is slower, so boxes do not vanish just because
+  the detector is slow.
+
+Measured (``bench/realtime.py``, 2 cores shared with other jobs, figures in
+``bench/results/realtime.md``), at load 7-11: on drawn frames the daemon published 30.0 fps
+with p95 capture->publish 22.8 ms with scheduling (1.07x and 1.08x the same pipeline fed the
+simulator's boxes), against 8.7 fps and p95 293 ms detecting every frame set; on ``vtest.avi``
+25.5 fps, p95 80 ms (0.88x, 2.2x the pipeline fed replayed boxes, itself at p95 37 ms), against
+6.2 fps, p95 332 ms. The detector at normal priority: 29.0 / 23.2 fps, p95 44 / 90 ms.
 
 ``mode="every_frame"`` is the old behaviour: one inline batched call per frame set, ages 0.
 
@@ -244,6 +241,7 @@ class DetectionScheduler:
         self.flow_cost_s: float | None = None  # average time of one camera frame carried by flow
         self._carrier_options = dict(carrier or {})
         self._max_age_s = float(self._carrier_options.get("max_age_s", 0.5))
+        self._flow = bool(self._carrier_options.get("flow", True))
         self.carriers: list[BoxCarrier] = []
         self.runner: Runner | None = None
         if mode == "auto":
@@ -310,7 +308,7 @@ class DetectionScheduler:
                 self.flow_skipped += image is None and frame.image is not None
                 start = self.clock()
                 out.append(carrier.advance(float(frame.timestamp), image))
-                if image is not None:
+                if image is not None and self._flow:
                     cost = self.clock() - start
                     ema = self.flow_cost_s
                     self.flow_cost_s = cost if ema is None else 0.8 * ema + 0.2 * cost
@@ -328,7 +326,9 @@ class DetectionScheduler:
     def _flow_affordable(self, frame: Any) -> bool:
         """Flow for this camera frame unless the set is already late or flow has been costing
         more than its budget (re-measured on every 30th frame set, as load changes)."""
-        if frame.image is None or self.wall() - frame.timestamp > self.flow_max_lag_s:
+        if not self._flow or frame.image is None:
+            return frame.image is not None  # flow off: the image only bounds the boxes
+        if self.wall() - frame.timestamp > self.flow_max_lag_s:
             return False
         cost = self.flow_cost_s
         return cost is None or cost <= self.flow_budget_s or self.frame_sets % 30 == 0
@@ -354,6 +354,8 @@ class DetectionScheduler:
         # a box must outlive the time the detector takes to look again, or a slow detector's
         # boxes would all expire between its calls
         period = (self.cost_s or 0.0) / self.max_duty
+        if 0 < self.cameras_per_call < len(self.carriers):  # each camera's turn comes less often
+            period *= -(-len(self.carriers) // self.cameras_per_call)
         for carrier in self.carriers:
             carrier.max_age_s = max(self._max_age_s, 2.5 * period)
         for (camera, t, _), det in zip(result.job.frames, result.detections, strict=True):

@@ -148,6 +148,14 @@ def test_alternating_cameras() -> None:
     assert cameras[:6] == [0, 1, 2, 0, 1, 2]
 
 
+def test_alternating_slow_detector_keeps_every_cameras_boxes() -> None:
+    """Each camera's turn comes every other call: its boxes must outlive two calls."""
+    world = BoxWorld(cameras=2)
+    scheduler, clock = _scheduler(world, cost=0.25, cameras_per_call=1)
+    published = _run(scheduler, clock, world, 60)
+    assert all(len(d) == 1 for out in published[16:] for d in out)
+
+
 def test_every_frame_mode_detects_inline() -> None:
     world = BoxWorld()
     clock = Clock()
