@@ -22,16 +22,20 @@ Every box carries its **age**: seconds since a detector last found it (0 = found
 frame). Boxes older than ``max_age_s`` or missed by ``max_misses`` detections in a row expire,
 so a person who left does not linger as a ghost.
 
-Measured choices (``bench/realtime.py``, 2 cores; figures in ``bench/results/realtime.md``):
-with the detector every 3rd frame set and 2 frame sets late, carried boxes' centres were off the
-detector's own boxes of those frames by a median 6.9 % of box height when held still, 2.5 % with
-the filter and 2.3 % with filter + flow on drawn frames; 12.3 / 9.4 / 7.9 % on ``vtest.avi``
-(its people stop, turn and cross). The filter costs well under 1 ms per camera frame; flow (a
-3x5 point grid per box, 3 pyramid levels, forward-backward checked) adds 1-4 ms with 3-6 people
-(grey conversion 0.2 ms, LK ~2 ms for 150 points both ways), which the pipeline's budget
-affords, and keeps more boxes on their person. Flow is on by default; ``flow=False`` leaves the
-filter alone. Rejected: re-running the detector on crops around known people (these graphs take
-a fixed input, so each crop costs a full call), and dense flow (Farneback, ~15 ms per frame).
+Measured choices (``bench/realtime.py``, 2 cores; ``bench/results/realtime.md``): with the
+detector every 3rd frame set and its result 2 frame sets late, the carried boxes' centres were
+off the detector's own boxes of the frames in between by a median 9.7 % of box height when held
+still, 2.5 % with the filter and 2.7 % with filter + flow on drawn frames (the simulator's people
+walk steadily); 12.4 / 8.7 / 7.8 % on ``vtest.avi``, whose people stop, turn and cross, where
+flow also kept more boxes on their person (733 matched pairs against 639). Cost per camera
+frame, idle host: filter 0.4-0.7 ms, filter + flow 2-4 ms (3x5 point grid per box, 3 pyramid
+levels, forward-backward check); at load 8-11: 2-3 ms and 11-19 ms. So flow is on by default
+but the scheduler drops it while it costs more than its budget (``service.detection_schedule``);
+trusting flow more than a detection (1 % of box height instead of 3 %) was worse on the video
+(10.0 % instead of 8.2 %): legs and background points make its shifts noisy. Rejected:
+re-running the detector on crops around known people (these graphs take a fixed input, so each
+crop costs a full call), and dense flow (Farneback on a 640x480 frame took ~27x the time of LK
+on 150 points both ways, measured together at load 11).
 
 Example::
 

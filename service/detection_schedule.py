@@ -3,9 +3,10 @@
 Why: two 640x480 frames through SSDLite cost ~42 CPU-ms on one onnxruntime thread (~51 on two,
 ~30 ms wall), while a 30 fps camera gives a 33 ms slot and the rest of the chain (association,
 MoM, tracking, publishing) and the cameras need CPU too. Run inline on every frame set, the
-daemon fell to 17-24 fps with p95 capture->publish ~100 ms. No fixed "every n-th frame set"
-fits every machine and load, and a detection run inline on *some* frame sets makes exactly
-those frame sets late (their latency is the detector's), which is what the p95 measures.
+daemon fell to 23-25 fps with p95 capture->publish 77-102 ms on an idle host. No fixed
+"every n-th frame set" fits every machine and load, and a detection run inline on *some* frame
+sets makes exactly those frame sets late (their latency is the detector's), which is what the
+p95 measures.
 
 Design (``mode="auto"``):
 
@@ -40,11 +41,13 @@ Design (``mode="auto"``):
   the detector is slow.
 
 Measured (``bench/realtime.py``, 2 cores shared with other jobs, figures in
-``bench/results/realtime.md``), at load 7-11: on drawn frames the daemon published 30.0 fps
-with p95 capture->publish 22.8 ms with scheduling (1.07x and 1.08x the same pipeline fed the
-simulator's boxes), against 8.7 fps and p95 293 ms detecting every frame set; on ``vtest.avi``
-25.5 fps, p95 80 ms (0.88x, 2.2x the pipeline fed replayed boxes, itself at p95 37 ms), against
-6.2 fps, p95 332 ms. The detector at normal priority: 29.0 / 23.2 fps, p95 44 / 90 ms.
+``bench/results/realtime.md``, run with the load rising from 3 to 12): on drawn frames the
+daemon published 28.9 fps with p95 capture->publish 29.9 ms with scheduling (0.96x the fps of
+the same pipeline fed the simulator's boxes; its p95 10.9 ms), against 13.2 fps and p95 171 ms
+detecting every frame set; on ``vtest.avi`` 28.0 fps, p95 66 ms (0.95x; the pipeline fed
+replayed boxes had p95 38 ms there), against 5.8 fps, p95 311 ms. The detector at normal
+priority: 29.1 / 24.7 fps, p95 48 / 86 ms. On an idle host (short run) scheduling gave 30 fps
+with p95 15 ms (drawn) and 29 ms (video).
 
 ``mode="every_frame"`` is the old behaviour: one inline batched call per frame set, ages 0.
 
