@@ -52,6 +52,7 @@ bench-service: $(VENV)/.stamp-dev
 	$(PY) -m bench.association
 	$(PY) -m bench.camera_shift
 	$(PY) -m bench.mqtt_fanout
+	$(PY) -m bench.realtime
 
 bench-setup: $(VENV)/.stamp-dev
 	$(PY) -m bench.floor_prior_study

@@ -190,13 +190,30 @@ def build_detect_stage(settings: Settings, player: Any) -> Any:
         "letterbox": settings.detector.letterbox,
         "input_size": settings.detector.input_size,
     }
+    threads = settings.detector.threads
+    explicit = settings.detector.model_fields_set
+    if settings.detection.schedule == "auto" and "threads" not in explicit:
+        threads = 1  # beside the pipeline, one thread leaves a core free (bench/realtime.py)
     detector = create_detector(
         settings.detector.kind,
         score_threshold=settings.detector.score_threshold,
-        threads=settings.detector.threads,
+        threads=threads,
         **{key: value for key, value in options.items() if value is not None},
     )
-    return DetectorStage(detector, settings.detector.score_threshold)
+    schedule = None
+    if settings.detection.schedule == "auto":
+        from service.detection_schedule import DetectionScheduler
+
+        detection = settings.detection
+        schedule = DetectionScheduler(
+            detector,
+            settings.detector.score_threshold,
+            max_duty=detection.max_duty,
+            cameras_per_call=detection.cameras_per_call,
+            nice=detection.nice,
+            carrier={"flow": detection.flow, "max_age_s": detection.max_age_s},
+        )
+    return DetectorStage(detector, settings.detector.score_threshold, schedule)
 
 
 def floor_extent(settings: Settings, runtime: Any, player: Any) -> dict[str, float] | None:

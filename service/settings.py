@@ -108,6 +108,46 @@ class DetectorSettings(BaseModel):
     )
 
 
+class DetectionSettings(BaseModel):
+    """When the detector runs (see ``service.detection_schedule``)."""
+
+    model_config = _STRICT
+    schedule: Literal["auto", "every_frame"] = Field(
+        "auto",
+        description=(
+            "auto: the detector runs beside the pipeline on the newest frame set whenever it is "
+            "free, and boxes are carried between detections (Kalman filter + optical flow), so "
+            "every frame set is published at the cameras' rate (the detector then uses one "
+            "onnxruntime thread unless detector.threads is set); every_frame: one inline "
+            "detector call per frame set (slower than the cameras on small machines)."
+        ),
+    )
+    max_duty: float = Field(
+        1.0,
+        gt=0.0,
+        le=1.0,
+        description="auto: largest share of time the detector may be busy (1: whenever free).",
+    )
+    cameras_per_call: int = Field(
+        0, ge=0, le=9, description="auto: frames per detector call (0: all cameras, 1: alternate)."
+    )
+    flow: bool = Field(
+        True, description="auto: carry boxes with Lucas-Kanade optical flow, not the filter alone."
+    )
+    max_age_s: float = Field(
+        0.5, gt=0.0, le=10.0, description="auto: drop a box the detector has not seen this long."
+    )
+    nice: int = Field(
+        10,
+        ge=0,
+        le=19,
+        description=(
+            "auto: lower the detector thread's priority by this much (Linux), so the cameras and "
+            "the pipeline run first when the CPU is short (0: same priority)."
+        ),
+    )
+
+
 class SyntheticSettings(BaseModel):
     """The simulated scene used by ``synthetic`` cameras and ``momloc demo``."""
 
@@ -207,6 +247,9 @@ class Settings(BaseSettings):
 
     detector: DetectorSettings = Field(
         default_factory=DetectorSettings, description="Person detector options."
+    )
+    detection: DetectionSettings = Field(
+        default_factory=DetectionSettings, description="Detection scheduling options."
     )
     host: str = Field("127.0.0.1", min_length=1, description="Bind address (0.0.0.0: all).")
     port: int = Field(8765, ge=1, le=65535, description="TCP port of the HTTP/WebSocket API.")
