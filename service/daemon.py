@@ -15,6 +15,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
+from models.detector.windows import WindowRefiner
 from models.errors import MomlocError
 from service.hub import Hub
 from service.model_watch import ModelWatcher
@@ -212,8 +213,22 @@ def build_detect_stage(settings: Settings, player: Any) -> Any:
             cameras_per_call=detection.cameras_per_call,
             nice=detection.nice,
             carrier={"flow": detection.flow, "max_age_s": detection.max_age_s},
+            refiner=_window_refiner(detector, detection.windows, detection.window_below_px),
         )
     return DetectorStage(detector, settings.detector.score_threshold, schedule)
+
+
+def _window_refiner(detector: Any, windows: int, below_px: float) -> WindowRefiner | None:
+    """The second look at small people (``detection.windows``), for detectors of any input size."""
+    if windows == 0:
+        return None
+    resized = getattr(detector, "resized", None)
+    if resized is None:
+        raise MomlocError(
+            f"detection.windows: detector {detector.kind!r} has a fixed input size; windows need "
+            "one of any size (kind: nanodet)"
+        )
+    return WindowRefiner(resized((96, 160)), max_height=below_px, max_windows=windows)
 
 
 def floor_extent(settings: Settings, runtime: Any, player: Any) -> dict[str, float] | None:

@@ -54,8 +54,11 @@ with p95 15 ms (drawn) and 29 ms (video).
 Rejected: inline detection every n-th frame set (those frame sets are late by the detector's
 time, and the next frames are dropped while it runs: fps and p95 both suffer); a queue of frame
 sets for the detector (latency grows without bound when the detector is slower than the
-cameras); running the detector on crops around known people (one network call per crop, these
-graphs take a fixed input size). Measured figures: ``bench/results/realtime.md``.
+cameras); crops around known people *instead of* full-frame detection (nobody new would ever be
+found). Crops *after* a full pass are the optional ``refiner``
+(:class:`models.detector.windows.WindowRefiner`, NanoDet takes any input size and batch): every
+window of a job in one call, off by default because each costs ~7 CPU-ms and so slows the
+detection rate (``bench/results/small_people.md``). Measured figures: ``bench/results/realtime.md``.
 
 Time: :class:`DeferredRunner` runs the detector at once but releases its result only when an
 injectable clock passes ``start + cost``, so tests (and offline replays) see exactly the
@@ -75,6 +78,7 @@ from typing import Any, Literal, Protocol
 import numpy as np
 
 from models.detector.base import Detections, PersonDetector
+from models.detector.windows import WindowRefiner
 from service.box_carrier import BoxCarrier, CarriedDetections
 
 log = logging.getLogger("momloc.detection")
@@ -84,9 +88,19 @@ Mode = Literal["auto", "every_frame"]
 
 @dataclass(frozen=True)
 class DetectionJob:
-    """Frames handed to the detector together: ``(camera, capture time, BGR image)`` each."""
+    """Frames handed to the detector together: ``(camera, capture time, BGR image)`` each, and
+    per frame the boxes carried there when the job was made (``priors``: where known people are,
+    for the window refiner; empty tuple when not needed)."""
 
     frames: tuple[tuple[int, float, np.ndarray], ...]
+    priors: tuple[np.ndarray, ...] = ()
+
+    @property
+    def images(self) -> list[np.ndarray]:
+        return [frame[2] for frame in self.frames]
+
+
+JobDetect = Callable[[DetectionJob], list[Detections]]
 
 
 @dataclass(frozen=True)
@@ -111,7 +125,7 @@ class ThreadRunner:
     per thread), so when cores are short the pipeline and cameras run first; onnxruntime with one
     intra-op thread computes on the calling thread, so the whole detector runs at that priority."""
 
-    def __init__(self, detect: Callable[[list[np.ndarray]], list[Detections]], nice: int = 0):
+    def __init__(self, detect: JobDetect, nice: int = 0):
         self._detect, self._nice = detect, int(nice)
         self._job: DetectionJob | None = None
         self._result: JobResult | None = None
@@ -166,7 +180,7 @@ class ThreadRunner:
             start = time.perf_counter()
             detections, error = None, None
             try:
-                detections = self._detect([f[2] for f in job.frames])
+                detections = self._detect(job)
             except Exception as failure:  # handed to the pipeline thread, which reports it
                 error = failure
             result = JobResult(job, detections, time.perf_counter() - start, error)
@@ -180,7 +194,7 @@ class DeferredRunner:
 
     def __init__(
         self,
-        detect: Callable[[list[np.ndarray]], list[Detections]],
+        detect: JobDetect,
         clock: Callable[[], float],
         cost: Callable[[DetectionJob], float],
     ) -> None:
@@ -194,7 +208,7 @@ class DeferredRunner:
         if self._pending is not None:
             raise RuntimeError("detector busy: a job is never queued behind another")
         cost = float(self._cost(job))
-        result = JobResult(job, self._detect([f[2] for f in job.frames]), cost)
+        result = JobResult(job, self._detect(job), cost)
         self._pending = (self._clock() + cost, result)
 
     def poll(self) -> JobResult | None:
@@ -232,12 +246,14 @@ class DetectionScheduler:
         flow_max_lag_s: float = 0.015,
         flow_budget_s: float = 0.005,
         carrier: dict[str, Any] | None = None,
+        refiner: WindowRefiner | None = None,
     ) -> None:
         if mode not in ("auto", "every_frame"):
             raise ValueError(f"detection schedule {mode!r}: choose auto or every_frame")
         if not 0.0 < max_duty <= 1.0:
             raise ValueError("max_duty must be in (0, 1]")
         self.detector, self.score_threshold, self.mode = detector, float(score_threshold), mode
+        self.refiner = refiner
         self.max_duty, self.cameras_per_call = float(max_duty), int(cameras_per_call)
         self.clock, self.wall, self.flow_max_lag_s = clock, wall, float(flow_max_lag_s)
         self.flow_budget_s = float(flow_budget_s)
@@ -248,7 +264,7 @@ class DetectionScheduler:
         self.carriers: list[BoxCarrier] = []
         self.runner: Runner | None = None
         if mode == "auto":
-            self.runner = runner or ThreadRunner(detector.detect, nice=nice)
+            self.runner = runner or ThreadRunner(self.detect_job, nice=nice)
         self.last: list[CarriedDetections] = []
         self.cost_s: float | None = None  # exponential average of the detector's time per call
         self._next_allowed = -np.inf
@@ -261,6 +277,14 @@ class DetectionScheduler:
         self.age_sum = 0.0  # seconds, over published boxes
 
     # -- the stage ---------------------------------------------------------------------------------
+
+    def detect_job(self, job: DetectionJob) -> list[Detections]:
+        """The detector on a job's frames, then (with a refiner) a second look in windows
+        around the known small people (``bench/results/small_people.md``)."""
+        found = self.detector.detect(job.images)
+        if self.refiner is not None and job.priors:
+            found = self.refiner(job.images, found, job.priors)
+        return found
 
     def __call__(self, frame_set: Any) -> list[np.ndarray]:
         return [d.boxes for d in self.step(frame_set)]
@@ -317,7 +341,7 @@ class DetectionScheduler:
                     self.flow_cost_s = cost if ema is None else 0.8 * ema + 0.2 * cost
         now = self.clock()
         if not self.runner.busy() and now >= self._next_allowed:
-            job = self._job(frames)
+            job = self._job(frames, out)
             if job is not None:
                 self.runner.submit(job)
                 self.jobs += 1
@@ -336,15 +360,18 @@ class DetectionScheduler:
         cost = self.flow_cost_s
         return cost is None or cost <= self.flow_budget_s or self.frame_sets % 30 == 0
 
-    def _job(self, frames: Sequence[Any]) -> DetectionJob | None:
+    def _job(
+        self, frames: Sequence[Any], carried: Sequence[CarriedDetections]
+    ) -> DetectionJob | None:
         present = [k for k, f in enumerate(frames) if f is not None and f.image is not None]
         if not present:
             return None
         if 0 < self.cameras_per_call < len(present):
             present = sorted(present, key=lambda k: (self._refreshed.get(k, -np.inf), k))
             present = sorted(present[: self.cameras_per_call])
+        priors = tuple(carried[k].boxes for k in present) if self.refiner is not None else ()
         return DetectionJob(
-            tuple((k, float(frames[k].timestamp), frames[k].image) for k in present)
+            tuple((k, float(frames[k].timestamp), frames[k].image) for k in present), priors
         )
 
     def _apply(self, result: JobResult) -> None:

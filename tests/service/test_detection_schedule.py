@@ -25,11 +25,16 @@ from service.pipeline import DetectorStage, Pipeline
 from tests.service.fake_frames import FPS, BoxWorld, Clock, FakeDetector
 
 
+def jobs(detector):
+    """The detector as a runner calls it: on a job's images."""
+    return lambda job: detector.detect(job.images)
+
+
 def _scheduler(world: BoxWorld, cost: float, **options) -> tuple[DetectionScheduler, Clock]:
     """A scheduler on a hand clock; frames reach it on time (wall clock = the frame's stamp)."""
     clock = Clock()
     detector = FakeDetector(world)
-    runner = DeferredRunner(detector.detect, clock, cost=lambda job: cost)
+    runner = DeferredRunner(jobs(detector), clock, cost=lambda job: cost)
     options.setdefault("wall", clock)
     return DetectionScheduler(detector, 0.0, runner=runner, clock=clock, **options), clock
 
@@ -87,7 +92,7 @@ def test_carried_boxes_expire_once_the_detector_stops_finding_them() -> None:
     world = BoxWorld()
     clock = Clock()
     detector = FakeDetector(world, gone_from=12)  # the person is still drawn, never found again
-    runner = DeferredRunner(detector.detect, clock, cost=lambda job: 0.09)
+    runner = DeferredRunner(jobs(detector), clock, cost=lambda job: 0.09)
     scheduler = DetectionScheduler(detector, runner=runner, clock=clock)
     published = _run(scheduler, clock, world, 40)
     counts = [len(out[0]) for out in published]
@@ -172,7 +177,7 @@ def test_every_frame_mode_detects_inline() -> None:
 def test_runners_refuse_a_second_job() -> None:
     job = DetectionJob(((0, 0.0, np.zeros((4, 4, 3), np.uint8)),))
     clock = Clock()
-    deferred = DeferredRunner(lambda images: [Detections.empty()], clock, cost=lambda j: 1.0)
+    deferred = DeferredRunner(lambda job: [Detections.empty()], clock, cost=lambda j: 1.0)
     deferred.submit(job)
     with pytest.raises(RuntimeError, match="never queued"):
         deferred.submit(job)
@@ -182,7 +187,7 @@ def test_runners_refuse_a_second_job() -> None:
 
     release = threading.Event()
 
-    def blocking(images):
+    def blocking(job):
         release.wait(10)
         return [Detections.empty()]
 
@@ -204,7 +209,7 @@ def test_runners_refuse_a_second_job() -> None:
 
 
 def test_detector_error_reaches_the_pipeline_thread() -> None:
-    def failing(images):
+    def failing(job):
         raise ValueError("bad frame")
 
     clock = Clock()
@@ -239,7 +244,7 @@ def test_real_detector_on_rendered_frames_produces_boxes() -> None:
     scene = Scene(get_config("indoor-2cam", people=3), seed=7)
     detector = create_detector("ssdlite", threads=1)
     clock = Clock()
-    runner = DeferredRunner(detector.detect, clock, cost=lambda job: 0.06)
+    runner = DeferredRunner(jobs(detector), clock, cost=lambda job: 0.06)
     scheduler = DetectionScheduler(detector, 0.4, runner=runner, clock=clock)
     found = []
     for i in range(8):
@@ -273,3 +278,58 @@ def test_daemon_builds_the_scheduled_stage_from_settings() -> None:
     assert build_detect_stage(inline, None).schedule is None
     with pytest.raises(Exception, match="detection"):
         load_settings(None, cameras=[{"type": "synthetic", "index": 0}], detection={"often": 1})
+
+
+def test_a_job_looks_again_at_known_small_people_in_windows():
+    """With a window refiner the job carries the boxes known when it was made, and a small
+    person the full pass misses is found in its window (real NanoDet, pasted photograph)."""
+    from models.detector import create_detector
+    from models.detector.preprocessing import box_iou as iou
+    from models.detector.validation import person_frame
+    from models.detector.windows import WindowRefiner
+
+    detector = create_detector("nanodet")
+    frame, truth = person_frame("camera", 55, anchor=(0.1, 0.9))
+    assert (
+        not len(detector.detect([frame])[0])
+        or iou(truth, detector.detect([frame])[0].boxes).max() < 0.5
+    )
+    refiner = WindowRefiner(detector.resized((96, 160)))
+    scheduler = DetectionScheduler(detector, 0.4, refiner=refiner, runner=_NoRunner())
+    carried = [SimpleNamespace(boxes=(truth + 3)[None].astype(np.float32))]
+    job = scheduler._job([SimpleNamespace(timestamp=1.0, image=frame)], carried)
+    assert job is not None and len(job.priors) == 1
+    (found,) = scheduler.detect_job(job)
+    assert iou(truth, found.boxes).max() > 0.7
+    without = DetectionScheduler(detector, 0.4, runner=_NoRunner())
+    assert without._job([SimpleNamespace(timestamp=1.0, image=frame)], carried).priors == ()
+
+
+class _NoRunner:
+    def busy(self) -> bool:
+        return False
+
+    def submit(self, job) -> None:
+        raise AssertionError("not used")
+
+    def poll(self):
+        return None
+
+    def close(self) -> None:
+        pass
+
+
+def test_windows_need_a_detector_of_any_input_size():
+    from models.errors import MomlocError
+    from service.daemon import build_detect_stage
+    from service.settings import Settings
+
+    settings = Settings.model_validate(
+        {
+            "cameras": [{"type": "file", "path": "/nonexistent.avi"}],
+            "detector": {"kind": "ssdlite"},
+            "detection": {"windows": 2},
+        }
+    )
+    with pytest.raises(MomlocError, match=r"detection\.windows"):
+        build_detect_stage(settings, None)
