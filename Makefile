@@ -7,7 +7,7 @@ PIP := $(PY) -m pip install --quiet
 HOST ?= 127.0.0.1
 PORT ?= 8765
 
-.PHONY: demo test lint format bench bench-model bench-detector bench-service bench-setup test-keypoints clean
+.PHONY: demo test lint format bench bench-model bench-detector bench-service bench-setup test-keypoints test-floors test-docker clean
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -52,6 +52,7 @@ bench-service: $(VENV)/.stamp-dev
 	$(PY) -m bench.association
 	$(PY) -m bench.camera_shift
 	$(PY) -m bench.mqtt_fanout
+	$(PY) -m bench.realtime
 
 bench-setup: $(VENV)/.stamp-dev
 	$(PY) -m bench.floor_prior_study
@@ -67,5 +68,22 @@ $(KP_VENV)/.stamp: pyproject.toml
 test-keypoints: $(KP_VENV)/.stamp
 	MOMLOC_KEYPOINT_TESTS=1 $(KP_VENV)/bin/python -m pytest -q tests/models/test_keypoints.py
 
+# The declared minimum versions, installed exactly, against the server tests (issue 12).
+FLOOR_VENV := .venv-floors
+$(FLOOR_VENV)/.stamp: pyproject.toml tools/floor_requirements.py
+	$(PYTHON) -m venv $(FLOOR_VENV)
+	$(PYTHON) tools/floor_requirements.py > $(FLOOR_VENV)/floors.txt
+	$(FLOOR_VENV)/bin/python -m pip install --quiet -r $(FLOOR_VENV)/floors.txt pytest pytest-timeout httpx
+	$(FLOOR_VENV)/bin/python -m pip install --quiet --no-deps -e .
+	touch $@
+
+test-floors: $(FLOOR_VENV)/.stamp
+	$(FLOOR_VENV)/bin/python -m pytest -q -p no:cacheprovider tests/service/test_dependency_floors.py \
+		tests/e2e/test_hardening.py tests/e2e/test_sigterm.py tests/examples
+
+# The Docker image built and run for real (tests/e2e/test_docker.py); skips where no engine runs.
+test-docker: $(VENV)/.stamp-dev
+	MOMLOC_DOCKER_TESTS=1 tools/with_dockerd.sh $(PY) -m pytest -q -p no:cacheprovider tests/e2e/test_docker.py
+
 clean:
-	rm -rf $(VENV) $(KP_VENV) .pytest_cache .ruff_cache
+	rm -rf $(VENV) $(KP_VENV) $(FLOOR_VENV) .pytest_cache .ruff_cache

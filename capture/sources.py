@@ -126,6 +126,11 @@ class VideoFileSource:
     Pacing follows the file's frame rate (or ``fps``); when the reader falls behind by more than
     a frame the schedule restarts instead of bursting, like a real camera that drops frames.
     ``pace=False`` reads as fast as decoding allows (benchmarks, batch processing).
+
+    A truncated or corrupt file is a dead camera, not a healthy one: when decoding stops well
+    before the frame count the container declares, ``read()`` raises and ``open()`` refuses the
+    same file (same size and modification time) from then on. Looping would otherwise replay the
+    few frames that decode for ever, and ``/v1/health`` would show a connected camera.
     """
 
     def __init__(
@@ -141,11 +146,20 @@ class VideoFileSource:
         self._capture: cv2.VideoCapture | None = None
         self._index = 0
         self._start = 0.0
+        self._declared = 0  # frame count in the container header (0: unknown)
+        self._in_pass = 0  # frames decoded since the last rewind
+        self._broken: tuple[tuple[int, int], str] | None = None  # (file identity, message)
+
+    def _identity(self) -> tuple[int, int]:
+        stat = self.path.stat()
+        return stat.st_size, stat.st_mtime_ns
 
     def open(self) -> None:
         self.close()
         if not self.path.is_file():
             raise MomlocError(f"video file {self.path}: not found")
+        if self._broken is not None and self._broken[0] == self._identity():
+            raise MomlocError(self._broken[1])  # the same damaged file: still dead
         capture = cv2.VideoCapture(str(self.path))
         if not capture.isOpened():
             capture.release()
@@ -155,6 +169,8 @@ class VideoFileSource:
             self.fps = float(file_fps)
         self._capture = capture
         self._index, self._start = 0, time.monotonic()
+        self._declared = max(int(capture.get(cv2.CAP_PROP_FRAME_COUNT) or 0), 0)
+        self._in_pass = 0
 
     def read(self) -> np.ndarray | None:
         if self._capture is None:
@@ -167,15 +183,31 @@ class VideoFileSource:
             elif wait < -1.0 / self.fps:  # fell behind: restart the schedule, no burst
                 self._start = time.monotonic() - self._index / self.fps
         ok, image = self._capture.read()
-        if not ok and self.loop and self._index > 0:
+        if not ok:
+            self._check_complete()
+        if not ok and self.loop and self._in_pass > 0:
             self._capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
+            self._in_pass = 0
             ok, image = self._capture.read()
         if not ok:
             return None
         self.last_timestamp = time.time()
         self.last_seq = self._index
         self._index += 1
+        self._in_pass += 1
         return image
+
+    def _check_complete(self) -> None:
+        """Decoding stopped: fine at the declared end, a damaged file before it."""
+        missing = self._declared - self._in_pass
+        if self._declared <= 0 or missing <= max(2, 0.02 * self._declared):
+            return
+        message = (
+            f"video file {self.path}: truncated or corrupt, only {self._in_pass} of "
+            f"{self._declared} frames decode"
+        )
+        self._broken = (self._identity(), message)
+        raise MomlocError(message)
 
     def close(self) -> None:
         if self._capture is not None:

@@ -20,8 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from models.errors import MomlocError
+from models.errors import MomlocError, shorten
 from models.floor_prior import FloorPrior
+from models.model_schema import validate_model_json
 from models.prior_policy import POLICY_WEIGHTS, VIEW_CLASSES, blend, row_weights
 from models.sampling import InferenceSampler, SamplerConfig, draws_from_json, unit_mean
 
@@ -64,19 +65,25 @@ class MomRuntime:
 
         model_dir = Path(model_dir)
         meta_path = model_dir / "model.json"
-        if not model_dir.is_dir():
-            raise MomlocError(f"{model_dir}: model directory does not exist")
-        if not meta_path.is_file():
-            raise MomlocError(f"{model_dir}: no model.json (not a trained model directory)")
+        shown = shorten(model_dir)
+        # One answer whether the path is missing, a file or a directory without model.json: the
+        # reload endpoint must not tell a caller which arbitrary paths exist. OSError covers
+        # names the OS refuses (longer than 255 bytes, embedded NUL handled by ValueError).
+        try:
+            found = meta_path.is_file()
+        except (OSError, ValueError):
+            found = False
+        if not found:
+            raise MomlocError(f"{shown}: not a model directory (no model.json)")
         try:
             meta = json.loads(meta_path.read_text())
         except (OSError, ValueError) as error:
-            raise MomlocError(f"{meta_path}: unreadable ({error})") from None
-        if not isinstance(meta, dict) or meta.get("format") != MODEL_FORMAT:
-            raise MomlocError(f"{meta_path}: not a MoM model description ({MODEL_FORMAT})")
-        onnx_path = model_dir / meta.get("encoder", {}).get("file", "encoder.onnx")
+            problem = error.strerror if isinstance(error, OSError) else "not valid JSON"
+            raise MomlocError(f"{shown}/model.json: unreadable ({problem})") from None
+        schema = validate_model_json(meta, f"{shown}/model.json")
+        onnx_path = model_dir / schema.encoder.file
         if not onnx_path.is_file():
-            raise MomlocError(f"{model_dir}: encoder file {onnx_path.name} is missing")
+            raise MomlocError(f"{shown}: encoder file {schema.encoder.file} is missing")
         options = ort.SessionOptions()
         options.intra_op_num_threads = threads
         options.inter_op_num_threads = 1
@@ -86,11 +93,17 @@ class MomRuntime:
                 str(onnx_path), options, providers=["CPUExecutionProvider"]
             )
         except Exception as error:  # onnxruntime raises its own exception types
-            raise MomlocError(f"{onnx_path}: cannot load the ONNX encoder ({error})") from None
+            raise MomlocError(
+                shorten(
+                    f"{shown}/{schema.encoder.file}: cannot load the ONNX encoder ({error})", 300
+                )
+            ) from None
         try:
             return cls(meta, session, model_dir)
         except (KeyError, TypeError, ValueError) as error:
-            raise MomlocError(f"{meta_path}: malformed model description ({error})") from None
+            raise MomlocError(
+                shorten(f"{shown}/model.json: malformed model description ({error})", 300)
+            ) from None
 
     # ------------------------------------------------------------------ checks
     def _check_boxes(self, boxes: np.ndarray) -> np.ndarray:

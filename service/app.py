@@ -13,8 +13,16 @@ Routes (version 1; OpenAPI at ``/docs``):
 
 Authentication: with a token configured, every ``/v1`` route and ``/metrics`` needs it, as
 ``Authorization: Bearer TOKEN`` or ``?token=TOKEN`` (browsers cannot set WebSocket headers).
-REST answers 401; the WebSocket is accepted and closed with code 4401 so that clients can tell an
-auth failure from a network error. A malformed ``rate`` refuses the WebSocket handshake with 400.
+Open without a token: ``/``, ``/setup``, ``/web/*`` (pages and scripts, no data), ``/docs`` and
+``/openapi.json`` (the API's shape, no data). REST answers 401; the WebSocket is accepted and
+closed with code 4401 so that clients can tell an auth failure from a network error.
+
+Order of checks on the WebSocket: Host and Origin (``service.request_guard``: a foreign page's
+handshake is refused with 403 before anything else), then the token (4401), then ``rate``: a
+malformed one is accepted and closed with 4400 and the reason (uvicorn's sans-I/O WebSocket logs
+an ERROR for every denial response, which would let anyone fill the log).
+
+Errors: every error body is ``service.api_errors.ErrorBody``, declared in OpenAPI per route.
 """
 
 from __future__ import annotations
@@ -40,21 +48,36 @@ from fastapi import (
 from fastapi import Path as PathParam
 from fastapi.responses import FileResponse, JSONResponse, PlainTextResponse, Response
 from fastapi.staticfiles import StaticFiles
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from models.errors import MomlocError
+from service.api_errors import error_response, error_responses, install_error_handlers
 from service.daemon import Daemon
 from service.metrics import metrics_text
+from service.request_guard import BodyTooLarge, RequestGuard
 from service.routes_zones import create_zones_router
 from service.setup.routes import create_setup_router
 from service.snapshot_image import render_camera_jpeg
 
 WEB_DIR = Path(__file__).resolve().parent / "web"
 WS_AUTH_CLOSE = 4401
+WS_BAD_REQUEST_CLOSE = 4400
 
 
 class ReloadRequest(BaseModel):
-    model_dir: str | None = Field(None, description="Model directory; default: the current one.")
+    model_config = ConfigDict(extra="forbid")
+    model_dir: str | None = Field(
+        None,
+        min_length=1,
+        max_length=4096,
+        description="Model directory; default: the current one.",
+    )
+
+
+class EmptyBody(BaseModel):
+    """State-changing routes without parameters still take a JSON object (``{}``)."""
+
+    model_config = ConfigDict(extra="forbid")
 
 
 def _token_of(request_headers: Any, query: Any) -> str | None:
@@ -102,7 +125,21 @@ def create_app(daemon: Daemon, *, manage_pipeline: bool = True) -> FastAPI:
         description="Calibration-free human localization: live positions from cheap webcams.",
         lifespan=lifespan,
     )
+    install_error_handlers(app)
+
+    async def too_large(request: Request, exc: Exception) -> JSONResponse:
+        return error_response(413, "request body too large")
+
+    app.add_exception_handler(BodyTooLarge, too_large)
+    app.add_middleware(
+        RequestGuard,
+        bind_host=daemon.bind_host,
+        allowed_hosts=daemon.allowed_hosts,
+        allowed_origins=daemon.allowed_origins,
+    )
     secured = [Depends(require_token)]
+    auth = error_responses(401, 403)
+    change = error_responses(401, 403, 413, 415, 422)
     app.mount("/web", StaticFiles(directory=WEB_DIR), name="web")
 
     @app.get("/", include_in_schema=False)
@@ -114,22 +151,40 @@ def create_app(daemon: Daemon, *, manage_pipeline: bool = True) -> FastAPI:
         return FileResponse(WEB_DIR / "setup.html", headers={"Cache-Control": "no-cache"})
 
     if daemon.setup is not None:
-        app.include_router(create_setup_router(daemon.setup), dependencies=secured)
-    app.include_router(create_zones_router(daemon))  # zones, events, MQTT (own auth, lifespan)
+        app.include_router(create_setup_router(daemon.setup), dependencies=secured, responses=auth)
+    # zones, events, MQTT (own auth, lifespan); the guard covers its WebSocket and POST too
+    app.include_router(
+        create_zones_router(daemon), responses=error_responses(401, 403, 409, 413, 415, 422, 503)
+    )
 
-    @app.get("/v1/positions", dependencies=secured, summary="Newest snapshot")
+    @app.get("/v1/positions", dependencies=secured, responses=auth, summary="Newest snapshot")
     def positions() -> JSONResponse:
         return JSONResponse(daemon.hub.latest().as_dict())
 
-    @app.get("/v1/health", dependencies=secured, summary="Cameras, model, pipeline, clients")
+    @app.get(
+        "/v1/health",
+        dependencies=secured,
+        responses=auth,
+        summary="Cameras, model, pipeline, clients",
+    )
     def health() -> dict[str, Any]:
         return daemon.health()
 
-    @app.get("/v1/config", dependencies=secured, summary="Map extent, cameras, stream rate")
+    @app.get(
+        "/v1/config",
+        dependencies=secured,
+        responses=auth,
+        summary="Map extent, cameras, stream rate",
+    )
     def config() -> dict[str, Any]:
         return daemon.public_config()
 
-    @app.get("/v1/settings/schema", summary="JSON schema of the settings file (documented)")
+    @app.get(
+        "/v1/settings/schema",
+        dependencies=secured,
+        responses=auth,
+        summary="JSON schema of the settings file (documented)",
+    )
     def settings_schema() -> dict[str, Any]:
         from service.settings import Settings
 
@@ -140,7 +195,10 @@ def create_app(daemon: Daemon, *, manage_pipeline: bool = True) -> FastAPI:
         dependencies=secured,
         summary="Newest frame of camera k with boxes and ids",
         response_class=Response,
-        responses={200: {"content": {"image/jpeg": {}}}},
+        responses={
+            200: {"content": {"image/jpeg": {}}, "description": "JPEG image"},
+            **error_responses(401, 403, 404, 422, 503, plain_route=True),
+        },
     )
     def snapshot_jpg(
         k: Annotated[int, PathParam(ge=0, le=8, description="Camera index")],
@@ -156,41 +214,55 @@ def create_app(daemon: Daemon, *, manage_pipeline: bool = True) -> FastAPI:
             raise HTTPException(503, f"camera {k} has not delivered a frame yet")
         return Response(data, media_type="image/jpeg", headers={"Cache-Control": "no-store"})
 
-    @app.post("/v1/model/reload", dependencies=secured, summary="Hot-swap the MoM model")
+    @app.post(
+        "/v1/model/reload",
+        dependencies=secured,
+        responses={**change, **error_responses(409)},
+        summary="Hot-swap the MoM model",
+    )
     def reload_model(body: Annotated[ReloadRequest | None, Body()] = None) -> JSONResponse:
         try:
             info = daemon.pipeline.reload_model(body.model_dir if body else None)
         except MomlocError as error:
-            return JSONResponse({"detail": str(error)}, status_code=409)
+            return error_response(409, str(error))
         return JSONResponse(info)
 
     @app.post(
         "/v1/alignment/reset",
         dependencies=secured,
+        responses=change,
         summary="Accept the cameras where they are now (new references, clears camera-moved)",
     )
-    def reset_alignment() -> dict[str, Any]:
+    def reset_alignment(body: Annotated[EmptyBody, Body()]) -> dict[str, Any]:
         daemon.pipeline.reset_alignment()
         return {"cameras": [c["alignment"] for c in daemon.camera_states()]}
 
-    @app.get("/metrics", dependencies=secured, summary="Prometheus metrics")
+    @app.get(
+        "/metrics",
+        dependencies=secured,
+        response_class=PlainTextResponse,
+        responses={
+            200: {"content": {"text/plain": {}}, "description": "Prometheus text"},
+            **error_responses(401, 403, plain_route=True),
+        },
+        summary="Prometheus metrics",
+    )
     def metrics() -> PlainTextResponse:
         body, content_type = metrics_text(daemon)
         return PlainTextResponse(body, media_type=content_type)
 
     @app.websocket("/v1/stream")
     async def stream(websocket: WebSocket) -> None:
-        rate = _parse_rate(websocket.query_params.get("rate"), daemon.stream_rate)
-        if rate is None:
-            await websocket.send_denial_response(
-                JSONResponse({"detail": "rate must be a number of snapshots per second > 0"}, 400)
-            )
-            return
         if not authorized(websocket.headers, websocket.query_params):
             await websocket.accept()
             await websocket.close(WS_AUTH_CLOSE, "missing or wrong token")
             return
+        rate = _parse_rate(websocket.query_params.get("rate"), daemon.stream_rate)
         await websocket.accept()
+        if rate is None:
+            reason = "rate must be a number of snapshots per second > 0"
+            await websocket.close(WS_BAD_REQUEST_CLOSE, reason)
+            return
         await _serve_stream(websocket, daemon, rate)
 
     return app

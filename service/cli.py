@@ -11,7 +11,7 @@ import argparse
 import importlib
 import sys
 
-from models.errors import MomlocError
+from models.errors import MomlocError, shorten
 
 COMMANDS = (
     "demo",
@@ -42,7 +42,13 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.func(args) or 0)
     except MomlocError as error:
-        print(f"momloc {args.command}: error: {error}", file=sys.stderr)
+        lines = str(error).splitlines() or [""]  # settings errors: one line per field
+        for line in lines:
+            print(f"momloc {args.command}: error: {shorten(line, 500)}", file=sys.stderr)
+        return 2
+    except OSError as error:  # a path the user gave that the OS refuses (too long, no access)
+        where = f"{shorten(error.filename, 160)}: " if error.filename else ""
+        print(f"momloc {args.command}: error: {where}{error.strerror}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"momloc {args.command}: interrupted", file=sys.stderr)

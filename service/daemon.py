@@ -8,12 +8,14 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import os
 import socket
 import threading
 import time
 from dataclasses import dataclass, field
 from typing import Any
 
+from models.detector.windows import WindowRefiner
 from models.errors import MomlocError
 from service.hub import Hub
 from service.model_watch import ModelWatcher
@@ -23,6 +25,7 @@ from service.setup.camera_monitor import CameraMoved
 from service.setup.session import SetupSession
 
 log = logging.getLogger("momloc")
+GRACEFUL_SHUTDOWN_S = 3
 
 
 @dataclass
@@ -41,6 +44,9 @@ class Daemon:
     started: float = field(default_factory=time.time)
     watcher: ModelWatcher | None = None
     setup: SetupSession | None = None
+    bind_host: str = "127.0.0.1"  # with the two lists below: see service.request_guard
+    allowed_hosts: list[str] = field(default_factory=list)
+    allowed_origins: list[str] = field(default_factory=list)
     outputs: Any = None  # service.outputs.Outputs: zones, MQTT
 
     def camera_states(self) -> list[dict[str, Any]]:
@@ -191,13 +197,44 @@ def build_detect_stage(settings: Settings, player: Any) -> Any:
         "letterbox": settings.detector.letterbox,
         "input_size": settings.detector.input_size,
     }
+    threads = settings.detector.threads
+    explicit = settings.detector.model_fields_set
+    if settings.detection.schedule == "auto" and "threads" not in explicit:
+        threads = 1  # beside the pipeline, one thread leaves a core free (bench/realtime.py)
     detector = create_detector(
         settings.detector.kind,
         score_threshold=settings.detector.score_threshold,
-        threads=settings.detector.threads,
+        threads=threads,
         **{key: value for key, value in options.items() if value is not None},
     )
-    return DetectorStage(detector, settings.detector.score_threshold)
+    schedule = None
+    if settings.detection.schedule == "auto":
+        from service.detection_schedule import DetectionScheduler
+
+        detection = settings.detection
+        schedule = DetectionScheduler(
+            detector,
+            settings.detector.score_threshold,
+            max_duty=detection.max_duty,
+            cameras_per_call=detection.cameras_per_call,
+            nice=detection.nice,
+            carrier={"flow": detection.flow, "max_age_s": detection.max_age_s},
+            refiner=_window_refiner(detector, detection.windows, detection.window_below_px),
+        )
+    return DetectorStage(detector, settings.detector.score_threshold, schedule)
+
+
+def _window_refiner(detector: Any, windows: int, below_px: float) -> WindowRefiner | None:
+    """The second look at small people (``detection.windows``), for detectors of any input size."""
+    if windows == 0:
+        return None
+    resized = getattr(detector, "resized", None)
+    if resized is None:
+        raise MomlocError(
+            f"detection.windows: detector {detector.kind!r} has a fixed input size; windows need "
+            "one of any size (kind: nanodet)"
+        )
+    return WindowRefiner(resized((96, 160)), max_height=below_px, max_windows=windows)
 
 
 def floor_extent(settings: Settings, runtime: Any, player: Any) -> dict[str, float] | None:
@@ -257,6 +294,9 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
         floor=floor_extent(settings, runtime, player),
         extras=extras,
         watcher=ModelWatcher(pipeline) if settings.watch_model else None,
+        bind_host=settings.host,
+        allowed_hosts=list(settings.allowed_hosts),
+        allowed_origins=list(settings.allowed_origins),
         setup=SetupSession(
             settings.data_dir,
             image_sizes=lambda: _known_sizes(pipeline),
@@ -307,6 +347,9 @@ def make_server(daemon: Daemon, host: str, port: int) -> Any:
         ws_ping_timeout=daemon.ping_timeout,
         # snapshots are a few hundred bytes: per-client zlib costs more CPU than it saves
         ws_per_message_deflate=False,
+        # SIGTERM must stop the daemon within seconds, whatever a client is doing (a slow body,
+        # a long request): open connections get this long, then they are cut
+        timeout_graceful_shutdown=GRACEFUL_SHUTDOWN_S,
     )
     return uvicorn.Server(config)
 
@@ -318,6 +361,20 @@ def run_server(daemon: Daemon, host: str, port: int, on_ready: Any = None) -> No
     if on_ready is not None:
         on_ready(sock.getsockname()[1])
     server.run(sockets=[sock])
+    _exit_soon_if_stuck(GRACEFUL_SHUTDOWN_S + 5)
+
+
+def _exit_soon_if_stuck(seconds: float) -> None:
+    """After serving, make sure the process ends: a request still running in a worker thread
+    (those threads are not daemons) would otherwise keep it alive after SIGTERM."""
+
+    def deadline() -> None:
+        time.sleep(seconds)
+        log.warning("momloc: a request was still running %.0f s after stopping; exiting", seconds)
+        logging.shutdown()
+        os._exit(0)
+
+    threading.Thread(target=deadline, name="momloc-exit-deadline", daemon=True).start()
 
 
 @dataclass

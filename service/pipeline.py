@@ -50,13 +50,27 @@ class Rig(Protocol):
 
 
 class DetectorStage:
-    """Real detector: one batched call for all cameras, low-score boxes removed."""
+    """Real detector: one batched call for all cameras, low-score boxes removed.
 
-    def __init__(self, detector: Any, score_threshold: float) -> None:
+    With ``schedule`` (a ``service.detection_schedule.DetectionScheduler``) the scheduler runs
+    the detector beside the pipeline and carries boxes between detections instead.
+    """
+
+    def __init__(self, detector: Any, score_threshold: float, schedule: Any = None) -> None:
         self.detector = detector
         self.score_threshold = score_threshold
+        self.schedule = schedule
+
+    def stats(self) -> dict[str, Any] | None:
+        return None if self.schedule is None else self.schedule.stats()
+
+    def close(self) -> None:
+        if self.schedule is not None:
+            self.schedule.close()
 
     def __call__(self, frame_set: Any) -> list[np.ndarray]:
+        if self.schedule is not None:
+            return self.schedule(frame_set)
         frames = list(frame_set.frames)
         present = [k for k, f in enumerate(frames) if f is not None]
         out = [np.zeros((0, 4), np.float32) for _ in frames]
@@ -154,6 +168,9 @@ class Pipeline:
         if self._thread is not None:
             self._thread.join(timeout=5)
         self._shift_worker.stop()
+        close = getattr(self.detect, "close", None)
+        if close is not None:
+            close()  # the detection scheduler's worker thread, if any
         self.rig.stop()
 
     @property
@@ -358,6 +375,7 @@ class Pipeline:
                 "p95": round(float(np.percentile(lat, 95)), 2) if lat.size else None,
             },
             "stage_ms": {k: round(v, 2) for k, v in self._stage_ms.items()},
+            "detection": getattr(self.detect, "stats", lambda: None)(),
             "seq": self._seq,
             "frames_processed": self.frames_processed,
             "frames_dropped": self.frames_dropped,

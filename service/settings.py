@@ -25,7 +25,15 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, SecretStr, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    SecretStr,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict
 
 from models.errors import MomlocError
@@ -33,6 +41,8 @@ from service.output_settings import MqttSettings, ZoneList
 
 DEMO_MODEL_DIR = Path(__file__).resolve().parent.parent / "models" / "demo_model"
 _STRICT = ConfigDict(extra="forbid")
+_ORIGIN = r"^(\*|https?://[A-Za-z0-9.\-\[\]:]+)$"
+_HOST = r"^(\*|[A-Za-z0-9.\-]+|\[?[0-9A-Fa-f:.]+\]?)$"
 
 
 class V4l2Camera(BaseModel):
@@ -95,6 +105,61 @@ class DetectorSettings(BaseModel):
     )
     letterbox: bool | None = Field(
         None, description="Pad to the model's square input instead of stretching (default: kind's)."
+    )
+
+
+class DetectionSettings(BaseModel):
+    """When the detector runs (see ``service.detection_schedule``)."""
+
+    model_config = _STRICT
+    schedule: Literal["auto", "every_frame"] = Field(
+        "auto",
+        description=(
+            "auto: the detector runs beside the pipeline on the newest frame set whenever it is "
+            "free, and boxes are carried between detections (Kalman filter + optical flow), so "
+            "every frame set is published at the cameras' rate (the detector then uses one "
+            "onnxruntime thread unless detector.threads is set); every_frame: one inline "
+            "detector call per frame set (slower than the cameras on small machines)."
+        ),
+    )
+    max_duty: float = Field(
+        1.0,
+        gt=0.0,
+        le=1.0,
+        description="auto: largest share of time the detector may be busy (1: whenever free).",
+    )
+    cameras_per_call: int = Field(
+        0, ge=0, le=9, description="auto: frames per detector call (0: all cameras, 1: alternate)."
+    )
+    flow: bool = Field(
+        True, description="auto: carry boxes with Lucas-Kanade optical flow, not the filter alone."
+    )
+    max_age_s: float = Field(
+        0.5, gt=0.0, le=10.0, description="auto: drop a box the detector has not seen this long."
+    )
+    nice: int = Field(
+        10,
+        ge=0,
+        le=19,
+        description=(
+            "auto: lower the detector thread's priority by this much (Linux), so the cameras and "
+            "the pipeline run first when the CPU is short (0: same priority)."
+        ),
+    )
+    windows: int = Field(
+        0,
+        ge=0,
+        le=16,
+        description=(
+            "auto, nanodet: after each detection, look again at up to this many known people "
+            "shorter than window_below_px in 96x160 windows (~7 CPU-ms each on the 2-core "
+            "host): on hand-checked video, small people's bottom edge 0.019 -> 0.013 of box "
+            "height and precision 0.95 -> 0.99, but the detector runs less often "
+            "(bench/results/small_people.md). 0: off."
+        ),
+    )
+    window_below_px: float = Field(
+        150.0, gt=0.0, le=2000.0, description="auto: people at least this tall get no window."
     )
 
 
@@ -201,13 +266,34 @@ class Settings(BaseSettings):
     model_dir: Path = Field(
         DEMO_MODEL_DIR, description="Directory with encoder.onnx and model.json (momloc train)."
     )
+
     detector: DetectorSettings = Field(
         default_factory=DetectorSettings, description="Person detector options."
+    )
+    detection: DetectionSettings = Field(
+        default_factory=DetectionSettings, description="Detection scheduling options."
     )
     host: str = Field("127.0.0.1", min_length=1, description="Bind address (0.0.0.0: all).")
     port: int = Field(8765, ge=1, le=65535, description="TCP port of the HTTP/WebSocket API.")
     token: SecretStr | None = Field(
-        None, description="API token; when set, every request must carry it."
+        None, description="API token; when set, every /v1 request and /metrics must carry it."
+    )
+    allowed_origins: list[Annotated[str, Field(pattern=_ORIGIN, max_length=200)]] = Field(
+        default_factory=list,
+        max_length=100,
+        description=(
+            "Web origins (scheme://host[:port]) besides the daemon's own whose pages may use the "
+            "API and the stream, e.g. http://localhost:3000; '*' allows every origin. Requests "
+            "without an Origin header (game engines, scripts, curl) are always allowed."
+        ),
+    )
+    allowed_hosts: list[Annotated[str, Field(pattern=_HOST, max_length=253)]] = Field(
+        default_factory=list,
+        max_length=100,
+        description=(
+            "Host names (besides IP addresses, localhost, this machine's name and the bind "
+            "address) that requests may be addressed to; guards against DNS rebinding. '*': any."
+        ),
     )
     stream: StreamSettings = Field(
         default_factory=StreamSettings, description="WebSocket stream options."
@@ -241,6 +327,14 @@ class Settings(BaseSettings):
         file_secret_settings: PydanticBaseSettingsSource,
     ) -> tuple[PydanticBaseSettingsSource, ...]:
         return init_settings, env_settings, _YamlSource(settings_cls)
+
+    @field_validator("model_dir")
+    @classmethod
+    def _path_fits_the_os(cls, value: Path) -> Path:
+        """A path the OS cannot hold is a settings error, not an OSError deep in loading."""
+        if len(str(value)) > 4096 or any(len(part.encode()) > 255 for part in value.parts):
+            raise ValueError("path too long (at most 255 bytes per name, 4096 in all)")
+        return value
 
     @model_validator(mode="after")
     def _synthetic_indices_unique(self) -> Settings:

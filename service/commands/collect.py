@@ -73,6 +73,9 @@ def run(args: argparse.Namespace) -> int:
         feed.close()
         raise
     todo = [m for m in marks if args.redo or not writer.has_mark(m)]
+    incomplete = [m.name for m in todo if not args.redo and writer.has_rows_at(m)]
+    if incomplete:
+        print(f"recording again, interrupted before: {', '.join(incomplete)}")
     if not todo:
         feed.close()
         print(f"all {len(marks)} marks are already in {args.out}; use --redo to record again")
@@ -87,7 +90,10 @@ def run(args: argparse.Namespace) -> int:
         countdown_s=args.countdown,
     )
     feed.prepare(steps)
-    total = sum(s.seconds for s in steps)
+    begins = [0.0]
+    for step in steps:  # running sum: progress per frame must not cost O(steps)
+        begins.append(begins[-1] + step.seconds)
+    total = begins[-1]
     bar = tqdm(total=round(total, 1), unit="s", desc="collect", mininterval=0.5)
     shown = {"step": -1}
 
@@ -95,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
         if progress.step_index != shown["step"]:
             shown["step"] = progress.step_index
             tqdm.write(f"[{progress.step_index + 1}/{progress.steps}] {progress.step.instruction}")
-        done = sum(s.seconds for s in steps[: progress.step_index])
+        done = begins[progress.step_index]
         bar.n = round(min(done + progress.fraction * progress.step.seconds, total), 1)
         seen = " ".join(
             f"cam{k}:{'-' if n == 0 else 'ok' if n == 1 else f'{n} people!'}"

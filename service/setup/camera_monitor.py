@@ -17,6 +17,7 @@ has a reference, and the reprojection error is the fallback (and catches what im
 
 from __future__ import annotations
 
+import threading
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -63,9 +64,16 @@ class CameraMotionMonitor:
         self._baseline = list(baseline_px) if baseline_px is not None else [None] * num_cameras
         self._moved = [HeldFlag(hold_s) for _ in range(num_cameras)]
         self._start: float | None = None
+        # the pipeline thread updates while /v1/health reads: one lock, or a read can meet a
+        # deque being trimmed ("deque mutated during iteration", a 500 on /v1/health)
+        self._lock = threading.Lock()
 
     def update(self, t: float, errors: np.ndarray) -> None:
         """Add one frame set's errors, shape [P, K] in pixels (NaN where a camera saw nobody)."""
+        with self._lock:
+            self._update(t, errors)
+
+    def _update(self, t: float, errors: np.ndarray) -> None:
         if self._start is None:
             self._start = t
         errors = np.asarray(errors, dtype=float).reshape(-1, len(self._samples))
@@ -97,6 +105,10 @@ class CameraMotionMonitor:
         return float(np.median([e for _, e in samples])) if samples else None
 
     def status(self) -> list[CameraAlignment]:
+        with self._lock:
+            return self._status()
+
+    def _status(self) -> list[CameraAlignment]:
         out = []
         for k in range(len(self._samples)):
             message = None

@@ -15,11 +15,21 @@ Nothing is lost: rows are appended to the output file by rewriting it atomically
 fsync, rename) every couple of seconds and after every step, so a crash or Ctrl-C keeps all but
 the last moments. Re-running on the same file resumes: existing rows stay, marks already recorded
 are left out of the plan (:meth:`DatasetAppender.has_mark`), and new marks extend the data set.
+
+A mark counts as recorded only when its ``record`` step ran to the end (and kept a row): rows
+alone do not say that, since a crash in the middle of a mark leaves some. Completed marks are
+listed in a progress file next to the data (``<out>.marks.json``), rewritten atomically right
+after the rows it vouches for, so a crash between the two writes only means re-recording a mark.
+For a data file from before progress files existed, its first rows (``legacy_rows`` in the
+progress file) keep the old rule: a mark with rows among them counts as recorded.
 """
 
 from __future__ import annotations
 
+import json
 import math
+import os
+import tempfile
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -138,6 +148,14 @@ def frame_row(frame: FeedFrame, require_all_cameras: bool) -> tuple[np.ndarray, 
     return boxes, keypoints
 
 
+PROGRESS_FORMAT = "momloc-collect-progress-v1"
+
+
+def progress_path(path: Path) -> Path:
+    """The progress file that lists the completed marks of dataset ``path``."""
+    return path.with_name(path.name + ".marks.json")
+
+
 @dataclass
 class DatasetAppender:
     """Appends rows to a dataset v1 file, keeping what it already held."""
@@ -148,6 +166,12 @@ class DatasetAppender:
     _rows: dict[str, list] = field(default_factory=lambda: {k: [] for k in _ROW_KEYS})
     next_frame: int = 0
     next_track: int = 0
+    _done: list[dict] = field(default_factory=list)  # completed marks (progress file)
+    _row_keys: set[tuple[int, int]] = field(default_factory=set)  # labels of all rows, in cm
+    _legacy_keys: set[tuple[int, int]] = field(default_factory=set)  # rows older than progress
+    _legacy_rows: int = 0
+    _done_keys: set[tuple[int, int]] = field(default_factory=set)
+    _progress_dirty: bool = False
 
     def __post_init__(self) -> None:
         self.path = Path(self.path)
@@ -160,6 +184,15 @@ class DatasetAppender:
                 )
             self.next_frame = int(self._existing.frame.max()) + 1
             self.next_track = int(self._existing.track.max()) + 1
+            labels = self._existing.world[:, :2].tolist()
+            self._row_keys = {_key(x, y) for x, y in labels}
+            progress = _read_progress(progress_path(self.path))
+            if progress is None:  # a file from before progress files: all its rows are legacy
+                self._legacy_rows, self._progress_dirty = len(labels), True
+            else:
+                self._done, self._legacy_rows = progress
+            self._legacy_keys = {_key(x, y) for x, y in labels[: self._legacy_rows]}
+            self._done_keys = {_key(d["x"], d["y"]) for d in self._done}
 
     @property
     def existing_rows(self) -> int:
@@ -169,19 +202,30 @@ class DatasetAppender:
     def new_rows(self) -> int:
         return len(self._rows["world"])
 
+    def has_rows_at(self, mark: FloorMark) -> bool:
+        """Whether the file holds rows labelled at this mark (complete or not)."""
+        return _key(mark.x, mark.y) in self._row_keys
+
     def has_mark(self, mark: FloorMark) -> bool:
-        """Whether the file already holds rows labelled exactly at this mark."""
-        if self._existing is None:
-            return False
-        offsets = np.abs(self._existing.world[:, :2] - np.array([mark.x, mark.y]))
-        return bool((offsets.max(axis=1) < MARK_TOLERANCE_M).any())
+        """Whether this mark's recording completed in an earlier run (see the module doc)."""
+        key = _key(mark.x, mark.y)
+        return key in self._legacy_keys or key in self._done_keys
+
+    def mark_done(self, mark: FloorMark) -> None:
+        """Record that ``mark`` completed; written with the next :meth:`flush`."""
+        if not self.has_mark(mark):
+            self._done.append({"name": mark.name, "x": mark.x, "y": mark.y})
+            self._done_keys.add(_key(mark.x, mark.y))
+        self._progress_dirty = True
 
     def new_track(self) -> int:
         self.next_track += 1
         return self.next_track - 1
 
     def add(self, world, boxes: np.ndarray, keypoints: np.ndarray | None, track: int) -> None:
-        self._rows["world"].append(np.asarray(world, np.float32)[:2])
+        world = np.asarray(world, np.float32)[:2]
+        self._row_keys.add(_key(float(world[0]), float(world[1])))
+        self._rows["world"].append(world)
         self._rows["boxes"].append(boxes)
         self._rows["keypoints"].append(keypoints)
         self._rows["frame"].append(self.next_frame)
@@ -189,9 +233,16 @@ class DatasetAppender:
         self.next_frame += 1
 
     def flush(self) -> None:
-        """Rewrite the file atomically with the old and the new rows."""
-        if not self._rows["world"]:
-            return
+        """Rewrite the file atomically with the old and the new rows, then the progress file."""
+        if self._rows["world"]:
+            if not self.path.exists():  # a new file: say "no mark complete" before any row lands
+                _write_progress(progress_path(self.path), [], 0)
+            self._write_rows()
+        if self._progress_dirty and self.path.exists():
+            _write_progress(progress_path(self.path), self._done, self._legacy_rows)
+            self._progress_dirty = False
+
+    def _write_rows(self) -> None:
         new = {
             "world": np.stack(self._rows["world"]),
             "boxes": np.stack(self._rows["boxes"]),
@@ -209,6 +260,45 @@ class DatasetAppender:
             old["world"] = old["world"][:, :2]
             new = {key: np.concatenate([old[key], new[key]]) for key in new}
         MomDataset(image_size=self.image_sizes, **new).save(self.path)
+
+
+def _key(x: float, y: float) -> tuple[int, int]:
+    """A label rounded to the centimetre: marks are typed to the centimetre at best."""
+    return round(x / MARK_TOLERANCE_M), round(y / MARK_TOLERANCE_M)
+
+
+def _read_progress(path: Path) -> tuple[list[dict], int] | None:
+    """Completed marks and legacy row count from a progress file; None when there is none."""
+    try:
+        document = json.loads(path.read_text())
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError):
+        raise MomlocError(f"{path}: unreadable progress file; delete it to re-record") from None
+    done = document.get("done") if isinstance(document, dict) else None
+    if document.get("format") != PROGRESS_FORMAT or not isinstance(done, list):
+        raise MomlocError(f"{path}: not a {PROGRESS_FORMAT} file; delete it to re-record")
+    try:
+        marks = [{"name": str(d["name"]), "x": float(d["x"]), "y": float(d["y"])} for d in done]
+        return marks, int(document.get("legacy_rows", 0))
+    except (KeyError, TypeError, ValueError):
+        raise MomlocError(f"{path}: malformed entry under 'done'; delete it") from None
+
+
+def _write_progress(path: Path, done: list[dict], legacy_rows: int) -> None:
+    """Atomic rewrite (temporary file, fsync, rename), like the data file itself."""
+    document = {"format": PROGRESS_FORMAT, "done": done, "legacy_rows": legacy_rows}
+    text = json.dumps(document, indent=1)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as handle:
+            handle.write(text)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp_name, path)
+    except BaseException:
+        Path(tmp_name).unlink(missing_ok=True)
+        raise
 
 
 @dataclass(frozen=True)
@@ -237,6 +327,7 @@ def collect(
             recording = step.kind in RECORDING
             track = writer.new_track() if recording else -1
             first_t = last_flush = None
+            kept_before = writer.new_rows
             for frame in feed.frames(step):
                 first_t = frame.t if first_t is None else first_t
                 fraction = (frame.t - first_t) / step.seconds
@@ -251,6 +342,8 @@ def collect(
                     on_progress(
                         Progress(index, len(steps), step, fraction, seeing, writer.new_rows)
                     )
+            if step.kind == "record" and step.mark is not None and writer.new_rows > kept_before:
+                writer.mark_done(step.mark)  # the step ran to its end: the mark is complete
             writer.flush()
     finally:
         writer.flush()

@@ -35,7 +35,8 @@ class SyntheticFeed:
         """Script the simulated person to follow ``steps`` back to back."""
         segments = [Segment(s.start, s.end, s.seconds) for s in steps]
         self.scene = scripted_scene(self.config, self.seed, segments)
-        self._begins = {id(step): sum(s.seconds for s in steps[:i]) for i, step in enumerate(steps)}
+        begins = np.concatenate([[0.0], np.cumsum([s.seconds for s in steps])])  # linear
+        self._begins = {id(step): float(begins[i]) for i, step in enumerate(steps)}
 
     def frames(self, step: Step) -> Iterator[FeedFrame]:
         begin = self._begins[id(step)]

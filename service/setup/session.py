@@ -104,7 +104,8 @@ class SetupSession:
                 raise MomlocError("cameras have not delivered frames yet; try again in a moment")
             self.data_dir.mkdir(parents=True, exist_ok=True)
             writer = DatasetAppender(self.data_dir / name, np.asarray(sizes, np.int32))
-            todo = [m for m in marks if not writer.has_mark(m)]
+            done = [writer.has_mark(m) for m in marks]  # one pass: marks are bounded, rows not
+            todo = [m for m, d in zip(marks, done, strict=True) if not d]
             if not todo:
                 raise MomlocError(f"all marks are already recorded in {name}")
             steps = plan_steps(
@@ -122,7 +123,9 @@ class SetupSession:
                 "out": str(writer.path.resolve()),
                 "model_dir": str((self.data_dir / "model").resolve()),
                 "steps": len(steps),
-                "skipped_marks": [m.name for m in marks if m not in todo],
+                "skipped_marks": [m.name for m, d in zip(marks, done, strict=True) if d],
+                # rows from an interrupted run, recorded again in full (the old rows stay)
+                "incomplete_marks": [m.name for m in todo if writer.has_rows_at(m)],
                 "existing_rows": writer.existing_rows,
             }
             self._thread = threading.Thread(

@@ -48,7 +48,7 @@ $("start").addEventListener("click", async () => {
     $("error").textContent = err.message;
   }
 });
-$("stop").addEventListener("click", async () => render(await call("POST", "/v1/setup/stop")));
+$("stop").addEventListener("click", async () => render(await call("POST", "/v1/setup/stop", {})));
 $("reload").addEventListener("click", async () => {
   try {
     const info = await call("POST", "/v1/model/reload", { model_dir: modelDir });
@@ -74,7 +74,9 @@ function render(s) {
   $("step-progress").value = s.fraction || 0;
   $("step-count").textContent = s.steps ? `step ${(s.step_index || 0) + 1} of ${s.steps}` : "";
   $("camera-chips").innerHTML = (s.cameras_seeing || []).map((n, k) => chip(k, n)).join("");
-  $("rows").textContent = s.new_rows !== undefined ? `${s.new_rows} frames kept` + (s.existing_rows ? ` (+${s.existing_rows} from before)` : "") : "";
+  const resumed = (s.skipped_marks || []).length ? ` · already recorded: ${s.skipped_marks.join(", ")}` : "";
+  const again = (s.incomplete_marks || []).length ? ` · interrupted before, recording again: ${s.incomplete_marks.join(", ")}` : "";
+  $("rows").textContent = s.new_rows !== undefined ? `${s.new_rows} frames kept` + (s.existing_rows ? ` (+${s.existing_rows} from before)` : "") + resumed + again : "";
   if (s.error) $("error").textContent = s.error;
   const finished = s.state === "done" || s.state === "stopped";
   $("next").hidden = !finished;

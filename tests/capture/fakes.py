@@ -17,7 +17,7 @@ def write_mjpg(path: Path, frames: int = 12, size=(640, 480), fps: float = 30.0)
     writer = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*"MJPG"), fps, size)
     assert writer.isOpened(), "OpenCV cannot write MJPG AVI here"
     for i in range(frames):
-        writer.write(np.full((size[1], size[0], 3), 10 + 20 * i, np.uint8))
+        writer.write(np.full((size[1], size[0], 3), min(10 + 20 * i, 255), np.uint8))
     writer.release()
     return path
 

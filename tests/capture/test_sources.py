@@ -73,3 +73,55 @@ def test_open_source_picks_the_kind(tmp_path):
     assert isinstance(open_source("/dev/v4l/by-id/usb-cam-index0"), V4L2Source)
     assert isinstance(open_source(str(tmp_path / "a.avi")), VideoFileSource)
     assert isinstance(FaultySource(), FrameSource)
+
+
+def _truncated(tmp_path, frames: int = 60, keep: float = 0.3):
+    whole = write_mjpg(tmp_path / "whole.avi", frames=frames)
+    cut = tmp_path / "cut.avi"
+    data = whole.read_bytes()
+    cut.write_bytes(data[: int(len(data) * keep)])
+    return cut
+
+
+def test_truncated_video_file_is_a_dead_camera_not_a_loop(tmp_path):
+    """Issue 12, defect 7: a cut file used to replay its few decodable frames for ever."""
+    source = VideoFileSource(_truncated(tmp_path), pace=False)
+    source.open()
+    decoded = 0
+    with pytest.raises(MomlocError, match=r"truncated or corrupt, only \d+ of 60 frames"):
+        for _ in range(200):
+            assert source.read() is not None
+            decoded += 1
+    assert 0 < decoded < 60
+    source.close()
+    with pytest.raises(MomlocError, match="truncated or corrupt"):
+        source.open()  # the same damaged file stays refused
+
+
+def test_truncated_video_file_is_reported_disconnected(tmp_path):
+    from capture.worker import CameraWorker
+
+    worker = CameraWorker(VideoFileSource(_truncated(tmp_path), fps=30.0), camera=0)
+    worker.start()
+    try:
+        deadline = time.monotonic() + 20
+        while (state := worker.state()).error is None or state.connected:
+            assert time.monotonic() < deadline, state
+            time.sleep(0.05)
+        time.sleep(1.0)  # a second later: still dead (it used to reconnect and replay)
+        state = worker.state()
+        assert not state.connected and "truncated or corrupt" in (state.error or ""), state
+    finally:
+        worker.stop()
+
+
+def test_repaired_video_file_is_played_again(tmp_path):
+    cut = _truncated(tmp_path)
+    source = VideoFileSource(cut, pace=False)
+    source.open()
+    with pytest.raises(MomlocError):
+        for _ in range(200):
+            source.read()
+    write_mjpg(cut, frames=12)  # the file is replaced by a whole one
+    source.open()
+    assert [frame_number(source.read()) for _ in range(14)] == [*range(12), 0, 1]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -11,6 +12,9 @@ from typing import Any
 
 import httpx
 
+from capture.rig import FrameSet
+from capture.synthetic import SyntheticRig
+from capture.worker import Frame
 from service.daemon import Daemon, build_daemon, serve_in_thread
 from service.demo import demo_settings
 
@@ -44,16 +48,62 @@ class RunningServer:
             time.sleep(0.02)
 
 
+class LockstepRig(SyntheticRig):
+    """The demo's synthetic rig without real-time pacing: scene frame i+1 is drawn only once the
+    pipeline has processed frame i, and frames carry scene time (``t0 + i / fps``).
+
+    Why: accuracy checks must not depend on the machine's load. Paced in real time, a busy
+    machine makes the pipeline skip frames, so tracking sees fewer, further-apart updates and
+    the same code scores worse. In lock-step every run processes the very same frames with the
+    very same timestamps, on a fast or a slow machine; the server, stream and clients stay real.
+    """
+
+    def __init__(self, rig: SyntheticRig, hub: Any) -> None:
+        super().__init__(rig.scene, rig.cameras, fps=rig.fps, render_every=rig.render_every)
+        self.hub = hub
+
+    def produce(self, index: int) -> FrameSet:
+        drawn = self.render_every > 0 and index % self.render_every == 0
+        images = [self.render(index, camera) if drawn else None for camera in self.cameras]
+        timestamp = self.tick_time(index)  # scene time: the tracker's clock follows the scene
+        self.stamp(index, timestamp)
+        self._produced = [*self._produced[-59:], time.time()]
+        frames = [Frame(k, image, timestamp, index) for k, image in enumerate(images)]
+        return FrameSet(frames=frames, skew=0.0)
+
+    def _run(self) -> None:
+        for index in itertools.count(1):
+            if self._stop.is_set():
+                return
+            before = self.hub.latest().seq
+            frame_set = self.produce(index)
+            with self._new_frames:
+                self._latest = frame_set
+                self._new_frames.notify_all()
+            while self.hub.latest().seq <= before:  # one frame set, one snapshot
+                if self._stop.wait(0.002):
+                    return
+
+
 @contextmanager
 def running_server(**settings: Any) -> Iterator[RunningServer]:
-    """The demo daemon (synthetic scene, shipped model) on a free loopback port."""
+    """The demo daemon (synthetic scene, shipped model) on a free loopback port.
+
+    ``lockstep=True`` replaces the real-time synthetic rig by :class:`LockstepRig`.
+    """
+    lockstep = settings.pop("lockstep", False)
     token = settings.pop("token", None)
     model_dir = settings.pop("model_dir", None)
+    guard = {k: settings.pop(k) for k in ("allowed_origins", "allowed_hosts") if k in settings}
     config = demo_settings(host="127.0.0.1", **settings)
     if model_dir:
         config = config.model_copy(update={"model_dir": Path(model_dir)})
     daemon = build_daemon(config)
     daemon.token = token
+    if lockstep:
+        daemon.pipeline.rig = LockstepRig(daemon.pipeline.rig, daemon.hub)
+    for key, value in guard.items():
+        setattr(daemon, key, list(value))
     background = serve_in_thread(daemon)
     try:
         yield RunningServer(daemon, background.port, token)

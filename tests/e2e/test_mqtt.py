@@ -338,7 +338,9 @@ def test_home_assistant_discovery_announces_the_room_and_removes_it_on_request(m
             config = _json(sub.on(f"{prefix}/binary_sensor/momloc_{room}/west_occupancy/config")[0])
             assert config["state_topic"] == f"momloc/{room}/zones/west"
             assert server.http  # the daemon serves the removal route
-            removed = httpx.post(server.http + "/v1/mqtt/discovery/remove", timeout=10).json()
+            removed = httpx.post(
+                server.http + "/v1/mqtt/discovery/remove", json={}, timeout=10
+            ).json()
             assert removed == {"removed": 5}
             sub.wait_for(
                 lambda s: all(s.on(t) and s.on(t)[-1].payload == b"" for t in expected),

@@ -54,10 +54,12 @@ def test_wrong_camera_count_and_bad_directories(tmp_path):
     runtime = MomRuntime.load(out)
     with pytest.raises(MomlocError, match=r"3 cameras.*trained for 2"):
         runtime.localize(np.zeros((1, 3, 4), np.float32))
-    with pytest.raises(MomlocError, match="does not exist"):
-        MomRuntime.load(tmp_path / "nothing")
-    with pytest.raises(MomlocError, match=r"no model\.json"):
-        MomRuntime.load(tmp_path)
+    # the same words for a missing path, a file and a directory without model.json: the reload
+    # endpoint must not tell a caller which paths exist
+    (tmp_path / "file.txt").write_text("x")
+    for path in (tmp_path / "nothing", tmp_path / "file.txt", tmp_path):
+        with pytest.raises(MomlocError, match=r"not a model directory \(no model\.json\)$"):
+            MomRuntime.load(path)
     (tmp_path / "model.json").write_text(json.dumps({"format": "other"}))
     with pytest.raises(MomlocError, match="not a MoM model"):
         MomRuntime.load(tmp_path)
@@ -78,3 +80,44 @@ def test_runtime_does_not_import_torch():
 
     code = "import sys, models.mom_runtime; sys.exit('torch' in sys.modules)"
     assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0
+
+
+def test_overlong_model_dir_is_one_short_error(tmp_path):
+    """A path the OS refuses (> 255 bytes per name) is a MomlocError, and the echo is capped."""
+    for path in ("x" * 300, str(tmp_path / ("y" * 100_000))):
+        with pytest.raises(MomlocError, match="not a model directory") as info:
+            MomRuntime.load(path)
+        assert len(str(info.value)) < 250
+
+
+def _model_copy(tmp_path, **changes):
+    from service.settings import DEMO_MODEL_DIR
+
+    meta = json.loads((DEMO_MODEL_DIR / "model.json").read_text())
+    meta.update(changes)
+    (tmp_path / "encoder.onnx").write_bytes((DEMO_MODEL_DIR / "encoder.onnx").read_bytes())
+    (tmp_path / "model.json").write_text(json.dumps(meta))
+    return tmp_path
+
+
+@pytest.mark.parametrize(
+    ("changes", "key"),
+    [
+        ({"encoder": "x"}, "encoder"),
+        ({"num_cameras": "2"}, "num_cameras"),
+        ({"image_sizes": [[640, 480]]}, "image_sizes"),
+        ({"image_sizes": [[640, 480], [640, -1]]}, "image_sizes.1.1"),
+        ({"sampler": []}, "sampler"),
+        ({"sampler": {"num_points": "many"}}, "sampler.num_points"),
+        ({"draws": {"unit": 1}}, "draws.unit"),
+        ({"decoder": {"matrices": [[1, 2]]}}, "decoder.matrices"),
+        ({"floor_prior": {"policy": 3}}, "floor_prior.policy"),
+        ({"encoder": {"file": "../../etc/passwd"}}, "encoder.file"),
+    ],
+)
+def test_model_json_with_wrong_types_names_the_key(tmp_path, changes, key):
+    model = _model_copy(tmp_path, **changes)
+    with pytest.raises(MomlocError) as info:
+        MomRuntime.load(model)
+    message = str(info.value)
+    assert f"model.json: {key}" in message and "\n" not in message, message

@@ -117,3 +117,41 @@ def test_serve_cli_prints_lines_and_exits_2(tmp_path):
     assert "Traceback" not in result.stderr
     assert f"{path}: port: " in result.stderr
     assert f"{path}: bogus: Extra inputs are not permitted" in result.stderr
+
+
+@pytest.mark.parametrize(
+    ("model_dir", "needle"),
+    [
+        ("x" * 300, "model_dir: path too long"),
+        ("/".join(["d" * 200] * 15), "not a model directory"),  # fits the OS, does not exist
+    ],
+)
+def test_serve_with_an_overlong_model_dir_is_one_line_exit_2(tmp_path, model_dir, needle):
+    """Issue 12, defect 2: `File name too long` was a traceback and exit 1."""
+    config = f"cameras: [{{type: synthetic, index: 0}}]\nmodel_dir: {model_dir}\n"
+    path = write(tmp_path, config)
+    result = subprocess.run(
+        [sys.executable, "-m", "service.cli", "serve", "--config", str(path)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.returncode == 2, result.stderr
+    assert "Traceback" not in result.stderr and needle in result.stderr, result.stderr
+    assert len(result.stderr) < 600  # the path is not echoed whole
+
+
+def test_allowed_origins_and_hosts_are_validated(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    ok = load_settings(
+        write(
+            tmp_path,
+            "cameras: [{type: synthetic, index: 0}]\n"
+            "allowed_origins: ['http://localhost:3000', '*']\nallowed_hosts: [tracker.lan]\n",
+        )
+    )
+    assert ok.allowed_origins == ["http://localhost:3000", "*"]
+    assert ok.allowed_hosts == ["tracker.lan"]
+    bad = "cameras: [{type: synthetic, index: 0}]\nallowed_origins: ['evil.example/x']\n"
+    with pytest.raises(MomlocError, match=r"allowed_origins\.0: String should match pattern"):
+        load_settings(write(tmp_path, bad))

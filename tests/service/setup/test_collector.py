@@ -19,6 +19,7 @@ from service.setup.collector import (
     collect,
     frame_row,
     plan_steps,
+    progress_path,
 )
 from service.setup.marks import FloorMark, grid_marks
 
@@ -92,6 +93,55 @@ def test_resume_appends_and_detects_recorded_marks(tmp_path: Path) -> None:
         DatasetAppender(out, np.array([[1280, 720]], np.int32))
 
 
+def test_resume_records_a_partly_recorded_mark_again(tmp_path: Path) -> None:
+    """Defect 5: a crash during a mark left rows there; that mark is not done, the rest are."""
+    out = tmp_path / "marks.npz"
+    a, b = FloorMark("A1", 1, 2), FloorMark("A2", 3, 2)
+    steps = plan_steps([a, b], 2, start=(1, 2), move_s=1, countdown_s=1)
+    # a: move 1 s + countdown 1 s + record 2 s = 40 frames; b: move 2 m (2 s) + countdown 1 s,
+    # then the crash after 1 frame of b's recording
+    crash = ListFeed(FeedFrame(0, [BOX, BOX]), fail_after=40 + 30 + 1)
+    with pytest.raises(KeyboardInterrupt):
+        collect(crash, steps, DatasetAppender(out, SIZES))
+    assert MomDataset.load(out).n == 20 + 1
+    writer = DatasetAppender(out, SIZES)
+    assert writer.has_mark(a)
+    assert not writer.has_mark(b) and writer.has_rows_at(b)
+    collect(ListFeed(FeedFrame(0, [BOX, BOX])), plan_steps([b], 2, start=(3, 2)), writer)
+    assert DatasetAppender(out, SIZES).has_mark(b)
+    data = MomDataset.load(out)
+    assert (np.abs(data.world - [3, 2]).max(axis=1) < 0.01).sum() == 1 + 20
+
+
+def test_a_mark_stopped_part_way_is_not_done(tmp_path: Path) -> None:
+    out = tmp_path / "marks.npz"
+    a = FloorMark("A1", 1, 2)
+    feed = ListFeed(FeedFrame(0, [BOX, BOX]), fail_after=20 + 5)
+    with pytest.raises(KeyboardInterrupt):
+        collect(
+            feed,
+            plan_steps([a], 2, start=(1, 2), move_s=1, countdown_s=1),
+            DatasetAppender(out, SIZES),
+        )
+    assert not DatasetAppender(out, SIZES).has_mark(a)
+
+
+def test_data_file_without_progress_file_keeps_the_old_rule(tmp_path: Path) -> None:
+    out = tmp_path / "marks.npz"
+    a, b = FloorMark("A1", 1, 2), FloorMark("A2", 3, 2)
+    collect(
+        ListFeed(FeedFrame(0, [BOX, BOX])),
+        plan_steps([a], 2, start=(1, 2)),
+        DatasetAppender(out, SIZES),
+    )
+    progress_path(out).unlink()  # as written before progress files existed
+    writer = DatasetAppender(out, SIZES)
+    assert writer.has_mark(a) and not writer.has_mark(b)
+    collect(ListFeed(FeedFrame(0, [BOX, BOX])), plan_steps([b], 2, start=(3, 2)), writer)
+    again = DatasetAppender(out, SIZES)
+    assert again.has_mark(a) and again.has_mark(b)
+
+
 def _momloc(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
         [sys.executable, "-m", "service.cli", *args], capture_output=True, text=True, check=False
@@ -118,6 +168,17 @@ def test_collect_cli_errors_are_one_line(tmp_path: Path) -> None:
     result = _momloc("collect", "--grid", "3x3", "--seconds", "5", "--out", str(tmp_path / "x"))
     assert result.returncode == 2
     assert result.stderr.strip().count("\n") == 0 and "--room" in result.stderr
+
+
+@pytest.mark.parametrize(("grid", "room"), [("3x3", "...x4"), ("1x20000", "4x4")])
+def test_collect_cli_bad_grid_or_room_is_one_line_exit_2(
+    tmp_path: Path, grid: str, room: str
+) -> None:
+    """Defect 4: `--room ...x4` was a traceback and exit 1."""
+    args = ["collect", "--source", "synthetic", "--grid", grid, "--room", room]
+    result = _momloc(*args, "--seconds", "1", "--out", str(tmp_path / "x.npz"))
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.strip().count("\n") == 0 and "Traceback" not in result.stderr
 
 
 def test_live_feed_records_through_the_daemon_rig_and_detector_stage(tmp_path: Path) -> None:
