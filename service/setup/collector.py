@@ -7,9 +7,7 @@ straight line at a steady pace. Each recorded frame becomes one dataset row whos
 mark (or the interpolated point).
 
 Frame filter: a frame is kept when no camera sees more than one person and at least one camera
-sees exactly one (``require_all_cameras`` asks for exactly one in *every* camera). When a mark's
-recording ends, boxes that disagree with that camera's other boxes at the mark (a false box while
-the person was missed) are removed (:func:`consistent_boxes`). Keeping frames
+sees exactly one (``require_all_cameras`` asks for exactly one in *every* camera). Keeping frames
 where a camera sees nobody is deliberate: marks outside one camera's view still teach the model,
 and real missed detections are the missing views the model must cope with.
 
@@ -234,28 +232,6 @@ class DatasetAppender:
         self._rows["track"].append(track)
         self.next_frame += 1
 
-    def drop_inconsistent(self, track: int) -> int:
-        """Remove boxes of ``track``'s rows that do not agree with where the camera saw the
-        person at that mark (:func:`consistent_boxes`); rows left without any box go. Returns
-        the number of boxes removed. Takes effect with the next :meth:`flush`."""
-        rows = [i for i, t in enumerate(self._rows["track"]) if t == track]
-        if not rows:
-            return 0
-        before = np.stack([self._rows["boxes"][i] for i in rows])
-        after = consistent_boxes(before)
-        removed = int(np.isfinite(before[..., 0]).sum() - np.isfinite(after[..., 0]).sum())
-        drop = set()
-        for i, boxes in zip(rows, after, strict=True):
-            self._rows["boxes"][i] = boxes
-            if not np.isfinite(boxes).all(axis=1).any():
-                drop.add(i)
-        if drop:
-            self._rows = {
-                key: [v for i, v in enumerate(values) if i not in drop]
-                for key, values in self._rows.items()
-            }
-        return removed
-
     def flush(self) -> None:
         """Rewrite the file atomically with the old and the new rows, then the progress file."""
         if self._rows["world"]:
@@ -284,39 +260,6 @@ class DatasetAppender:
             old["world"] = old["world"][:, :2]
             new = {key: np.concatenate([old[key], new[key]]) for key in new}
         MomDataset(image_size=self.image_sizes, **new).save(self.path)
-
-
-def consistent_boxes(boxes: np.ndarray, min_boxes: int = 3) -> np.ndarray:
-    """``boxes`` [N, K, 4] of one person standing on one mark, with the boxes that disagree
-    with the camera's own median box set to NaN.
-
-    Why: a camera that misses the person while the detector reports a false box elsewhere (a
-    coat, a chair: ~0.3 per frame for NanoDet on real video) still "sees exactly one person", so
-    the frame filter keeps it and the false box is labelled with the mark. Simulated under the
-    measured NanoDet profile, such boxes made the floor-mark geometry 1.68 m off (0.13 m without
-    them). A person swaying and turning on a mark moves the box centre by well under half a
-    body height and its bottom edge by a few percent, so a box is kept when its centre is
-    within 0.5 median heights, its bottom within 0.3 median heights and its height within
-    0.7–1.45× the median of that camera's boxes at this mark. Cameras with fewer than
-    ``min_boxes`` boxes there are left as they are (nothing to compare with).
-    """
-    out = np.array(boxes, np.float32, copy=True)
-    for k in range(out.shape[1]):
-        seen = np.isfinite(out[:, k]).all(axis=1)
-        if seen.sum() < min_boxes:
-            continue
-        b = out[seen, k]
-        cx, bottom, height = (b[:, 0] + b[:, 2]) / 2, b[:, 3], b[:, 3] - b[:, 1]
-        med_h = float(np.median(height))
-        ok = (
-            (np.abs(cx - np.median(cx)) <= 0.5 * med_h)
-            & (np.abs(bottom - np.median(bottom)) <= 0.3 * med_h)
-            & (height >= 0.7 * med_h)
-            & (height <= 1.45 * med_h)
-        )
-        rows = np.flatnonzero(seen)[~ok]
-        out[rows, k] = np.nan
-    return out
 
 
 def _key(x: float, y: float) -> tuple[int, int]:
@@ -399,8 +342,6 @@ def collect(
                     on_progress(
                         Progress(index, len(steps), step, fraction, seeing, writer.new_rows)
                     )
-            if step.kind == "record":
-                writer.drop_inconsistent(track)
             if step.kind == "record" and step.mark is not None and writer.new_rows > kept_before:
                 writer.mark_done(step.mark)  # the step ran to its end: the mark is complete
             writer.flush()

@@ -17,7 +17,6 @@ from service.setup.collector import (
     FeedFrame,
     Step,
     collect,
-    consistent_boxes,
     frame_row,
     plan_steps,
     progress_path,
@@ -203,29 +202,3 @@ def test_live_feed_records_through_the_daemon_rig_and_detector_stage(tmp_path: P
     finally:
         feed.close()
     assert 5 <= writer.new_rows <= 25  # about 1 s at 20 fps, frames with one person kept
-
-
-def test_false_boxes_at_a_mark_are_removed_when_the_mark_ends(tmp_path: Path) -> None:
-    """A camera that misses the person while a false box appears elsewhere still sees "one
-    person"; that box must not be labelled with the mark."""
-    person = np.array([[300, 100, 340, 260]], np.float32)
-    chair = np.array([[40, 300, 90, 380]], np.float32)
-    frames = []
-    for i in range(40):
-        cam0 = chair if i % 4 == 0 else person + (i % 3)  # sways a few px; every 4th: false box
-        cam1 = NONE if i % 8 == 0 else person
-        frames.append(FeedFrame(i / 10, [cam0, cam1]))
-
-    class Frames(ListFeed):
-        def frames(self, step: Step) -> Iterator[FeedFrame]:
-            yield from (frames if step.kind == "record" else frames[:2])
-
-    out = tmp_path / "marks.npz"
-    steps = plan_steps([FloorMark("a", 1, 2)], 4, start=(1, 2), move_s=1, countdown_s=1)
-    collect(Frames(frames[0]), steps, DatasetAppender(out, SIZES))
-    data = MomDataset.load(out)
-    cam0 = data.boxes[:, 0]
-    seen = np.isfinite(cam0).all(axis=1)
-    assert seen.sum() == 30 and (cam0[seen, 0] >= 300).all()  # every chair box is gone
-    assert data.n == 35  # rows where only the chair was seen are dropped; the rest stay
-    np.testing.assert_array_equal(consistent_boxes(data.boxes), data.boxes)
