@@ -50,6 +50,7 @@ Example::
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -223,7 +224,7 @@ class StreamScorer:
             by_truth.setdefault(m.truth, []).append(m)
         squares = []
         for ms in by_truth.values():
-            for a, b in zip(ms, ms[1:], strict=False):
+            for a, b in itertools.pairwise(ms):
                 if b.frame != a.frame + 1 or b.served != a.served:
                     continue
                 moved = b.truth_xy - a.truth_xy
@@ -292,7 +293,7 @@ def _error_stats(errors: np.ndarray) -> dict:
     if not len(errors):
         return {"n": 0, "mean": float("nan"), "median": float("nan"), "acc@0.3": float("nan")}
     return {
-        "n": int(len(errors)),
+        "n": len(errors),
         "mean": float(errors.mean()),
         "median": float(np.median(errors)),
         "acc@0.3": float(100.0 * np.mean(errors < 0.3)),

@@ -65,7 +65,7 @@ def test_id_change_counts_once():
 
 
 def test_swap_of_two_people_is_two_switches():
-    a, b = walking(60), walking(60) + [0.0, 1.5]
+    a, b = walking(60), walking(60) + np.array([0.0, 1.5])
     one, two = a.copy(), b.copy()
     one[30:], two[30:] = b[30:], a[30:]
     m = score_stream(stream({0: a, 1: b}, {1: one, 2: two}))
@@ -158,7 +158,7 @@ def test_kept_correspondence_is_not_stolen():
     truth = {0: standing(30)}
     own = truth[0] + [0.3, 0.0]
     other = np.full((30, 2), np.nan)
-    other[10:20] = truth[0][10:20] + [0.0, 0.1]
+    other[10:20] = truth[0][10:20] + np.array([0.0, 0.1])
     m = score_stream(stream(truth, {1: own, 2: other}))
     assert m["id_switches"] == 0 and m["fp"] == 10
 
