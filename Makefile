@@ -50,6 +50,7 @@ bench-service: $(VENV)/.stamp-dev
 	$(PY) -m bench.service_latency
 	$(PY) -m bench.association
 	$(PY) -m bench.camera_shift
+	$(PY) -m bench.stream_accuracy
 
 bench-setup: $(VENV)/.stamp-dev
 	$(PY) -m bench.floor_prior_study

@@ -79,6 +79,7 @@ class Association:
     cost: float  # RMS normalised reprojection error over the seen cameras (see module doc)
     detection_index: list[int | None]  # per camera: index into that camera's detections
     errors: np.ndarray = field(default_factory=lambda: np.zeros(0))  # [K] px, NaN where unseen
+    covariance: np.ndarray | None = None  # [2, 2] m² of ``world`` when the model gives one
 
 
 @dataclass(frozen=True)

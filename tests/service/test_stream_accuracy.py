@@ -1,0 +1,64 @@
+"""Regression gate on the streamed accuracy: association + tracking over a fixed simulated scene.
+
+The shipped demo model (indoor-2cam) serves 3 people walking in the ``indoor-2cam`` preset (seed
+3, 450 frames = 30 s at 15 fps, detections shuffled per camera, frame timestamps), scored by
+:func:`service.stream_eval.run_stream`. Deterministic (seeded scene, fixed model), so the bounds
+sit at the recorded figures with a small margin for onnxruntime / BLAS rounding across machines.
+Recorded figures are in ``RECORDED``; bench/stream_accuracy.py has the full table.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from models.mom_runtime import MomRuntime
+from service.stream_eval import run_stream, scene_config
+
+DEMO_MODEL = Path(__file__).resolve().parents[2] / "models" / "demo_model"
+PROFILE = None  # the simulator's default detector profile
+RECORDED = {  # gate 0.5 m
+    "mota": 95.92,
+    "recall": 97.55,
+    "precision": 98.50,
+    "id_switches": 2,
+    "mean": 0.1020,
+    "acc@0.3": 97.03,
+    "single_mean": 0.1458,
+    "jitter_m": 0.0313,
+    "lag_s": 0.011,
+}
+
+
+@pytest.fixture(scope="module")
+def scores() -> dict:
+    runtime = MomRuntime.load(DEMO_MODEL)
+    return run_stream(runtime, scene_config("indoor-2cam", 3, PROFILE), seed=3, frames=450)
+
+
+def test_counts_and_mota(scores):
+    m = scores[0.5]
+    assert m["gt"] > 1200 and m["frames"] == 450
+    assert m["mota"] >= RECORDED["mota"] - 1.0, m["mota"]
+    assert m["recall"] >= RECORDED["recall"] - 1.0, m["recall"]
+    assert m["precision"] >= RECORDED["precision"] - 1.0, m["precision"]
+    assert m["id_switches"] <= RECORDED["id_switches"] + 1, m["id_switches"]
+    assert scores[1.0]["mota"] >= m["mota"]  # a looser gate never scores worse
+
+
+def test_matched_errors(scores):
+    m = scores[0.5]
+    assert m["mean"] <= RECORDED["mean"] + 0.005, m["mean"]
+    assert m["acc@0.3"] >= RECORDED["acc@0.3"] - 1.0, m["acc@0.3"]
+    single = m["by_views"]["1"]
+    assert single["n"] > 100
+    assert single["mean"] <= RECORDED["single_mean"] + 0.01, single["mean"]
+    assert m["by_views"]["2"]["mean"] < single["mean"]  # a second view corrects the depth
+
+
+def test_jitter_and_lag(scores):
+    m = scores[0.5]
+    assert m["jitter_n"] > 100 and m["lag_n"] > 500
+    assert m["jitter_m"] <= RECORDED["jitter_m"] + 0.002, m["jitter_m"]
+    assert abs(m["lag_s"] - RECORDED["lag_s"]) <= 0.02, m["lag_s"]
