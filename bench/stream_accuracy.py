@@ -73,15 +73,40 @@ def train_cached(preset: str, profile: str | None, frames: int, epochs: int) -> 
     return out
 
 
-def tracker_variants() -> dict[str, object]:
-    """Tracker factories compared by ``--variants`` (fps → Tracker)."""
-    return {"default": lambda fps: Tracker(fps_hint=fps)}
+VARIANTS: dict[str, tuple[dict, bool]] = {  # name -> (Tracker options, use the covariances)
+    "cv": ({"motion": "cv"}, False),
+    "cv+cov": ({"motion": "cv"}, True),
+    "imm": ({"motion": "imm"}, False),
+    "imm+cov": ({"motion": "imm"}, True),
+}
 
 
-def pooled(runtime, preset: str, people: int, profile, frames: int, seeds, make) -> dict:
+def variant(spec: str) -> tuple[dict, bool]:
+    """A named variant, or ``name,key=value,...`` overriding Tracker options (sweeps)."""
+    name, *pairs = spec.split(",")
+    options, use_cov = VARIANTS[name]
+    options = dict(options)
+    for pair in pairs:
+        key, value = pair.split("=")
+        options[key] = float(value)
+    return options, use_cov
+
+
+def pooled(runtime, preset: str, people: int, profile, frames: int, seeds, spec: str) -> dict:
     """Stream metrics pooled over seeds: counts summed, errors weighted by their count."""
     config = scene_config(preset, people, profile)
-    runs = [run_stream(runtime, config, s, frames, tracker=make(config.fps)) for s in seeds]
+    options, use_cov = variant(spec)
+    runs = [
+        run_stream(
+            runtime,
+            config,
+            s,
+            frames,
+            tracker=Tracker(fps_hint=config.fps, **options),
+            use_covariance=use_cov,
+        )
+        for s in seeds
+    ]
     return {gate: combine([r[gate] for r in runs]) for gate in runs[0]}
 
 
@@ -182,7 +207,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, nargs="+", default=[7, 8, 9])
     parser.add_argument("--train-frames", type=int, default=3000)
     parser.add_argument("--epochs", type=int, default=150)
-    parser.add_argument("--variants", nargs="+", default=["default"])
+    parser.add_argument("--variants", nargs="+", default=["cv"])
     parser.add_argument("--scenes", nargs="+", default=None, help="preset:people entries")
     parser.add_argument("--out", type=Path, default=RESULTS / "stream_accuracy.md")
     parser.add_argument("--quick", action="store_true", help="300 frames, 1 seed, small model")
@@ -192,15 +217,12 @@ def main(argv: list[str] | None = None) -> int:
     scenes = SCENES
     if args.scenes:
         scenes = tuple((s.split(":")[0], int(s.split(":")[1])) for s in args.scenes)
-    variants = tracker_variants()
     body, headline = "", None
     for preset, people in scenes:
         model_dir = train_cached(preset, args.profile, args.train_frames, args.epochs)
         runtime = MomRuntime.load(model_dir)
         for name in args.variants:
-            scores = pooled(
-                runtime, preset, people, args.profile, args.frames, args.seeds, variants[name]
-            )
+            scores = pooled(runtime, preset, people, args.profile, args.frames, args.seeds, name)
             line = row(preset, people, name, scores)
             print(line, end="", flush=True)
             body += line

@@ -39,6 +39,10 @@ tried first and failed exactly there (an early wrong pair blocks the right one l
 People seen by one camera only are kept: their cluster is localized with the other views masked
 (NaN), which the MoM encoder supports when trained with missing views. Clusters whose position
 the model cannot produce (non-finite output) are dropped.
+
+A model with a ``covariance(boxes)`` method (``MomRuntime``: the floor prior's GLS covariance)
+also gives each association the covariance of its position, which the tracker takes as that
+measurement's noise (long along a lone camera's line of sight).
 """
 
 from __future__ import annotations
@@ -123,6 +127,7 @@ def associate(
         ]
     )
     world, errors, cost, _ = _evaluate(tuples, runtime)
+    covariance = _covariance(tuples, runtime)
     out = []
     for i, cluster in enumerate(clusters):
         if not np.isfinite(world[i]).all():
@@ -136,6 +141,7 @@ def associate(
                 cost=float(cost[i]),
                 detection_index=list(cluster),
                 errors=errors[i],
+                covariance=None if covariance is None else covariance[i],
             )
         )
     return out
@@ -261,6 +267,13 @@ def _single_view_positions(
         out.append(world[start : start + len(boxes)])
         start += len(boxes)
     return out
+
+
+def _covariance(tuples: np.ndarray, runtime: LocalizationModel) -> np.ndarray | None:
+    """The model's covariance [B, 2, 2] of each tuple's position, if it has one (optional:
+    ``MomRuntime.covariance``); rows it cannot tell are NaN."""
+    method = getattr(runtime, "covariance", None)
+    return None if method is None else np.asarray(method(tuples), dtype=np.float64)
 
 
 def _as_boxes(detections: np.ndarray, camera: int) -> np.ndarray:

@@ -87,12 +87,14 @@ def run_stream(
     max_error_px: float = DEFAULT_MAX_ERROR_PX,
     max_view_gap_m: float = DEFAULT_MAX_VIEW_GAP_M,
     min_visible_fraction: float = MIN_VISIBLE_FRACTION,
+    use_covariance: bool = True,
     on_frame: Callable[[int, list, list], None] | None = None,
 ) -> dict[float, dict]:
     """Stream metrics per gate (metres → :meth:`StreamScorer.result`) of one scene run.
 
-    ``tracker`` defaults to ``Tracker(fps_hint=scene fps)``; ``on_frame(i, associations,
-    tracks)`` taps every frame (diagnostics, other scorers).
+    ``tracker`` defaults to ``Tracker(fps_hint=scene fps)``; ``use_covariance`` hands the
+    associations' covariances (when the model gives them) to the tracker as measurement noise;
+    ``on_frame(i, associations, tracks)`` taps every frame (diagnostics, other scorers).
     """
     scene = Scene(config, seed=seed)
     tracker = tracker if tracker is not None else Tracker(fps_hint=scene.fps)
@@ -105,7 +107,7 @@ def run_stream(
         positions = np.array([a.world for a in result]).reshape(-1, 2)
         meta = [{"cameras": a.cameras, "cost": a.cost} for a in result]
         covariances = [a.covariance for a in result]
-        if any(c is not None for c in covariances):
+        if use_covariance and any(c is not None for c in covariances):
             tracks = tracker.update(t, positions, meta, covariances=covariances)
         else:
             tracks = tracker.update(t, positions, meta)

@@ -42,13 +42,17 @@ Example::
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from service.motion import ConstantVelocity, StandOrWalk
+
 _UNASSIGNED = 1e9
+MOTION_MODELS = {"cv": ConstantVelocity, "imm": StandOrWalk}
 
 
 @dataclass
@@ -70,8 +74,7 @@ class Track:
 @dataclass
 class _State:
     id: int
-    mean: np.ndarray  # [4]
-    cov: np.ndarray  # [4, 4]
+    motion: ConstantVelocity | StandOrWalk
     born: float
     last_seen: float
     hits: int = 1
@@ -95,6 +98,10 @@ class Tracker:
         accel_std: float = 2.0,
         confirm_s: float = 0.3,
         rate_alpha: float = 0.1,
+        motion: str = "cv",
+        measurement_scale: float = 1.0,
+        min_measurement_std_m: float = 0.03,
+        max_measurement_std_m: float = 3.0,
     ) -> None:
         if fps_hint <= 0 or max_missing_s <= 0 or gate_m <= 0:
             raise ValueError("fps_hint, max_missing_s and gate_m must be positive")
@@ -106,6 +113,12 @@ class Tracker:
         self.accel_var = float(accel_std) ** 2
         self.confirm_s = max(0.0, float(confirm_s))
         self.rate_alpha = float(rate_alpha)
+        if motion not in MOTION_MODELS:
+            raise ValueError(f"motion {motion!r}: expected one of {sorted(MOTION_MODELS)}")
+        self.motion = motion
+        self.measurement_scale = float(measurement_scale)
+        self.min_measurement_var = float(min_measurement_std_m) ** 2
+        self.max_measurement_var = float(max_measurement_std_m) ** 2
         self._tracks: list[_State] = []
         self._next_id = 1
         self._time: float | None = None
@@ -121,15 +134,25 @@ class Tracker:
         self._time = None
 
     def update(
-        self, t: float, positions: np.ndarray, meta: list[dict] | None = None
+        self,
+        t: float,
+        positions: np.ndarray,
+        meta: list[dict] | None = None,
+        covariances: Sequence[np.ndarray | None] | np.ndarray | None = None,
     ) -> list[Track]:
-        """Fold the detections of time ``t`` (``positions`` [P, 2] metres) into the tracks."""
+        """Fold the detections of time ``t`` (``positions`` [P, 2] metres) into the tracks.
+
+        ``covariances`` (optional, one [2, 2] m² or ``None`` per position): the localizer's
+        uncertainty of each measurement; ``None`` (or a non-finite one) means the isotropic
+        ``measurement_std_m``.
+        """
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
         keep = np.isfinite(positions).all(axis=1)
         meta = list(meta) if meta is not None else [{} for _ in range(len(positions))]
         if len(meta) != len(positions):
             raise ValueError(f"meta has {len(meta)} entries for {len(positions)} positions")
-        positions = positions[keep]
+        noise = self._noise(covariances, len(positions))
+        positions, noise = positions[keep], noise[keep]
         meta = [m for m, k in zip(meta, keep, strict=True) if k]
 
         dt = 1.0 / self.fps_hint if self._time is None else float(t) - self._time
@@ -142,12 +165,12 @@ class Tracker:
         rows, cols = self._assign(positions, self._time)
         matched_tracks = set(rows.tolist())
         for r, c in zip(rows, cols, strict=True):
-            self._correct(self._tracks[r], positions[c], meta[c], self._time)
+            self._correct(self._tracks[r], positions[c], noise[c], meta[c], self._time)
         for i, track in enumerate(self._tracks):
             if i not in matched_tracks:
                 track.rate *= 1.0 - self.rate_alpha
         for c in sorted(set(range(len(positions))) - set(cols.tolist())):
-            self._tracks.append(self._spawn(positions[c], meta[c], self._time))
+            self._tracks.append(self._spawn(positions[c], noise[c], meta[c], self._time))
 
         self._tracks = [
             tr
@@ -165,14 +188,15 @@ class Tracker:
             if not tr.confirmed:
                 continue
             missing = now - tr.last_seen
+            mean = tr.motion.mean
             coast = max(0.0, 1.0 - missing / self.max_missing_s)
             out.append(
                 Track(
                     id=tr.id,
-                    x=float(tr.mean[0]),
-                    y=float(tr.mean[1]),
-                    vx=float(tr.mean[2]),
-                    vy=float(tr.mean[3]),
+                    x=float(mean[0]),
+                    y=float(mean[1]),
+                    vx=float(mean[2]),
+                    vy=float(mean[3]),
                     confidence=float(np.clip(tr.rate * coast, 0.0, 1.0)),
                     cameras=list(tr.cameras) if missing == 0 else [],
                     coasting=missing > 0,
@@ -182,27 +206,32 @@ class Tracker:
             )
         return out
 
-    # -- Kalman filter -------------------------------------------------------------------------
+    # -- filters -------------------------------------------------------------------------------
+
+    def _noise(self, covariances, count: int) -> np.ndarray:
+        """Measurement covariance [P, 2, 2] per position (isotropic default where not given)."""
+        out = np.tile(np.eye(2) * self.measurement_var, (count, 1, 1))
+        if covariances is None:
+            return out
+        if len(covariances) != count:
+            raise ValueError(f"{len(covariances)} covariances for {count} positions")
+        for i, c in enumerate(covariances):
+            if c is None:
+                continue
+            c = np.asarray(c, dtype=np.float64).reshape(2, 2) * self.measurement_scale
+            if not np.isfinite(c).all():
+                continue
+            # Bound the eigenvalues: a near-singular covariance would lock the track on one axis.
+            w, v = np.linalg.eigh((c + c.T) / 2)
+            w = np.clip(w, self.min_measurement_var, self.max_measurement_var)
+            out[i] = (v * w) @ v.T
+        return out
 
     def _predict(self, track: _State, dt: float) -> None:
-        if dt <= 0:
-            return
-        f = np.eye(4)
-        f[0, 2] = f[1, 3] = dt
-        q1 = np.array([[dt**4 / 4, dt**3 / 2], [dt**3 / 2, dt**2]]) * self.accel_var
-        q = np.zeros((4, 4))
-        q[np.ix_([0, 2], [0, 2])] = q1
-        q[np.ix_([1, 3], [1, 3])] = q1
-        track.mean = f @ track.mean
-        track.cov = f @ track.cov @ f.T + q
+        track.motion.predict(dt)
 
-    def _correct(self, track: _State, z: np.ndarray, meta: dict, t: float) -> None:
-        h = np.zeros((2, 4))
-        h[0, 0] = h[1, 1] = 1.0
-        s = h @ track.cov @ h.T + np.eye(2) * self.measurement_var
-        gain = track.cov @ h.T @ np.linalg.inv(s)
-        track.mean = track.mean + gain @ (z - h @ track.mean)
-        track.cov = (np.eye(4) - gain @ h) @ track.cov
+    def _correct(self, track: _State, z: np.ndarray, r: np.ndarray, meta: dict, t: float) -> None:
+        track.motion.correct(z, r)
         track.last_seen = t
         track.hits += 1
         track.rate = track.rate * (1.0 - self.rate_alpha) + self.rate_alpha
@@ -211,13 +240,12 @@ class Tracker:
         track.cameras = [int(k) for k in meta.get("cameras", [])]
         track.meta = dict(meta)
 
-    def _spawn(self, z: np.ndarray, meta: dict, t: float) -> _State:
+    def _spawn(self, z: np.ndarray, r: np.ndarray, meta: dict, t: float) -> _State:
         # Unknown velocity: a walking person is within ~2 m/s, so start with that spread.
-        cov = np.diag([self.measurement_var, self.measurement_var, 1.0, 1.0])
+        motion = MOTION_MODELS[self.motion](z, r, float(np.sqrt(self.accel_var)))
         state = _State(
             id=self._next_id,
-            mean=np.array([z[0], z[1], 0.0, 0.0]),
-            cov=cov,
+            motion=motion,
             born=t,
             last_seen=t,
             confirmed=self.confirm_s <= 0,
@@ -231,7 +259,7 @@ class Tracker:
         empty = np.zeros(0, dtype=int)
         if not self._tracks or not len(positions):
             return empty, empty
-        predicted = np.stack([tr.mean[:2] for tr in self._tracks])
+        predicted = np.stack([tr.motion.mean[:2] for tr in self._tracks])
         dist = np.linalg.norm(predicted[:, None, :] - positions[None, :, :], axis=2)
         missing = np.array([now - tr.last_seen for tr in self._tracks])
         gate = self.gate_m + self.gate_growth_mps * missing
