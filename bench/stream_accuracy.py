@@ -48,16 +48,15 @@ TARGETS = {  # issue 14: indoor-2cam, 3 people, realistic profile, streamed
 
 
 def profile_key(profile: str | None) -> str:
-    """Cache-key part for a profile: its name and a hash of its JSON (``default`` if None)."""
-    if profile is None:
-        return "default"
+    """Cache-key part for a profile: its name and a hash of its content (the simulator's default
+    profile when None; ``flat`` for a simulator without profiles)."""
     try:
-        from models.simulate.profile import load_profile  # the detector-profile simulator
-
-        text = repr(load_profile(profile))
-    except ImportError:
-        text = profile
-    return f"{Path(profile).stem}-{hashlib.sha1(text.encode()).hexdigest()[:8]}"
+        from models.simulate.profile import DEFAULT_PROFILE, load_profile
+    except ImportError:  # the flat-noise simulator
+        return "flat" if profile is None else profile
+    loaded = load_profile(profile if profile is not None else DEFAULT_PROFILE)
+    digest = hashlib.sha1(repr(loaded).encode()).hexdigest()[:8]
+    return f"{getattr(loaded, 'name', 'profile')}-{digest}"
 
 
 def train_cached(preset: str, profile: str | None, frames: int, epochs: int) -> Path:
@@ -73,11 +72,13 @@ def train_cached(preset: str, profile: str | None, frames: int, epochs: int) -> 
     return out
 
 
+BEFORE = {"motion": "cv", "accel_std": 2.0, "confirm_single_s": 0.3, "ghost_s": 0.0}
 VARIANTS: dict[str, tuple[dict, bool]] = {  # name -> (Tracker options, use the covariances)
-    "cv": ({"motion": "cv"}, False),
-    "cv+cov": ({"motion": "cv"}, True),
-    "imm": ({"motion": "imm"}, False),
-    "imm+cov": ({"motion": "imm"}, True),
+    "before": (BEFORE, False),  # the tracker before issue 14
+    "cv+cov": (BEFORE, True),
+    "imm+cov": ({**BEFORE, "motion": "imm"}, True),
+    "default": ({}, True),  # Tracker defaults, fed the localizer's covariances
+    "default-nocov": ({}, False),  # the same without them
 }
 
 
@@ -88,7 +89,7 @@ def variant(spec: str) -> tuple[dict, bool]:
     options = dict(options)
     for pair in pairs:
         key, value = pair.split("=")
-        options[key] = float(value)
+        options[key] = value if key == "imm_output" else float(value)
     return options, use_cov
 
 
@@ -207,7 +208,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, nargs="+", default=[7, 8, 9])
     parser.add_argument("--train-frames", type=int, default=3000)
     parser.add_argument("--epochs", type=int, default=150)
-    parser.add_argument("--variants", nargs="+", default=["cv"])
+    parser.add_argument("--variants", nargs="+", default=["before", "default"])
     parser.add_argument("--scenes", nargs="+", default=None, help="preset:people entries")
     parser.add_argument("--out", type=Path, default=RESULTS / "stream_accuracy.md")
     parser.add_argument("--quick", action="store_true", help="300 frames, 1 seed, small model")

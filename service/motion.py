@@ -106,6 +106,7 @@ class StandOrWalk:
         stand_s: float = 2.0,
         walk_s: float = 4.0,
         stand_prior: float = 0.5,
+        output: str = "mix",
     ) -> None:
         start = np.array([z[0], z[1], 0.0, 0.0], dtype=np.float64)
         self._means = [start.copy(), start.copy()]  # 0: stand, 1: walk
@@ -115,6 +116,7 @@ class StandOrWalk:
         self.accel_var = float(accel_std) ** 2
         self.stand_var = float(stand_std) ** 2
         self.stay_s = (float(stand_s), float(walk_s))
+        self.output = output
         self._combine()
 
     @property
@@ -162,6 +164,8 @@ class StandOrWalk:
 
     def _combine(self) -> None:
         self.mean = self._prob[0] * self._means[0] + self._prob[1] * self._means[1]
+        if self.output == "mode" and self._prob[0] > 0.5:
+            self.mean = self._means[0].copy()
         self.cov = sum(
             p * (c + np.outer(m - self.mean, m - self.mean))
             for p, m, c in zip(self._prob, self._means, self._covs, strict=True)

@@ -35,6 +35,7 @@ from service.association import (
     DEFAULT_MAX_VIEW_GAP_M,
     LocalizationModel,
     associate,
+    covering_cameras,
 )
 from service.tracking import Tracker
 
@@ -100,6 +101,8 @@ def run_stream(
     tracker = tracker if tracker is not None else Tracker(fps_hint=scene.fps)
     rng = np.random.default_rng([seed, 77])
     scorers = {float(g): StreamScorer(g) for g in gates}
+    reproject = getattr(runtime, "reproject", None)
+    coverage = None if reproject is None else (lambda xy: covering_cameras(runtime, xy))
     for i in range(frames):
         obs = scene.observe(i)
         t = i / scene.fps
@@ -107,10 +110,13 @@ def run_stream(
         positions = np.array([a.world for a in result]).reshape(-1, 2)
         meta = [{"cameras": a.cameras, "cost": a.cost} for a in result]
         covariances = [a.covariance for a in result]
-        if use_covariance and any(c is not None for c in covariances):
-            tracks = tracker.update(t, positions, meta, covariances=covariances)
-        else:
-            tracks = tracker.update(t, positions, meta)
+        tracks = tracker.update(
+            t,
+            positions,
+            meta,
+            covariances=covariances if use_covariance else None,
+            coverage=coverage,
+        )
         if on_frame is not None:
             on_frame(i, result, tracks)
         want = in_view(obs.true_boxes, scene.image_sizes, min_visible_fraction)

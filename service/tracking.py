@@ -42,7 +42,7 @@ Example::
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -52,6 +52,7 @@ from scipy.optimize import linear_sum_assignment
 from service.motion import ConstantVelocity, StandOrWalk
 
 _UNASSIGNED = 1e9
+SINGLE_VIEW_CONFIRM_S = 1.0
 MOTION_MODELS = {"cv": ConstantVelocity, "imm": StandOrWalk}
 
 
@@ -80,6 +81,8 @@ class _State:
     hits: int = 1
     rate: float = 1.0
     confirmed: bool = False
+    multi_view: bool = False  # seen by two cameras at once at least once
+    doubted_s: float = 0.0  # time single-view while another camera should have seen it
     cameras: list[int] = field(default_factory=list)
     meta: dict[str, Any] = field(default_factory=dict)
 
@@ -95,13 +98,20 @@ class Tracker:
         gate_m: float = 1.0,
         gate_growth_mps: float = 1.0,
         measurement_std_m: float = 0.12,
-        accel_std: float = 2.0,
+        accel_std: float = 1.0,
         confirm_s: float = 0.3,
         rate_alpha: float = 0.1,
-        motion: str = "cv",
+        motion: str = "imm",
         measurement_scale: float = 1.0,
         min_measurement_std_m: float = 0.03,
         max_measurement_std_m: float = 3.0,
+        confirm_single_s: float | None = None,
+        stand_std_m: float = 0.03,
+        stand_s: float = 2.0,
+        walk_s: float = 10.0,
+        ghost_s: float = 0.5,
+        imm_output: str = "mix",
+        robust_chi2: float = 9.0,
     ) -> None:
         if fps_hint <= 0 or max_missing_s <= 0 or gate_m <= 0:
             raise ValueError("fps_hint, max_missing_s and gate_m must be positive")
@@ -119,6 +129,16 @@ class Tracker:
         self.measurement_scale = float(measurement_scale)
         self.min_measurement_var = float(min_measurement_std_m) ** 2
         self.max_measurement_var = float(max_measurement_std_m) ** 2
+        if confirm_single_s is None:  # longer for one camera's word, unless reports are immediate
+            confirm_single_s = SINGLE_VIEW_CONFIRM_S if self.confirm_s > 0 else 0.0
+        self.confirm_single_s = max(self.confirm_s, float(confirm_single_s))
+        self.ghost_s = float(ghost_s)
+        self.robust_chi2 = float(robust_chi2)
+        self._motion_options = (
+            {"stand_std": stand_std_m, "stand_s": stand_s, "walk_s": walk_s, "output": imm_output}
+            if motion == "imm"
+            else {}
+        )
         self._tracks: list[_State] = []
         self._next_id = 1
         self._time: float | None = None
@@ -139,12 +159,14 @@ class Tracker:
         positions: np.ndarray,
         meta: list[dict] | None = None,
         covariances: Sequence[np.ndarray | None] | np.ndarray | None = None,
+        coverage: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> list[Track]:
         """Fold the detections of time ``t`` (``positions`` [P, 2] metres) into the tracks.
 
         ``covariances`` (optional, one [2, 2] m² or ``None`` per position): the localizer's
         uncertainty of each measurement; ``None`` (or a non-finite one) means the isotropic
-        ``measurement_std_m``.
+        ``measurement_std_m``. ``coverage`` (optional): floor positions [N, 2] → [N, K] bool,
+        which cameras should see a person standing there (used with ``ghost_s``).
         """
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
         keep = np.isfinite(positions).all(axis=1)
@@ -171,6 +193,8 @@ class Tracker:
                 track.rate *= 1.0 - self.rate_alpha
         for c in sorted(set(range(len(positions))) - set(cols.tolist())):
             self._tracks.append(self._spawn(positions[c], noise[c], meta[c], self._time))
+        if coverage is not None and self.ghost_s > 0:
+            self._doubt(coverage, dt)
 
         self._tracks = [
             tr
@@ -185,7 +209,7 @@ class Tracker:
         now = self._time if self._time is not None else 0.0
         out = []
         for tr in sorted(self._tracks, key=lambda s: s.id):
-            if not tr.confirmed:
+            if not tr.confirmed or (not tr.multi_view and tr.doubted_s > self.ghost_s > 0):
                 continue
             missing = now - tr.last_seen
             mean = tr.motion.mean
@@ -231,27 +255,58 @@ class Tracker:
         track.motion.predict(dt)
 
     def _correct(self, track: _State, z: np.ndarray, r: np.ndarray, meta: dict, t: float) -> None:
-        track.motion.correct(z, r)
+        track.motion.correct(z, self._robust(track, z, r))
         track.last_seen = t
         track.hits += 1
         track.rate = track.rate * (1.0 - self.rate_alpha) + self.rate_alpha
-        # Tentative tracks die at their first miss, so surviving confirm_s means seen throughout.
-        track.confirmed = track.confirmed or t - track.born >= self.confirm_s - 1e-9
         track.cameras = [int(k) for k in meta.get("cameras", [])]
+        track.multi_view = track.multi_view or len(track.cameras) > 1
+        self._confirm(track, t)
         track.meta = dict(meta)
+
+    def _robust(self, track: _State, z: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """Measurement covariance inflated by d² / robust_chi2 when the innovation's squared
+        Mahalanobis distance d² exceeds ``robust_chi2`` (a Huber-like weight: one wild box
+        moves a track less)."""
+        if self.robust_chi2 <= 0:
+            return r
+        nu = z - track.motion.mean[:2]
+        d2 = float(nu @ np.linalg.solve(track.motion.cov[:2, :2] + r, nu))
+        return r * (d2 / self.robust_chi2) if d2 > self.robust_chi2 else r
+
+    def _confirm(self, track: _State, t: float) -> None:
+        # Tentative tracks die at their first miss, so surviving confirm_s means seen throughout.
+        single = len(track.cameras) == 1 and not track.multi_view  # no camera info: confirm_s
+        wait = self.confirm_single_s if single else self.confirm_s
+        track.confirmed = track.confirmed or t - track.born >= wait - 1e-9
+
+    def _doubt(self, coverage: Callable[[np.ndarray], np.ndarray], dt: float) -> None:
+        """Single-view tracks accumulate the time a camera that should see them reports
+        nothing there (a detector's false positive is seen by one camera only)."""
+        doubtful = [tr for tr in self._tracks if not tr.multi_view]
+        if not doubtful or dt <= 0:
+            return
+        covered = np.asarray(coverage(np.stack([tr.motion.mean[:2] for tr in doubtful])))
+        for tr, row in zip(doubtful, covered, strict=True):
+            seen = set(tr.cameras) if tr.last_seen == self._time else set()
+            if set(np.flatnonzero(row).tolist()) - seen and seen:
+                tr.doubted_s += dt
 
     def _spawn(self, z: np.ndarray, r: np.ndarray, meta: dict, t: float) -> _State:
         # Unknown velocity: a walking person is within ~2 m/s, so start with that spread.
-        motion = MOTION_MODELS[self.motion](z, r, float(np.sqrt(self.accel_var)))
+        motion = MOTION_MODELS[self.motion](
+            z, r, float(np.sqrt(self.accel_var)), **self._motion_options
+        )
         state = _State(
             id=self._next_id,
             motion=motion,
             born=t,
             last_seen=t,
-            confirmed=self.confirm_s <= 0,
             cameras=[int(k) for k in meta.get("cameras", [])],
             meta=dict(meta),
         )
+        state.multi_view = len(state.cameras) > 1
+        self._confirm(state, t)
         self._next_id += 1
         return state
 
