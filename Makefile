@@ -45,11 +45,13 @@ bench-model: $(VENV)/.stamp-dev
 
 bench-detector: $(VENV)/.stamp-dev
 	$(PY) -m bench.detector_speed
+	$(PY) -m bench.detector_accuracy
 
 bench-service: $(VENV)/.stamp-dev
 	$(PY) -m bench.service_latency
 	$(PY) -m bench.association
 	$(PY) -m bench.camera_shift
+	$(PY) -m bench.mqtt_fanout
 	$(PY) -m bench.stream_accuracy
 
 bench-setup: $(VENV)/.stamp-dev

@@ -1,7 +1,15 @@
 """Accuracy benchmark: MoM against the calibrated baseline, decoder ablation, robustness curves.
 
-``python -m bench.model_accuracy [--quick]`` writes ``bench/results/model_accuracy.md`` (with
-``--quick``: ``model_accuracy_quick.md``) and PNG plots next to it.
+``python -m bench.model_accuracy [--quick | --tables] [--profile NAME]`` writes
+``bench/results/model_accuracy.md`` (with ``--quick``: ``model_accuracy_quick.md``, with
+``--tables``: ``model_accuracy_tables.md``; with a ``--profile`` other than the default, the
+profile's name is appended, e.g. ``model_accuracy_ideal.md``) and PNG plots next to it.
+
+Every recording is simulated with the detector profile ``--profile`` (default: the shipped
+detector's, ``models.simulate.DEFAULT_PROFILE``; ``ideal`` is the former kind noise). ``--tables``
+measures what the README's localization table shows and nothing else: Table 1 with one training
+seed, MoM + bbox on every preset, MoM + keypoints on indoor-2cam, the calibrated baselines; no
+decoder ablation, no plain MLP, no curves.
 
 Protocol (the paper's Table 1, Table 2, Fig. 5 and Fig. 6 on the synthetic presets):
 
@@ -28,6 +36,7 @@ Protocol (the paper's Table 1, Table 2, Fig. 5 and Fig. 6 on the synthetic prese
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import os
 import sys
@@ -62,6 +71,7 @@ class Plan:
     offsets: tuple[int, ...] = (*range(0, 20, 2), 19)
     noises: tuple[int, ...] = (*range(0, 20, 2), 19)
     directions: int = 2  # random bump directions averaged per offset
+    ablation: bool = True  # no-decoder models, plain MLP, keypoints on every preset, curves
 
 
 FULL = Plan()
@@ -181,27 +191,30 @@ def _baselines(run: PresetRun, scene, plan: Plan) -> None:
                 run.notes.append(f"{label}, chessboard session {session}: {failed} rows filled")
 
 
-def run_preset(preset: str, index: int, plan: Plan, work: Path) -> PresetRun:
+def run_preset(preset: str, index: int, plan: Plan, work: Path, profile: str) -> PresetRun:
     from models.simulate import simulate
 
     train_frames = _frames(preset, plan.train_rows)
     test_frames = _frames(preset, plan.test_rows)
-    train_sim = simulate(preset, frames=train_frames, seed=100 + index)
-    test_sim = simulate(preset, frames=test_frames, seed=200 + index)
+    train_sim = simulate(preset, frames=train_frames, seed=100 + index, detector_profile=profile)
+    test_sim = simulate(preset, frames=test_frames, seed=200 + index, detector_profile=profile)
     run = PresetRun(preset, train_sim.dataset, test_sim.dataset, 200 + index, test_frames)
     run.projections = test_sim.projections
     _log(f"{preset}: train {run.train.summary()}; test {run.test.summary()}")
     seeds = plan.decoder_seeds if preset == CURVE_PRESET else plan.decoder_seeds[:1]
     for seed in seeds:
         _train(run, work, plan, "MoM + bbox", seed=seed)
-        _train(run, work, plan, "MoM + bbox, no decoder", seed=seed, decoder=False)
-    _train(run, work, plan, "MoM + keypoints", seed=seeds[0], observation="keypoints")
-    _plain_mlp(run, plan, seeds[0])
+        if plan.ablation:
+            _train(run, work, plan, "MoM + bbox, no decoder", seed=seed, decoder=False)
+    if plan.ablation or preset == CURVE_PRESET:
+        _train(run, work, plan, "MoM + keypoints", seed=seeds[0], observation="keypoints")
+    if plan.ablation:
+        _plain_mlp(run, plan, seeds[0])
     _baselines(run, test_sim.scene, plan)
     return run
 
 
-def offset_curve(run: PresetRun, plan: Plan) -> dict[str, list[float]]:
+def offset_curve(run: PresetRun, plan: Plan, profile: str) -> dict[str, list[float]]:
     """Acc@0.3 against a test-time camera bump of n px (random direction per camera)."""
     from models.simulate import Perturbation, simulate
 
@@ -223,7 +236,11 @@ def offset_curve(run: PresetRun, plan: Plan) -> dict[str, list[float]]:
                 for k, a in enumerate(angles)
             ]
             bumped = simulate(
-                run.preset, frames=run.test_frames, seed=run.test_seed, perturbation=bumps
+                run.preset,
+                frames=run.test_frames,
+                seed=run.test_seed,
+                perturbation=bumps,
+                detector_profile=profile,
             ).dataset
             acc["MoM + bbox"].append(evaluate(run.runtimes["MoM + bbox"], bumped).metrics)
             acc["MoM + keypoints"].append(evaluate(run.runtimes["MoM + keypoints"], bumped).metrics)
@@ -310,21 +327,62 @@ def curve_table(x: tuple[int, ...], curves: dict[str, list[float]], xlabel: str)
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="small smoke run (a few minutes)")
+    parser.add_argument(
+        "--tables", action="store_true", help="the README's localization table only (one seed)"
+    )
     parser.add_argument("--presets", nargs="+", help="subset of presets")
+    parser.add_argument(
+        "--profile", default=None, help="detector profile of every recording (default: shipped)"
+    )
     args = parser.parse_args(argv)
+    from models.simulate import DEFAULT_PROFILE, load_profile
+
+    profile = args.profile or DEFAULT_PROFILE
+    source = load_profile(profile).source
     plan = QUICK if args.quick else FULL
+    if args.tables:
+        plan = dataclasses.replace(plan, decoder_seeds=plan.decoder_seeds[:1], ablation=False)
     presets = tuple(args.presets) if args.presets else plan.presets
-    suffix = "_quick" if args.quick else ""
+    suffix = ("_quick" if args.quick else "") + ("_tables" if args.tables else "")
+    suffix += "" if profile == DEFAULT_PROFILE else f"_{Path(profile).stem}"
     started, load_start = time.monotonic(), os.getloadavg()[0]
     runs: list[PresetRun] = []
     with tempfile.TemporaryDirectory(prefix="momloc-bench-") as work:
         for index, preset in enumerate(presets):
-            runs.append(run_preset(preset, index, plan, Path(work)))
+            runs.append(run_preset(preset, index, plan, Path(work), profile))
         curve_run = next((r for r in runs if r.preset == CURVE_PRESET), runs[0])
-        offsets = offset_curve(curve_run, plan)
-        noises = noise_curve(curve_run, plan)
+        if plan.ablation:
+            offsets = offset_curve(curve_run, plan, profile)
+            noises = noise_curve(curve_run, plan)
     minutes = (time.monotonic() - started) / 60
     RESULTS.mkdir(parents=True, exist_ok=True)
+    command = f"python -m bench.model_accuracy{' --quick' if args.quick else ''}"
+    command += " --tables" if args.tables else ""
+    command += f" --profile {args.profile}" if args.profile else ""
+    header = [
+        "# Model accuracy: MoM vs. calibrated baseline"
+        + (" (quick run)" if args.quick else " (README tables)" if args.tables else ""),
+        "",
+        machine_line() + f" Whole script: {minutes:.1f} min wall clock (1-min load average "
+        f"{load_start:.1f} at start, {os.getloadavg()[0]:.1f} at end: the 2 cores were shared).",
+        "",
+        f"Command: `{command}`. Detector profile: `{profile}` ({source}). "
+        f"Plan: ~{plan.train_rows} train rows, ~{plan.test_rows} test rows per preset, "
+        f"epochs {'adaptive (train_model defaults)' if plan.epochs is None else plan.epochs}, "
+        f"decoder seeds {list(plan.decoder_seeds)} on {CURVE_PRESET}, "
+        f"{plan.calibration_sessions} chessboard sessions. Errors in metres, accuracies in %; "
+        "`a ± b` is mean ± std over runs. Protocol: see the docstring of "
+        "`bench/model_accuracy.py`.",
+        "",
+        "## Table 1: localization on unseen walks",
+        "",
+        *(preset_section(run) + "\n" for run in runs),
+    ]
+    if not plan.ablation:
+        out = RESULTS / f"model_accuracy{suffix}.md"
+        out.write_text("\n".join(header))
+        _log(f"wrote {out} ({minutes:.1f} min)")
+        return 0
     offset_png = plot_curves(
         RESULTS / f"model_accuracy_offset{suffix}.png",
         plan.offsets,
@@ -342,22 +400,7 @@ def main(argv: list[str] | None = None) -> int:
         title=f"MoM + keypoints under keypoint noise ({curve_run.preset})",
     )
     text = [
-        "# Model accuracy: MoM vs. calibrated baseline" + (" (quick run)" if args.quick else ""),
-        "",
-        machine_line() + f" Whole script: {minutes:.1f} min wall clock (1-min load average "
-        f"{load_start:.1f} at start, {os.getloadavg()[0]:.1f} at end: the 2 cores were shared).",
-        "",
-        f"Command: `python -m bench.model_accuracy{' --quick' if args.quick else ''}`. "
-        f"Plan: ~{plan.train_rows} train rows, ~{plan.test_rows} test rows per preset, "
-        f"epochs {'adaptive (train_model defaults)' if plan.epochs is None else plan.epochs}, "
-        f"decoder seeds {list(plan.decoder_seeds)} on {CURVE_PRESET}, "
-        f"{plan.calibration_sessions} chessboard sessions. Errors in metres, accuracies in %; "
-        "`a ± b` is mean ± std over runs. Protocol: see the docstring of "
-        "`bench/model_accuracy.py`.",
-        "",
-        "## Table 1: localization on unseen walks",
-        "",
-        *(preset_section(run) + "\n" for run in runs),
+        *header,
         f"## Table 2: decoder ablation ({curve_run.preset}, several seeds, encoders alone)",
         "",
         decoder_section(curve_run),

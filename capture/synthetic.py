@@ -38,13 +38,18 @@ def make_scene(
     people: int | None = None,
     fps: float | None = None,
     perturbations: Sequence[Any] | None = None,
+    detector_profile: str | None = None,
 ) -> Any:
-    """A simulator scene from a preset name, with the people count and frame rate overridden
-    and optionally cameras bumped mid-run (``models.simulate.Perturbation``)."""
+    """A simulator scene from a preset name, with the people count and frame rate overridden,
+    optionally cameras bumped mid-run (``models.simulate.Perturbation``) and the simulated
+    detector's profile chosen (name or JSON path; default the shipped detector's)."""
     from models.simulate import Scene, get_config
 
     bumps = None if perturbations is None else tuple(perturbations)
-    return Scene(get_config(preset, people=people, fps=fps, perturbations=bumps), seed=seed)
+    config = get_config(
+        preset, people=people, fps=fps, perturbations=bumps, detector_profile=detector_profile
+    )
+    return Scene(config, seed=seed)
 
 
 class SceneClock:
@@ -241,7 +246,8 @@ class SyntheticSource:
 
 
 class SimulatedDetections:
-    """Detection stage: the simulator's noisy boxes for each frame's scene index."""
+    """Detection stage: the simulator's noisy boxes for each frame's scene index, followed by
+    the profile's false positives for that camera (a real detector reports them too)."""
 
     def __init__(self, rig: SyntheticRig) -> None:
         self.rig = rig
@@ -252,8 +258,12 @@ class SimulatedDetections:
             if frame is None:
                 out.append(np.zeros((0, 4), np.float32))
                 continue
-            boxes = np.asarray(self.rig.observation(frame.seq).boxes, np.float32)
+            observation = self.rig.observation(frame.seq)
+            boxes = np.asarray(observation.boxes, np.float32)
             camera = self.rig.cameras[frame.camera]
             per_camera = boxes[:, camera, :] if boxes.size else np.zeros((0, 4), np.float32)
+            false = np.asarray(getattr(observation, "false_boxes", np.zeros((0, 0, 4))))
+            if false.size:
+                per_camera = np.concatenate([per_camera, false[camera].astype(np.float32)])
             out.append(per_camera[np.all(np.isfinite(per_camera), axis=1)])
         return out

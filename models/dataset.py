@@ -26,13 +26,13 @@ Example::
 from __future__ import annotations
 
 import os
-import tempfile
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from models.atomic import atomic_write
 from models.errors import MomlocError
 
 MAX_CAMERAS = 9
@@ -107,20 +107,14 @@ class MomDataset:
         )
 
     def save(self, path: str | os.PathLike[str]) -> Path:
-        """Write atomically (temporary file in the same folder, fsync, rename)."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        try:
-            with os.fdopen(fd, "wb") as handle:
-                np.savez_compressed(handle, **self.arrays())
-                handle.flush()
-                os.fsync(handle.fileno())
-            os.replace(tmp_name, path)
-        except BaseException:
-            Path(tmp_name).unlink(missing_ok=True)
-            raise
-        return path
+        """Write atomically (:mod:`models.atomic`)."""
+        arrays = self.arrays()
+
+        def produce(tmp: Path) -> None:
+            with open(tmp, "wb") as handle:  # a handle: np.savez would append ".npz" to a name
+                np.savez_compressed(handle, **arrays)
+
+        return atomic_write(path, produce)
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> MomDataset:

@@ -13,15 +13,13 @@ mode, sampler settings and its fixed draws, world normalisation, the decoder mat
 
 from __future__ import annotations
 
-import json
-import os
-import tempfile
 import warnings
 from pathlib import Path
 
 import numpy as np
 import torch
 
+from models.atomic import atomic_write, atomic_write_json
 from models.mom_torch import DrawAverage, MomEncoder
 from models.sampling import SamplerConfig, draws_to_json, fixed_draws
 
@@ -83,16 +81,16 @@ def write_model_dir(
     checkpoint: dict,
     metrics: dict,
     settings: dict,
+    floor_prior: dict | None = None,
 ) -> None:
-    """Write all three files; ``model.json`` last and atomically, so a reader (the daemon's
-    hot reload) never sees a half-written model."""
+    """Write all three files, each atomically (:mod:`models.atomic`), ``model.json`` last and
+    once, complete with the ``floor_prior`` entry, so a reader (the daemon's hot reload) never
+    sees a half-written or intermediate model."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    # each file goes to a temporary name first, then replaces the old one in one step
-    tmp_onnx, tmp_pt = out_dir / f".{ONNX_NAME}.tmp", out_dir / f".{CHECKPOINT_NAME}.tmp"
-    export_encoder(encoder, centre, scale, tmp_onnx, sampler.rows)
-    torch.save(checkpoint, tmp_pt)
-    os.replace(tmp_onnx, out_dir / ONNX_NAME)
-    os.replace(tmp_pt, out_dir / CHECKPOINT_NAME)
+    atomic_write(
+        out_dir / ONNX_NAME, lambda tmp: export_encoder(encoder, centre, scale, tmp, sampler.rows)
+    )
+    atomic_write(out_dir / CHECKPOINT_NAME, lambda tmp: torch.save(checkpoint, tmp))
     meta = {
         "format": MODEL_FORMAT,
         "version": 1,
@@ -118,8 +116,6 @@ def write_model_dir(
         "settings": settings,
         "metrics": metrics,
     }
-    fd, tmp = tempfile.mkstemp(prefix=".model.", suffix=".json", dir=out_dir)
-    with os.fdopen(fd, "w") as handle:
-        json.dump(meta, handle, indent=1)
-    os.chmod(tmp, 0o644)  # mkstemp makes it private; the daemon may run as another user
-    os.replace(tmp, out_dir / JSON_NAME)
+    if floor_prior is not None:
+        meta["floor_prior"] = floor_prior
+    atomic_write_json(out_dir / JSON_NAME, meta)

@@ -20,11 +20,7 @@ The policy, weights and the prior refitted on all rows are stored in ``model.jso
 
 from __future__ import annotations
 
-import json
-import os
-import tempfile
 from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
 
@@ -201,22 +197,6 @@ def _weigh_on_validation(dataset, observation, val_rows, encoder_xy, coverage):
     return weights, reason, validation
 
 
-def attach_floor_prior(
-    dataset: MomDataset,
-    model_dir: str | Path,
-    observation: str,
-    val_rows: np.ndarray | None = None,
-    encoder_val_xy: np.ndarray | None = None,
-) -> dict:
-    """Fit the prior, choose the policy, and add both to ``model_dir/model.json`` atomically."""
-    path = Path(model_dir) / "model.json"
-    meta = json.loads(path.read_text())
-    entry, _ = choose_policy(dataset, observation, val_rows, encoder_val_xy)
-    meta["floor_prior"] = entry
-    fd, tmp = tempfile.mkstemp(prefix=".model.json.", dir=path.parent)
-    with os.fdopen(fd, "w") as handle:
-        json.dump(meta, handle)
-        handle.flush()
-        os.fsync(handle.fileno())
-    os.replace(tmp, path)
+def summary(entry: dict) -> dict:
+    """The ``floor_prior`` entry without the fitted prior itself (for printed metrics)."""
     return {key: value for key, value in entry.items() if key != "prior"}

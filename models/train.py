@@ -30,7 +30,7 @@ from models.dataset import MomDataset
 from models.errors import MomlocError
 from models.export import write_model_dir
 from models.mom_torch import MomDecoder, MomEncoder, fit_homography
-from models.prior_policy import attach_floor_prior
+from models.prior_policy import choose_policy, summary
 from models.sampling import (
     InferenceSampler,
     SamplerConfig,
@@ -305,6 +305,7 @@ def _train(dataset, out_dir, sampler, decoder, epochs, seed, progress, tuning) -
         seconds=round(time.monotonic() - started, 1),
         val_history=history,
     )
+    floor_prior, _ = choose_policy(dataset, sampler.observation, val_rows, val_xy)
     write_model_dir(
         out_dir,
         encoder=trainer.encoder,
@@ -323,10 +324,9 @@ def _train(dataset, out_dir, sampler, decoder, epochs, seed, progress, tuning) -
         },
         metrics=metrics,
         settings={**asdict(settings), "decoder": decoder, "seed": seed},
+        floor_prior=floor_prior,
     )
-    metrics["floor_prior"] = attach_floor_prior(
-        dataset, out_dir, sampler.observation, val_rows, val_xy
-    )
+    metrics["floor_prior"] = summary(floor_prior)
     return metrics
 
 

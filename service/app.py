@@ -45,6 +45,7 @@ from pydantic import BaseModel, Field
 from models.errors import MomlocError
 from service.daemon import Daemon
 from service.metrics import metrics_text
+from service.routes_zones import create_zones_router
 from service.setup.routes import create_setup_router
 from service.snapshot_image import render_camera_jpeg
 
@@ -114,6 +115,7 @@ def create_app(daemon: Daemon, *, manage_pipeline: bool = True) -> FastAPI:
 
     if daemon.setup is not None:
         app.include_router(create_setup_router(daemon.setup), dependencies=secured)
+    app.include_router(create_zones_router(daemon))  # zones, events, MQTT (own auth, lifespan)
 
     @app.get("/v1/positions", dependencies=secured, summary="Newest snapshot")
     def positions() -> JSONResponse:

@@ -41,6 +41,7 @@ class Daemon:
     started: float = field(default_factory=time.time)
     watcher: ModelWatcher | None = None
     setup: SetupSession | None = None
+    outputs: Any = None  # service.outputs.Outputs: zones, MQTT
 
     def camera_states(self) -> list[dict[str, Any]]:
         states = self.pipeline.rig.states()
@@ -81,6 +82,7 @@ class Daemon:
             "clients": self.hub.subscriber_count,
             "stream": self.hub.stream_stats(),
             "model_reload": None if self.watcher is None else self.watcher.last_reload,
+            **({} if self.outputs is None else self.outputs.health()),
             **self.extras,
         }
 
@@ -90,6 +92,9 @@ class Daemon:
             "floor": self.floor,
             "stream_rate": self.stream_rate,
             "auth": self.token is not None,
+            "zones": []
+            if self.outputs is None
+            else [z.as_dict() for z in self.outputs.zones.zones],
             **self.extras,
         }
 
@@ -133,7 +138,13 @@ def build_rig(settings: Settings) -> tuple[Any, Any]:
         from capture.synthetic import SyntheticRig, make_scene
 
         syn = settings.synthetic
-        scene = make_scene(syn.preset, seed=syn.seed, people=syn.people, fps=syn.fps)
+        scene = make_scene(
+            syn.preset,
+            seed=syn.seed,
+            people=syn.people,
+            fps=syn.fps,
+            detector_profile=syn.detector_profile,
+        )
         indices = [c.index for c in settings.cameras]
         available = len(scene.cameras)
         for position, index in enumerate(indices):
@@ -235,7 +246,7 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
     extras = {}
     if player is not None:
         extras["source"] = {"synthetic": settings.synthetic.model_dump()}
-    return Daemon(
+    daemon = Daemon(
         hub=hub,
         pipeline=pipeline,
         camera_names=[camera_name(c) for c in settings.cameras],
@@ -253,6 +264,10 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
             detach=pipeline.remove_detection_listener,
         ),
     )
+    from service.outputs import build_outputs
+
+    daemon.outputs = build_outputs(settings, daemon)
+    return daemon
 
 
 def _known_sizes(pipeline: Pipeline) -> list[tuple[int, int]] | None:

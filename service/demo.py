@@ -4,9 +4,11 @@ Nothing is special-cased: the demo builds ordinary :class:`~service.settings.Set
 ``synthetic`` cameras and hands them to the same ``build_daemon`` as ``momloc serve``. The only
 choice is where the boxes come from (``synthetic.detections``):
 
-- ``simulated`` (default): the simulator's boxes, with detector-like noise, misses and
-  occlusions, enter the pipeline at the detection stage. Always finds every visible person, so
-  the map shows everyone at the demo's 30 fps even on a small machine.
+- ``simulated`` (default): the simulator's boxes enter the pipeline at the detection stage,
+  as blind as the shipped detector (``synthetic.detector_profile``, default ``nanodet``: misses
+  by size, occlusion and truncation, edge errors, false positives, all persisting over frames;
+  ``--profile ideal`` for the former kind noise). Cheap, so the map runs at the demo's 30 fps
+  even on a small machine.
 - ``rendered``: frames drawn by the simulator go through the real SSDLite detector. Shows the
   whole chain, but the detector finds the drawn figures only at some sizes (see README), so
   people flicker in and out where it misses them, and it costs ~20 ms of CPU per frame set.
@@ -14,6 +16,7 @@ choice is where the boxes come from (``synthetic.detections``):
 
 from __future__ import annotations
 
+import os
 from typing import Literal
 
 from models.simulate import get_config
@@ -23,6 +26,15 @@ DEMO_PRESET = "indoor-2cam"
 DEMO_SEED = 7
 DEMO_PEOPLE = 3
 DEMO_FPS = 30.0
+# Two zones in the 10 m x 10 m demo room, so the map, /v1/zones and MQTT have something to show:
+# a rectangle and a concave L (MOMLOC_ZONES replaces them).
+DEMO_ZONES = [
+    {"name": "kitchen", "polygon": [[0.5, 0.5], [4.0, 0.5], [4.0, 4.0], [0.5, 4.0]]},
+    {
+        "name": "lounge",
+        "polygon": [[5.0, 5.0], [9.5, 5.0], [9.5, 9.5], [7.5, 9.5], [7.5, 7.0], [5.0, 7.0]],
+    },
+]
 
 
 def demo_settings(
@@ -32,6 +44,7 @@ def demo_settings(
     detections: Literal["rendered", "simulated"] | None = None,
     people: int | None = None,
     seed: int | None = None,
+    profile: str | None = None,
 ) -> Settings:
     """Settings for the demo scene; ``MOMLOC_*`` environment variables still apply."""
     config = get_config(DEMO_PRESET)
@@ -43,6 +56,8 @@ def demo_settings(
     }
     if detections is not None:
         synthetic["detections"] = detections
+    if profile is not None:
+        synthetic["detector_profile"] = profile
     return load_settings(
         None,
         cameras=[{"type": "synthetic", "index": k} for k in range(len(config.cameras))],
@@ -50,4 +65,5 @@ def demo_settings(
         synthetic=synthetic,
         host=host,
         port=port,
+        zones=None if "MOMLOC_ZONES" in os.environ else DEMO_ZONES,
     )

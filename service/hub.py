@@ -21,12 +21,14 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
+import logging
 import threading
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 SCHEMA_VERSION = 1
+log = logging.getLogger("momloc.hub")
 
 
 @dataclass(frozen=True)
@@ -91,6 +93,7 @@ class Hub:
         self._latest = EMPTY
         self._subscribers: set[Subscription] = set()
         self._loop: asyncio.AbstractEventLoop | None = None
+        self._publishers: tuple[Any, ...] = ()  # service.publish.Publisher (zones, MQTT)
         self.published = 0
         self.sent = 0  # messages handed to clients
         self.sent_behind = 0  # ... of which a newer-by-2+ snapshot already existed
@@ -105,10 +108,22 @@ class Hub:
         with self._lock:
             self._latest = snapshot
             self.published += 1
+        for publisher in self._publishers:
+            try:
+                publisher.offer(snapshot)
+            except Exception:  # an output's bug must not stop the pipeline
+                log.exception("publisher %s failed", getattr(publisher, "name", publisher))
         loop = self._loop
         if loop is not None and not loop.is_closed():
             with contextlib.suppress(RuntimeError):  # loop closed since the check
                 loop.call_soon_threadsafe(self._fan_out, snapshot)
+
+    def add_publisher(self, publisher: Any) -> None:
+        """Hand every snapshot to ``publisher.offer`` (pipeline thread; it must not block)."""
+        self._publishers = (*self._publishers, publisher)
+
+    def remove_publisher(self, publisher: Any) -> None:
+        self._publishers = tuple(p for p in self._publishers if p is not publisher)
 
     def _fan_out(self, snapshot: Snapshot) -> None:
         for subscription in tuple(self._subscribers):

@@ -14,6 +14,8 @@ from prometheus_client import CONTENT_TYPE_LATEST, CollectorRegistry, generate_l
 from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily
 from prometheus_client.registry import Collector
 
+from service.outputs import output_metrics
+
 
 class _DaemonCollector(Collector):
     def __init__(self, daemon: Any) -> None:
@@ -83,6 +85,7 @@ class _DaemonCollector(Collector):
         yield connected
         yield fps
         yield age
+        yield from output_metrics(d)  # zones and MQTT (service.outputs)
 
 
 def metrics_text(daemon: Any) -> tuple[bytes, str]:

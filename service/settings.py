@@ -29,6 +29,7 @@ from pydantic import BaseModel, ConfigDict, Field, SecretStr, ValidationError, m
 from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict
 
 from models.errors import MomlocError
+from service.output_settings import MqttSettings, ZoneList
 
 DEMO_MODEL_DIR = Path(__file__).resolve().parent.parent / "models" / "demo_model"
 _STRICT = ConfigDict(extra="forbid")
@@ -110,6 +111,13 @@ class SyntheticSettings(BaseModel):
         description=(
             "rendered: frames drawn by the simulator go through the real detector; "
             "simulated: the simulator's noisy boxes enter the pipeline instead of detector output."
+        ),
+    )
+    detector_profile: str = Field(
+        "nanodet",
+        description=(
+            "How blind the simulated detector is (simulated detections): a shipped profile "
+            "(nanodet, ssdlite, ideal) or a profile JSON path; see models/simulate/profile.py."
         ),
     )
     preview_fps: float = Field(
@@ -217,6 +225,11 @@ class Settings(BaseSettings):
     watch_model: bool = Field(
         True, description="Reload the model when momloc train rewrites model_dir."
     )
+    # -- outputs beyond the API: zones and MQTT (models in service.output_settings) --------------
+    zones: ZoneList = Field(
+        default_factory=list, description="Named floor polygons with occupancy and events."
+    )
+    mqtt: MqttSettings | None = Field(None, description="MQTT publisher; absent: off.")
 
     @classmethod
     def settings_customise_sources(

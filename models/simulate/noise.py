@@ -1,70 +1,59 @@
 """Detector-like noise: what a real person detector makes of the true projected body.
 
-The defaults are deliberately no kinder than a real detector (SSDLite / YOLO on 640×480 webcam
-frames), so accuracy figures measured on synthetic scenes mean something. Per camera, person and
-frame, independently, in this order:
+How blind the detector is comes from a :class:`~models.simulate.profile.DetectorProfile` (data,
+measured on real-looking frames; the default is the shipped detector's). Per camera, person and
+frame, in this order:
 
 1. **Behind the camera / out of view.** No box (NaN) when the mid-hip is behind the camera or the
    true box does not overlap the image.
-2. **Truncation at the border.** The box is clipped to the image. If less than
-   ``min_visible_fraction`` (30 %) of the true box area remains, or the clipped box is less than
-   ``min_box_height`` (16 px) tall, the person is missed.
+2. **Truncation at the border.** The box is clipped to the image; a clipped box shorter than
+   ``min_height_px`` is missed. The truncated fraction of its area raises the miss probability
+   (``miss.truncation`` table).
 3. **Occlusion between people.** A nearer person covers a farther one where their body region (the
    nearer person's clipped true box narrowed to 70 % of its width: a box overestimates a body by
    its empty corners) overlaps the farther one's box, measured on a 12×8 grid of sample points.
-   Covered ≥ ``occlusion_miss`` (70 %) → missed. Covered ≥ ``occlusion_shrink`` (15 %) → the box
-   moves toward the box of the uncovered samples by a random fraction U(0.5, 1) (a detector boxes
-   the visible part, sometimes guessing the hidden extent).
-4. **Random misses** with probability ``miss_rate`` (3 %).
-5. **Scale error**: the box is scaled about its centre by ``1 + s``, ``s ~ N(0, scale)``,
-   ``scale`` = 5 %, clipped to ±15 %.
-6. **Jitter**: each of the four edges moves by ``N(0, jitter · h)``, ``jitter`` = 3 %, ``h`` the
-   box height before noise. The box is then clipped to the image again (detectors never report
-   boxes outside the frame) and kept at least one pixel wide and tall.
+   The covered fraction raises the miss probability (``miss.occlusion``); covered ≥
+   ``occlusion_shrink.above`` → the box moves toward the box of the uncovered samples by a random
+   fraction U(blend) (a detector boxes the visible part, sometimes guessing the hidden extent).
+4. **Misses by size**: ``miss.height_px``/``probability`` at the box height rescaled to the
+   profile's reference frame height. The three causes combine as independent ones.
+5. **Scale error**: the box is scaled about its centre by ``1 + s``, ``s ~ N(0, scale_sigma)``,
+   clipped to ``±scale_clip``.
+6. **Edge errors**: bottom and top edges move by ``(bias + sigma · z) · h`` (image y down, tables
+   over box height), side edges by ``side_sigma · z · h``, ``h`` the box height before noise. The
+   box is then clipped to the image again (detectors never report boxes outside the frame) and
+   kept at least one pixel wide and tall.
 
-Scale error and jitter are correlated in time like a real detector's (the same pose and
-background give the same mistake in consecutive frames): per camera, person and edge an AR(1)
-sequence with correlation ``exp(-Δt / correlation_time)``, ``correlation_time`` = 0.2 s (0.72
-from frame to frame at 15 fps), so temporal smoothing cannot average the noise away faster than
-it could on real video. Misses, occlusion blending and keypoint noise are drawn independently per
-frame.
+**Correlation over time.** A detector makes the same mistake in consecutive frames (same pose,
+same background), so temporal smoothing cannot average its noise away faster than it could on
+real video. Scale and edge errors are, per camera, person and edge, an AR(1) sequence with
+correlation ``exp(-Δt / edges.correlation_s)``. Misses persist too: per camera and person a
+latent AR(1) normal ``z`` with ``miss.correlation_s``, and the person is missed when
+``Φ(z) < p`` (a Gaussian copula). Why this and not a two-state Markov chain: the miss probability
+changes from frame to frame with size and occlusion, and the copula keeps *exactly* the profile's
+miss probability in every frame while making misses come in runs (lag-1 correlation of the miss
+indicator > 0, growing with the correlation time). A correlation time of 0 gives independent
+draws. Occlusion blending and keypoint noise are drawn independently per frame.
 
 Keypoints (COCO-17) are the projected joints plus ``N(0, keypoint_sigma · h + keypoint_pixels)``
 pixel noise, with confidence U(0.55, 0.95). A joint inside a nearer person's body region, or a
 face point turned away from the camera, is occluded: confidence U(0.05, 0.35) and three times the
 noise. Joints outside the image, and every joint of a missed detection, are NaN.
+
+False positives (boxes where nobody is) are drawn by :mod:`models.simulate.false_positives`.
 """
 
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
 
 import numpy as np
+from scipy.special import ndtr
+
+from models.simulate.profile import DetectorProfile
 
 _GRID_X, _GRID_Y = 8, 12
 _BODY_WIDTH = 0.7
-
-
-@dataclass(frozen=True)
-class NoiseConfig:
-    """Detector noise parameters; the defaults are the documented realistic ones, keep them."""
-
-    jitter: float = 0.03
-    scale: float = 0.05
-    miss_rate: float = 0.03
-    min_visible_fraction: float = 0.3
-    min_box_height: float = 16.0
-    correlation_time: float = 0.2
-    occlusion_miss: float = 0.7
-    occlusion_shrink: float = 0.15
-    keypoint_sigma: float = 0.015
-    keypoint_pixels: float = 1.0
-
-    @classmethod
-    def exact(cls) -> NoiseConfig:
-        """No random noise (still truncation and occlusion): for debugging and geometry tests."""
-        return cls(jitter=0.0, scale=0.0, miss_rate=0.0, keypoint_sigma=0.0, keypoint_pixels=0.0)
 
 
 def correlated_normals(
@@ -129,14 +118,16 @@ def detect(
     joints: np.ndarray,
     face_away: np.ndarray,
     image_size: np.ndarray,
-    config: NoiseConfig,
+    profile: DetectorProfile,
     rng: np.random.Generator,
     normals: np.ndarray | None = None,
+    miss_latent: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Noisy boxes [F,K,P,4] and keypoints [F,K,P,17,3] from the true geometry.
 
-    ``normals`` [F,K,P,5]: standard normal draws for the scale error and the four edge jitters
-    (temporally correlated ones from :func:`correlated_normals`); drawn i.i.d. when None.
+    ``normals`` [F,K,P,5]: standard normal draws for the scale error and the four edge errors,
+    ``miss_latent`` [F,K,P]: the latent normals of the miss decision (temporally correlated ones
+    from :func:`correlated_normals`); both drawn i.i.d. when None.
 
     ``true_boxes`` [F,K,P,4] unclipped (NaN: behind the camera), ``depth`` [F,K,P] of the mid-hip,
     ``joints`` [F,K,P,17,2] projected joints (NaN behind the camera), ``face_away`` [F,K,P,17]
@@ -148,8 +139,8 @@ def detect(
     with np.errstate(invalid="ignore", divide="ignore"):
         fraction = _area(clipped) / true_area
     seen = np.isfinite(true_boxes).all(-1) & (fraction > 0)
-    found = seen & (fraction >= config.min_visible_fraction)
-    found &= clipped[..., 3] - clipped[..., 1] >= config.min_box_height
+    clipped_height = clipped[..., 3] - clipped[..., 1]
+    found = seen & (clipped_height >= profile.min_height_px)
     regions = np.where(seen[..., None], _body_regions(clipped), np.nan)
 
     # Occlusion on a grid of sample points inside each clipped box.
@@ -163,7 +154,6 @@ def detect(
     nearer &= ~np.eye(p, dtype=bool)
     covered = _covered(samples, regions, nearer)
     occluded = covered.mean(-1)
-    found &= occluded < config.occlusion_miss
     free = ~covered
     big = np.where(free[..., None], samples, np.nan)
     cell = np.stack([(x1 - x0) / _GRID_X / 2, (y1 - y0) / _GRID_Y / 2], -1)[..., 0, :]
@@ -172,26 +162,46 @@ def detect(
         visible_box = np.concatenate(
             [np.nanmin(big, axis=-2) - cell, np.nanmax(big, axis=-2) + cell], -1
         )
-    shrink = (occluded >= config.occlusion_shrink) & found
-    blend = rng.uniform(0.5, 1.0, (f, k, p))[..., None]
+    shrink = (occluded >= profile.shrink_above) & found
+    blend = rng.uniform(*profile.shrink_blend, (f, k, p))[..., None]
     boxes = np.where(shrink[..., None], clipped + blend * (visible_box - clipped), clipped)
 
-    found &= rng.random((f, k, p)) >= config.miss_rate
+    image_height = image_size[:, 1, None].astype(float)  # [K, 1] broadcasts over [F, K, P]
+    truncated = np.where(seen, 1.0 - np.nan_to_num(fraction), 1.0)
+    miss = profile.miss_probability(
+        np.nan_to_num(clipped_height), image_height, occluded, truncated
+    )
+    if miss_latent is None:
+        miss_latent = rng.standard_normal((f, k, p))
+    found &= ndtr(miss_latent) >= miss
 
     height = boxes[..., 3] - boxes[..., 1]
     centre = (boxes[..., :2] + boxes[..., 2:]) / 2
     half = (boxes[..., 2:] - boxes[..., :2]) / 2
     if normals is None:
         normals = rng.standard_normal((f, k, p, 5))
-    scale = 1.0 + np.clip(normals[..., 0] * config.scale, -0.15, 0.15)
+    edges = profile.edges
+    clip = edges.scale_clip
+    scale = 1.0 + np.clip(normals[..., 0] * edges.scale_sigma, -clip, clip)
     boxes = np.concatenate([centre - half * scale[..., None], centre + half * scale[..., None]], -1)
-    boxes = boxes + normals[..., 1:] * (config.jitter * height)[..., None]
+    ref = profile.reference_height(np.nan_to_num(height), image_height)
+    side = edges.side_sigma(ref)
+    shift = np.stack(
+        [
+            side * normals[..., 1],
+            edges.top_bias(ref) + edges.top_sigma(ref) * normals[..., 2],
+            side * normals[..., 3],
+            edges.bottom_bias(ref) + edges.bottom_sigma(ref) * normals[..., 4],
+        ],
+        -1,
+    )
+    boxes = boxes + shift * height[..., None]
     boxes = _clip(boxes, image_size)
     boxes[..., 2:] = np.maximum(boxes[..., 2:], boxes[..., :2] + 1.0)
     boxes = np.where(found[..., None], boxes, np.nan)
 
     keypoints = _keypoints(
-        joints, face_away, regions, nearer, height, found, image_size, config, rng
+        joints, face_away, regions, nearer, height, found, image_size, profile, rng
     )
     return boxes, keypoints
 
@@ -204,12 +214,12 @@ def _keypoints(
     height: np.ndarray,
     found: np.ndarray,
     image_size: np.ndarray,
-    config: NoiseConfig,
+    profile: DetectorProfile,
     rng: np.random.Generator,
 ) -> np.ndarray:
     f, k, p, j, _ = joints.shape
     occluded = _covered(joints, regions, nearer) | face_away
-    sigma = config.keypoint_sigma * height[..., None] + config.keypoint_pixels
+    sigma = profile.keypoint_sigma * height[..., None] + profile.keypoint_pixels
     sigma = np.where(occluded, 3.0 * sigma, sigma)
     noisy = joints + rng.normal(0.0, 1.0, (f, k, p, j, 2)) * sigma[..., None]
     confidence = np.where(

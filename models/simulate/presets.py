@@ -21,6 +21,7 @@ from __future__ import annotations
 import dataclasses
 
 from models.errors import MomlocError
+from models.simulate.profile import DetectorProfile, load_profile
 from models.simulate.scene import CameraSpec, SceneConfig
 
 INSET = 0.05
@@ -111,8 +112,10 @@ def get_config(
     perturbations: tuple | None = None,
     room: tuple[float, float] | None = None,
     cameras: int | None = None,
+    detector_profile: str | DetectorProfile | None = None,
 ) -> SceneConfig:
-    """A preset by name (or a config), with people, fps, perturbations or the room overridden.
+    """A preset by name (or a config), with people, fps, perturbations, the room or the detector
+    profile (name, JSON path or :class:`DetectorProfile`) overridden.
 
     ``room`` (width, depth) and/or ``cameras`` (1-9) re-hang the cameras with
     :func:`ring_cameras`, keeping the preset's field of view, image size and distortion.
@@ -143,4 +146,6 @@ def get_config(
         changes["fps"] = float(fps)
     if perturbations is not None:
         changes["perturbations"] = tuple(perturbations)
+    if detector_profile is not None:
+        changes["detector_profile"] = load_profile(detector_profile)  # fail early, name the key
     return dataclasses.replace(config, **changes) if changes else config

@@ -3,8 +3,14 @@
 ``Scene(config, seed)`` is deterministic: the walking paths come from one generator seeded with
 ``[seed, 0]``, the appearance (clothes) from ``[seed, 2]``, and the detector noise of frames
 ``64 b .. 64 b + 63`` from ``[seed, 1, b]`` (plus ``[seed, 3, b]`` and ``[seed, 3, b + 1]`` for
-the temporally correlated part), so ``observe(i)`` returns the same arrays whatever was observed
-before, and ``simulate`` (which observes whole blocks at once) agrees with it.
+the temporally correlated edge errors, ``[seed, 6, b]`` and ``[seed, 6, b + 1]`` for the
+persistent misses, ``[seed, 4, b]``, ``[seed, 4, b + 1]`` and ``[seed, 8, b]`` for the false
+positives, ``[seed, 5]`` for their fixed places), so ``observe(i)`` returns the same arrays
+whatever was observed before, and ``simulate`` (which observes whole blocks at once) agrees with it.
+
+How blind the detector is comes from ``SceneConfig.detector_profile`` (a shipped profile's name,
+a JSON path or a loaded :class:`~models.simulate.profile.DetectorProfile`; default the shipped
+detector's, ``nanodet``): see :mod:`models.simulate.profile` and :mod:`models.simulate.noise`.
 
 Camera perturbations model a camera that was bumped at some frame: from ``start_frame`` on, that
 camera's image is shifted by (dx, dy) pixels and rolled by ``roll_deg`` about the principal point.
@@ -18,14 +24,16 @@ from __future__ import annotations
 import itertools
 import threading
 from collections import OrderedDict
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from models.errors import MomlocError
+from models.simulate import false_positives
 from models.simulate.camera import NEAR, PinholeCamera, project_points
-from models.simulate.noise import NoiseConfig, correlated_normals, detect
+from models.simulate.noise import correlated_normals, detect
 from models.simulate.people import Walkers
+from models.simulate.profile import DEFAULT_PROFILE, DetectorProfile, load_profile
 from models.simulate.skeleton import HEAD, MID_HIP, RADII, body_points
 
 BLOCK = 64  # frames observed (and noised) together
@@ -68,7 +76,7 @@ class SceneConfig:
     cameras: tuple[CameraSpec, ...]
     people: int = 3
     fps: float = 15.0
-    noise: NoiseConfig = field(default_factory=NoiseConfig)
+    detector_profile: str | DetectorProfile = DEFAULT_PROFILE
     perturbations: tuple[Perturbation, ...] = ()
     wall_height: float = 2.8
     outdoor: bool = False  # rendering only: open ground and sky instead of walls and ceiling
@@ -95,7 +103,8 @@ class SceneConfig:
 class FrameObservation:
     """One frame: ``track`` [P], ``world`` [P,2], ``joints`` [P,17,3] (world metres),
     ``boxes`` [P,K,4] noisy (NaN: not detected), ``keypoints`` [P,K,17,3], ``true_boxes``
-    [P,K,4] (tight, unclipped box of the projected body; NaN behind the camera or off-image)."""
+    [P,K,4] (tight, unclipped box of the projected body; NaN behind the camera or off-image),
+    ``false_boxes`` [K,Q,4] the detector's false positives per camera (NaN-padded; no person)."""
 
     frame: int
     track: np.ndarray
@@ -104,6 +113,7 @@ class FrameObservation:
     boxes: np.ndarray
     keypoints: np.ndarray
     true_boxes: np.ndarray
+    false_boxes: np.ndarray
 
 
 class Scene:
@@ -113,6 +123,10 @@ class Scene:
         self.config = config
         self.seed = int(seed)
         self.cameras = [spec.camera() for spec in config.cameras]
+        self.profile = load_profile(config.detector_profile)
+        self._fp_places = false_positives.hotspots(
+            self.profile, self.image_sizes, np.random.default_rng([self.seed, 5])
+        )
         self.walkers = Walkers(
             config.room, config.people, config.fps, np.random.default_rng([self.seed, 0])
         )
@@ -166,7 +180,7 @@ class Scene:
             track=np.arange(self.config.people, dtype=np.int64),
             **{
                 key: block[key][i].copy()
-                for key in ("world", "joints", "boxes", "keypoints", "true_boxes")
+                for key in ("world", "joints", "boxes", "keypoints", "true_boxes", "false_boxes")
             },
         )
 
@@ -242,22 +256,17 @@ class Scene:
         face_away[..., 3] = depth[..., 3] > head
         face_away[..., 4] = depth[..., 4] > head
         rng = np.random.default_rng([self.seed, 1, block])
-        shape = (BLOCK, self.num_cameras, self.config.people, 5)
-        normals = correlated_normals(
-            np.random.default_rng([self.seed, 3, block + 1]).standard_normal(shape),
-            np.random.default_rng([self.seed, 3, block]).standard_normal(shape),
-            self.config.fps,
-            self.config.noise.correlation_time,
-        )
+        shape = (BLOCK, self.num_cameras, self.config.people)
         boxes, keypoints = detect(
             true_boxes,
             depth[..., MID_HIP],
             joints_px,
             face_away,
             self.image_sizes,
-            self.config.noise,
+            self.profile,
             rng,
-            normals,
+            self._correlated(3, block, (*shape, 5), self.profile.edges.correlation_s),
+            self._correlated(6, block, shape, self.profile.miss.correlation_s),
         )
         return {
             "world": states.position,
@@ -265,7 +274,35 @@ class Scene:
             "boxes": boxes.transpose(0, 2, 1, 3),
             "keypoints": keypoints.transpose(0, 2, 1, 3, 4),
             "true_boxes": true_boxes.transpose(0, 2, 1, 3),
+            "false_boxes": self._false_boxes(block),
         }
+
+    def _correlated(
+        self, stream: int, block: int, shape: tuple[int, ...], correlation_s: float
+    ) -> np.ndarray:
+        """Unit normals of ``block`` correlated over ``correlation_s``, continuous across blocks."""
+        return correlated_normals(
+            np.random.default_rng([self.seed, stream, block + 1]).standard_normal(shape),
+            np.random.default_rng([self.seed, stream, block]).standard_normal(shape),
+            self.config.fps,
+            correlation_s,
+        )
+
+    def _false_boxes(self, block: int) -> np.ndarray:
+        """False positives visible in ``block``: [F, K, Q, 4] (see :mod:`false_positives`)."""
+        born = [
+            false_positives.births(
+                self.profile,
+                self.config.fps,
+                BLOCK,
+                self.image_sizes,
+                self._fp_places,
+                np.random.default_rng([self.seed, 4, b + 1]),
+            )
+            for b in (block - 1, block)
+        ]
+        rng = np.random.default_rng([self.seed, 8, block])
+        return false_positives.visible(*born, self.profile, self.image_sizes, rng)
 
     def _camera_arrays(self, start: int, stop: int) -> tuple[np.ndarray, ...]:
         """Per frame and camera: K [F,K,3,3], R [F,K,3,3], t [F,K,3], distortion [F,K,2]."""

@@ -16,6 +16,7 @@ import numpy as np
 from models.dataset import MomDataset
 from models.errors import MomlocError
 from models.simulate.presets import get_config
+from models.simulate.profile import DetectorProfile
 from models.simulate.scene import BLOCK, Perturbation, Scene, SceneConfig
 
 
@@ -37,11 +38,15 @@ def simulate(
     fps: float | None = None,
     room: tuple[float, float] | None = None,
     cameras: int | None = None,
+    detector_profile: str | DetectorProfile | None = None,
 ) -> SimulationResult:
     """Observe ``frames`` frames of a preset (by name) or a :class:`SceneConfig`.
 
-    ``people``, ``fps``, ``perturbation``, ``room`` and ``cameras`` override the preset (see
-    :func:`~models.simulate.presets.get_config`).
+    ``people``, ``fps``, ``perturbation``, ``room``, ``cameras`` and ``detector_profile`` (how
+    blind the simulated detector is: a shipped profile's name such as ``"ideal"``, ``"ssdlite"``,
+    ``"nanodet"`` (the default), or a JSON path) override the preset (see
+    :func:`~models.simulate.presets.get_config`). False positives are not rows: they have no
+    ground truth (``Scene.observe(i).false_boxes`` has them).
 
     Example::
 
@@ -59,6 +64,7 @@ def simulate(
         perturbations=None if perturbation is None else tuple(perturbation),
         room=room,
         cameras=cameras,
+        detector_profile=detector_profile,
     )
     scene = Scene(config, seed)
     parts: dict[str, list[np.ndarray]] = {

@@ -26,6 +26,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--config", help="daemon settings file (cameras, detector) for live mode")
     parser.add_argument("--preset", default="indoor-2cam", help="synthetic scene preset")
     parser.add_argument("--seed", type=int, default=0, help="synthetic scene seed")
+    parser.add_argument(
+        "--profile",
+        default=None,
+        metavar="NAME",
+        help="synthetic: simulated detector profile (nanodet default, ssdlite, ideal, or a path)",
+    )
     parser.add_argument("--seconds", type=float, required=True, help="seconds recorded per mark")
     parser.add_argument("--out", required=True, help="dataset file to create or extend (.npz)")
     parser.add_argument("--walk", action="store_true", help="also record the walks between marks")
@@ -124,7 +130,7 @@ def _open_feed(args: argparse.Namespace):
     if args.source == "synthetic":
         from service.setup.feeds import SyntheticFeed
 
-        return SyntheticFeed(args.preset, args.seed)
+        return SyntheticFeed(args.preset, args.seed, detector_profile=args.profile)
     if not args.config:
         raise MomlocError("live collection needs --config FILE (cameras and detector)")
     from service.setup.feeds import LiveFeed

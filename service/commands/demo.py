@@ -25,6 +25,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--people", type=int, default=None, help="walking people (default 3)")
     parser.add_argument("--seed", type=int, default=None, help="scene seed")
+    parser.add_argument(
+        "--profile",
+        default=None,
+        metavar="NAME",
+        help="simulated detector profile: nanodet (default), ssdlite, ideal, or a JSON path",
+    )
     parser.set_defaults(func=run)
 
 
@@ -38,6 +44,7 @@ def run(args: argparse.Namespace) -> int:
         detections=args.detections,
         people=args.people,
         seed=args.seed,
+        profile=args.profile,
     )
     mode = settings.synthetic.detections
     return serve_settings(settings, banner=f"demo scene, {mode} detections")

@@ -22,6 +22,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--frames", type=int, default=2000, help="number of frames (default 2000)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument(
+        "--profile",
+        default=None,
+        metavar="NAME",
+        help="detector profile: how blind the simulated detector is; nanodet (default, the "
+        "shipped detector), ssdlite, ideal (the former kind noise), or a profile JSON path",
+    )
     parser.add_argument("--out", required=True, help="output .npz file")
     parser.add_argument(
         "--people", type=int, default=None, help="number of people (default: the preset's)"
@@ -84,6 +91,7 @@ def run(args: argparse.Namespace) -> int:
     result = simulate(
         args.preset, args.frames, seed=args.seed, people=args.people, fps=args.fps,
         perturbation=_bumps(args.bump), room=_room(args.room), cameras=args.cameras,
+        detector_profile=args.profile,
     )  # fmt: skip
     path = result.dataset.save(args.out)
     print(f"{path}: {result.dataset.summary()}")

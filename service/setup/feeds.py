@@ -23,8 +23,8 @@ from service.setup.collector import FeedFrame, Step
 class SyntheticFeed:
     """Simulated detections of one scripted person walking the collection plan."""
 
-    def __init__(self, preset: str, seed: int) -> None:
-        self.config = get_config(preset)
+    def __init__(self, preset: str, seed: int, detector_profile: str | None = None) -> None:
+        self.config = get_config(preset, detector_profile=detector_profile)
         self.seed = seed
         self.image_sizes = np.array([c.image_size for c in self.config.cameras], np.int32)
         self.room = self.config.room
@@ -46,8 +46,11 @@ class SyntheticFeed:
             boxes, keypoints = [], []
             for k in range(self.scene.num_cameras):
                 seen = np.isfinite(observation.boxes[:, k]).all(axis=-1)
-                boxes.append(observation.boxes[seen, k])
-                keypoints.append(observation.keypoints[seen, k])
+                false = observation.false_boxes[k]  # the detector's false positives
+                false = false[np.isfinite(false).all(axis=-1)]
+                boxes.append(np.concatenate([observation.boxes[seen, k], false]))
+                nothing = np.full((len(false), *observation.keypoints.shape[2:]), np.nan)
+                keypoints.append(np.concatenate([observation.keypoints[seen, k], nothing]))
             yield FeedFrame(index / self._fps, boxes, keypoints)
 
     def close(self) -> None:

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import yaml
 
+from models.atomic import atomic_write_text
 from models.errors import MomlocError
 
 
@@ -64,7 +65,7 @@ def load_marks(path: str | Path) -> list[FloorMark]:
 
 def save_marks(marks: list[FloorMark], path: str | Path) -> None:
     entries = [{"name": m.name, "x": m.x, "y": m.y} for m in marks]
-    Path(path).write_text(yaml.safe_dump({"marks": entries}, sort_keys=False))
+    atomic_write_text(path, yaml.safe_dump({"marks": entries}, sort_keys=False))
 
 
 def _parse_pair(text: str, what: str) -> tuple[float, float]:

@@ -5,7 +5,8 @@
 const params = new URLSearchParams(location.search);
 const token = params.get("token");
 const TRAIL_S = 4.0;
-const state = { people: {}, seq: 0, t: 0, draws: 0, connected: false, floor: null, fitted: null, moved: [] };
+const state = { people: {}, seq: 0, t: 0, draws: 0, connected: false, floor: null, fitted: null, moved: [],
+  zones: [], occupancy: {}, toCanvas: null };
 window.momloc = state;
 
 function withToken(path) {
@@ -86,6 +87,8 @@ function draw() {
   }
   ctx.strokeStyle = "#3b4657"; ctx.lineWidth = 2;
   ctx.strokeRect(px(f.xmin), py(f.ymax), scale * (f.xmax - f.xmin), scale * (f.ymax - f.ymin));
+  state.toCanvas = (x, y) => [px(x), py(y)];
+  drawZones(ctx, px, py);
   // people: trail, velocity arrow (1 s ahead), dot, id
   for (const p of Object.values(state.people)) {
     const trail = trails.get(p.id) || [];
@@ -116,6 +119,39 @@ function draw() {
   }
   state.draws++;
   requestAnimationFrame(draw);
+}
+
+// Zones (settings `zones`): outlined polygons, filled brighter while someone is inside.
+function drawZones(ctx, px, py) {
+  for (const z of state.zones) {
+    const occ = state.occupancy[z.name];
+    const busy = Boolean(occ && occ.count > 0);
+    ctx.beginPath();
+    z.polygon.forEach(([x, y], i) => (i ? ctx.lineTo(px(x), py(y)) : ctx.moveTo(px(x), py(y))));
+    ctx.closePath();
+    ctx.fillStyle = busy ? "rgba(240, 180, 60, 0.28)" : "rgba(88, 166, 255, 0.12)";
+    ctx.fill();
+    ctx.strokeStyle = busy ? "#f0b43c" : "#58a6ff"; ctx.lineWidth = 2; ctx.setLineDash([6, 4]);
+    ctx.stroke(); ctx.setLineDash([]);
+    const [lx, ly] = z.polygon.reduce(([a, b], [x, y]) => [Math.min(a, x), Math.max(b, y)], [Infinity, -Infinity]);
+    ctx.fillStyle = busy ? "#f0b43c" : "#8ab8f0"; ctx.font = "bold 12px system-ui";
+    ctx.fillText(`${z.name} · ${occ ? occ.count : 0}`, px(lx) + 6, py(ly) + 16);
+  }
+}
+
+async function refreshZones() {
+  if (!state.zones.length) return;
+  try {
+    const z = await getJSON("/v1/zones");
+    state.occupancy = Object.fromEntries(z.zones.map((o) => [o.name, { count: o.count, ids: o.ids }]));
+    document.getElementById("zones").replaceChildren(...z.zones.map((o) => {
+      const li = document.createElement("li");
+      li.dataset.zone = o.name; li.dataset.count = o.count;
+      li.className = o.count > 0 ? "busy" : "";
+      li.textContent = `${o.name}: ${o.count}` + (o.ids.length ? `  (#${o.ids.join(", #")})` : "");
+      return li;
+    }));
+  } catch (e) { /* offline: keep the last state */ }
 }
 
 function setLink(ok, text) {
@@ -211,6 +247,8 @@ async function init() {
   try {
     const cfg = await getJSON("/v1/config");
     state.floor = cfg.floor;
+    state.zones = cfg.zones || [];
+    document.getElementById("zones-panel").hidden = state.zones.length === 0;
     document.getElementById("cameras").replaceChildren(...cfg.cameras.map((c) => {
       const fig = document.createElement("figure"); fig.dataset.k = c.index;
       const img = document.createElement("img"); img.dataset.k = c.index; img.alt = c.name;
@@ -222,6 +260,7 @@ async function init() {
   } catch (e) { setLink(false, "unauthorized or offline"); }
   connect();
   refreshHealth(); setInterval(refreshHealth, 1000);
+  refreshZones(); setInterval(refreshZones, 500);
   refreshPreviews(); setInterval(refreshPreviews, 400);
   requestAnimationFrame(draw);
 }

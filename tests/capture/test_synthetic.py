@@ -35,10 +35,28 @@ def test_simulated_detections_are_the_scene_boxes_per_camera():
     rig = SyntheticRig(scene(), cameras=[1, 0], render_every=0)
     frame_set = rig.produce(40)
     boxes = SimulatedDetections(rig)(frame_set)
-    expected = rig.scene.observe(40).boxes
+    truth = rig.scene.observe(40)
     for k, camera in enumerate([1, 0]):  # rig camera k is scene camera `camera`
-        seen = expected[:, camera]
+        seen = np.concatenate([truth.boxes[:, camera], truth.false_boxes[camera]])
         np.testing.assert_allclose(boxes[k], seen[np.isfinite(seen).all(axis=1)])
+
+
+def test_simulated_detections_include_the_profiles_false_positives():
+    from models.simulate import load_profile
+    from models.simulate.profile import PROFILE_DIR
+
+    assert load_profile(PROFILE_DIR / "nanodet.json").false_positives.per_frame > 0
+    rig = SyntheticRig(make_scene("indoor-2cam", seed=3, people=2, fps=30), render_every=0)
+    stage = SimulatedDetections(rig)
+    extra = 0
+    for i in range(0, 640, 4):
+        truth = rig.observation(i)
+        people = np.isfinite(truth.boxes).all(axis=2).sum(axis=0)  # per camera
+        extra += sum(len(b) - n for b, n in zip(stage(rig.produce(i)), people, strict=True))
+    assert extra > 0  # boxes where nobody is, as from the real detector
+    ideal = SyntheticRig(make_scene("indoor-2cam", seed=3, people=2, detector_profile="ideal"))
+    assert ideal.scene.profile.name == "ideal"
+    assert ideal.observation(5).false_boxes.shape[1] == 0
 
 
 def test_rig_thread_publishes_newer_sets_and_reports_state():

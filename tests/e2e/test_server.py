@@ -50,7 +50,8 @@ def test_stream_seq_increases_and_matches_snapshot_schema(server):
 def test_positions_follow_ground_truth(server):
     """Every streamed person is matched to a simulated person; errors are model-sized."""
     rig = server.daemon.pipeline.rig
-    messages = asyncio.run(receive(server.ws + "/v1/stream", 90))[30:]  # tracks confirmed
+    # 10 s of stream: a measured detector misses people in runs, so 2 s would be too noisy
+    messages = asyncio.run(receive(server.ws + "/v1/stream", 330))[30:]  # tracks confirmed
     errors, reported, visible = [], 0, 0
     for m in messages:
         truth = rig.observation_at(m["t"])
@@ -65,8 +66,13 @@ def test_positions_follow_ground_truth(server):
             errors.extend(cost[rows, cols])
     errors = np.array(errors)
     assert visible > 0 and reported >= 0.8 * visible, (reported, visible)
-    assert np.median(errors) < 0.2, np.median(errors)
-    assert np.mean(errors < 0.5) > 0.9, errors
+    # The demo's default detector profile is the measured nanodet one (the deterministic gate is
+    # tests/service/test_demo_accuracy.py). Measured here on a loaded 2-core host, 2026-12-01:
+    # median 0.283 / 0.292 m, 72.0 / 69.1 % within 0.5 m in two runs (about 1.6 times as many
+    # people reported as detected: tracks on lasting false boxes). Under the former kind noise
+    # the gates were < 0.2 m and > 90 %.
+    assert np.median(errors) < 0.36, np.median(errors)
+    assert np.mean(errors < 0.5) > 0.62, np.mean(errors < 0.5)
 
 
 def test_positions_endpoint_and_rate_limit(server):

@@ -14,7 +14,7 @@ from models.errors import MomlocError
 from models.simulate import (
     PRESETS,
     CameraSpec,
-    NoiseConfig,
+    DetectorProfile,
     PinholeCamera,
     Scene,
     SceneConfig,
@@ -150,7 +150,11 @@ def test_bad_configs_are_user_errors() -> None:
 
 def test_exact_noise_boxes_are_clipped_true_boxes() -> None:
     config = SceneConfig(
-        "t", (10, 10), PRESETS["indoor-2cam"].cameras, people=1, noise=NoiseConfig.exact()
+        "t",
+        (10, 10),
+        PRESETS["indoor-2cam"].cameras,
+        people=1,
+        detector_profile=DetectorProfile.exact(),
     )
     scene = Scene(config, seed=0)
     for frame in range(0, 64, 4):

@@ -75,3 +75,31 @@ def test_cli_train_writes_a_model(tmp_path, capsys):
         )
         == 2
     )
+
+
+def test_each_model_file_is_written_once_complete_and_readable_by_others(tmp_path, monkeypatch):
+    """The daemon's model watcher must never load an intermediate model.json (written first
+    without, then with the floor prior), and it may run as another user (mode 0644)."""
+    import stat
+
+    import models.export
+
+    writes: list[str] = []
+    real = models.export.atomic_write_json
+
+    def counting(path, value, *args, **kwargs):
+        writes.append(path.name)
+        assert "floor_prior" in value  # complete on its first and only write
+        return real(path, value, *args, **kwargs)
+
+    monkeypatch.setattr(models.export, "atomic_write_json", counting)
+    data, _ = make_dataset(300, seed=5)
+    train_model(data, tmp_path / "m", epochs=2, seed=1, progress=False)
+    assert writes == ["model.json"]
+    for name in ("model.json", "encoder.onnx", "model.pt"):
+        assert stat.S_IMODE((tmp_path / "m" / name).stat().st_mode) == 0o644
+    assert sorted(p.name for p in (tmp_path / "m").iterdir()) == [
+        "encoder.onnx",
+        "model.json",
+        "model.pt",
+    ]

@@ -178,22 +178,28 @@ def test_empty_and_invalid_inputs() -> None:
 
 @pytest.fixture(scope="session")
 def trained_runtime(tmp_path_factory: pytest.TempPathFactory):
-    """A small real MoM model (indoor-2cam), trained once per test session."""
+    """A small real MoM model (indoor-2cam), trained once per test session.
+
+    Pinned to the ``ideal`` detector profile (the former kind noise) on purpose: these tests
+    check the association algorithm with a real model, not the detector; what the measured
+    detector costs association is in ``bench/association.py``. (Measured 2026-12-01 with this
+    model and test: ideal 54/60 frames right, median 0.093 m; nanodet 47/59, 0.357 m.)
+    """
     from models.mom_runtime import MomRuntime
     from models.simulate import simulate
     from models.train import train_model
 
     out = tmp_path_factory.mktemp("assoc-model")
-    train_model(
-        simulate("indoor-2cam", frames=500, seed=11).dataset, out, epochs=20, progress=False
-    )
+    data = simulate("indoor-2cam", frames=500, seed=11, detector_profile="ideal").dataset
+    train_model(data, out, epochs=20, progress=False)
     return MomRuntime.load(out)
 
 
 def test_real_model_associates_three_people(trained_runtime) -> None:
     from models.simulate import Scene, get_config
 
-    scene = Scene(get_config("indoor-2cam", people=3), seed=5)  # not the training recording
+    # not the training recording; kind noise, see `trained_runtime`
+    scene = Scene(get_config("indoor-2cam", people=3, detector_profile="ideal"), seed=5)
     rng = np.random.default_rng(0)
     frames = correct = 0
     errors = []

@@ -124,7 +124,11 @@ def test_live_feed_records_through_the_daemon_rig_and_detector_stage(tmp_path: P
     config = tmp_path / "cams.yaml"
     config.write_text(
         "cameras: [{type: synthetic, index: 0}, {type: synthetic, index: 1}]\n"
-        "synthetic: {preset: indoor-2cam, people: 1, fps: 20, detections: simulated}\n"
+        # the kind `ideal` profile on purpose: this checks the plumbing, and a measured
+        # detector's misses and lasting false boxes can empty a 1 s recording (collect keeps
+        # frames with exactly one box per camera)
+        "synthetic: {preset: indoor-2cam, people: 1, fps: 20, detections: simulated,\n"
+        "            detector_profile: ideal}\n"
     )
     feed = LiveFeed.from_config(str(config))
     try:
