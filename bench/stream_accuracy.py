@@ -89,7 +89,7 @@ def variant(spec: str) -> tuple[dict, bool]:
     options = dict(options)
     for pair in pairs:
         key, value = pair.split("=")
-        options[key] = value if key == "imm_output" else float(value)
+        options[key] = float(value)
     return options, use_cov
 
 

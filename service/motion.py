@@ -14,6 +14,16 @@ both, reweighs them by their measurement likelihoods and reports the probability
 and covariance. While the person stands the stand model takes over and the position converges
 like a running mean; when they start to walk the walk model's likelihood wins within a few frames.
 
+Measured (service/motion tests, 10 cm i.i.d. noise at 15 fps): a standing person's position
+changes 2.0 cm RMS frame to frame against 4.0 cm for the constant-velocity filter; on the stream
+benchmark (indoor-2cam, 3 people, nanodet profile) the IMM with covariances lowered the standing
+jitter from 8.0 to 5.2 cm and raised MOTA from 32.6 to 51.0 % (most of that from the
+covariances). The stand probability saturates near 0.75-0.85: a walk model at ~0 m/s explains a
+standing person almost as well. Rejected: reporting the more probable model's state instead of
+the mixture (jitter 3.93 vs 3.83 cm on the flat-noise gate scene: the remaining jitter is a few
+large jumps when a second camera comes or goes, not the mixture); ``stand_std`` 0.01 with
+``stand_s`` 5 (3.65 vs 3.83 cm, MOTA -0.2).
+
 Both take a per-measurement covariance ``r`` [2, 2], so a single-view measurement that is
 uncertain along the camera's line of sight pulls the state across it only.
 
@@ -106,7 +116,6 @@ class StandOrWalk:
         stand_s: float = 2.0,
         walk_s: float = 4.0,
         stand_prior: float = 0.5,
-        output: str = "mix",
     ) -> None:
         start = np.array([z[0], z[1], 0.0, 0.0], dtype=np.float64)
         self._means = [start.copy(), start.copy()]  # 0: stand, 1: walk
@@ -116,7 +125,6 @@ class StandOrWalk:
         self.accel_var = float(accel_std) ** 2
         self.stand_var = float(stand_std) ** 2
         self.stay_s = (float(stand_s), float(walk_s))
-        self.output = output
         self._combine()
 
     @property
@@ -164,8 +172,6 @@ class StandOrWalk:
 
     def _combine(self) -> None:
         self.mean = self._prob[0] * self._means[0] + self._prob[1] * self._means[1]
-        if self.output == "mode" and self._prob[0] > 0.5:
-            self.mean = self._means[0].copy()
         self.cov = sum(
             p * (c + np.outer(m - self.mean, m - self.mean))
             for p, m, c in zip(self._prob, self._means, self._covs, strict=True)

@@ -2,10 +2,11 @@
 
 Design
 ------
-Each track is a constant-velocity Kalman filter on the state ``[x, y, vx, vy]`` in metres and
-metres per second. The process noise is white acceleration (``accel_std`` m/s²), so uncertainty
-grows with the real time between updates: the filter is driven by capture timestamps, not frame
-counts, and copes with a pipeline that drops frames.
+Each track is a motion model on the state ``[x, y, vx, vy]`` in metres and metres per second
+(:mod:`service.motion`): by default a two-model IMM, *standing still* or *walking* at a constant
+velocity with white-acceleration process noise (``accel_std`` m/s²), so uncertainty grows with
+the real time between updates: the filter is driven by capture timestamps, not frame counts, and
+copes with a pipeline that drops frames. ``motion="cv"`` is the constant-velocity filter alone.
 
 Every update:
 
@@ -14,7 +15,13 @@ Every update:
    distance between the predicted and measured position; a pair farther apart than the gate is
    never assigned. The gate is ``gate_m`` plus ``gate_growth_mps`` per second the track has been
    unseen, because a coasting track's prediction drifts from where the person really went;
-3. matched tracks are corrected; unmatched detections start new *tentative* tracks;
+3. matched tracks are corrected with the measurement's own covariance when the localizer gives
+   one (``covariances``: the floor prior's GLS covariance, long along a lone camera's line of
+   sight, so a single view moves the track across its line of sight and hardly along it; the
+   eigenvalues are bounded to ``min/max_measurement_std_m``), otherwise the isotropic
+   ``measurement_std_m``; an innovation beyond ``robust_chi2`` (squared Mahalanobis) inflates
+   that covariance by d² / robust_chi2, so one wild box moves a track less; unmatched
+   detections start new *tentative* tracks;
 4. tracks unseen for more than ``max_missing_s`` are dropped.
 
 Output policy (documented for API users):
@@ -23,7 +30,12 @@ Output policy (documented for API users):
   frames, so it means the same at any pipeline rate), so that a brief split association (one
   person reported twice for a few frames) does not create a ghost id; with 0.1 s the benchmark
   counted 11 instead of 3 id switches (indoor-4cam, 2 people) and 33 instead of 23 (indoor-2cam,
-  5 people), for ~1 % less coverage;
+  5 people), for ~1 % less coverage. A track only ever seen by *one* camera waits
+  ``confirm_single_s`` (1 s): a detector's false positive is a single view;
+- a track never seen by two cameras at once that spends more than ``ghost_s`` (0.5 s) where
+  another camera should see it (``coverage``, e.g. :func:`service.association.covering_cameras`)
+  but reports nothing is not reported: a person is seen by a second camera sooner or later, a
+  false positive at a fixed place never is;
 - while a person is unseen (occlusion, detector miss) the track *coasts* on its prediction and is
   still reported, with ``coasting=True`` and a confidence that falls linearly to 0 at
   ``max_missing_s``; the id is kept if the person reappears within the (growing) gate, so a 1 s
@@ -31,13 +43,26 @@ Output policy (documented for API users):
 - ``confidence`` is a running detection rate (exponential average of seen / unseen frames) times
   the coasting factor, in 0..1.
 
+Defaults measured with ``bench/stream_accuracy.py`` (indoor-2cam, 3 people, nanodet profile,
+2 seeds × 600 frames, MOTA at 0.5 m / standing jitter): the former tracker (constant velocity,
+2 m/s², isotropic 0.12 m, 0.3 s confirmation) 32.6 % / 8.0 cm; + IMM and covariances 51.0 % /
+7.0 cm; + 1 s single-view confirmation 56.1 % / 5.2 cm; + ghost check 58.8 %; + accel 1 m/s²
+63.3 % / 4.7 cm (lag 0.04 → 0.05 s); walk_s 10 s (was 4) 63.8 %; robust_chi2 9 (3 seeds × 900
+frames) 65.7 % against 64.6 %, jitter 4.6 against 5.6 cm. Without the covariances the same
+defaults give 42.1 %. Rejected: accel 0.7 (61.6 %) and 1.5 m/s² (58.3 %); single-view
+confirmation 0.6 s (57.7 %); robust_chi2 4 (62.1 %); covariances scaled ×2 (61.9 %) or ×0.5
+(MOTA -10 on a quick model); letting tentative tracks survive 0.3 s of misses (MOTA 55.8 →
+36.9 %, quick model: more twins); folding a second single-view measurement from another camera
+into a track already matched (no measurable effect: split associations were not the cause).
+
 ``meta`` (one dict per detection) is passed through: ``cameras`` is copied onto the track and the
 whole dict is kept as ``Track.meta``.
 
 Example::
 
     tracker = Tracker(fps_hint=30)
-    tracks = tracker.update(t, positions, [{"cameras": [0, 1]}] * len(positions))
+    tracks = tracker.update(t, positions, [{"cameras": [0, 1]}] * len(positions),
+                            covariances=[a.covariance for a in associations])
 """
 
 from __future__ import annotations
@@ -88,7 +113,7 @@ class _State:
 
 
 class Tracker:
-    """Constant-velocity Kalman tracker with Hungarian assignment (see the module docstring)."""
+    """Kalman (IMM) tracker with Hungarian assignment (see the module docstring)."""
 
     def __init__(
         self,
@@ -110,7 +135,6 @@ class Tracker:
         stand_s: float = 2.0,
         walk_s: float = 10.0,
         ghost_s: float = 0.5,
-        imm_output: str = "mix",
         robust_chi2: float = 9.0,
     ) -> None:
         if fps_hint <= 0 or max_missing_s <= 0 or gate_m <= 0:
@@ -135,7 +159,7 @@ class Tracker:
         self.ghost_s = float(ghost_s)
         self.robust_chi2 = float(robust_chi2)
         self._motion_options = (
-            {"stand_std": stand_std_m, "stand_s": stand_s, "walk_s": walk_s, "output": imm_output}
+            {"stand_std": stand_std_m, "stand_s": stand_s, "walk_s": walk_s}
             if motion == "imm"
             else {}
         )

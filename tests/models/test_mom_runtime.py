@@ -78,3 +78,22 @@ def test_runtime_does_not_import_torch():
 
     code = "import sys, models.mom_runtime; sys.exit('torch' in sys.modules)"
     assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0
+
+
+def test_covariance_follows_the_floor_prior_and_the_view_count():
+    out, _, _ = trained_model()
+    runtime = MomRuntime.load(out)
+    data, _ = make_dataset(200, cameras=2, seed=24)
+    both = data.visible().all(axis=1)
+    boxes = data.boxes[both][:50]
+    cov = runtime.covariance(boxes)
+    if runtime.floor_prior is None:  # no prior: the tracker's default applies
+        assert np.isnan(cov).all()
+        return
+    assert cov.shape == (len(boxes), 2, 2) and np.isfinite(cov).all()
+    np.testing.assert_allclose(cov, cov.transpose(0, 2, 1), atol=1e-12)
+    one = boxes.copy()
+    one[:, 1] = np.nan
+    single = runtime.covariance(one)
+    assert (np.trace(single, axis1=1, axis2=2) > np.trace(cov, axis1=1, axis2=2)).all()
+    assert np.isnan(runtime.covariance(np.full((1, 2, 4), np.nan))).all()

@@ -24,17 +24,17 @@ from models.simulate import simulate
 from service.stream_eval import run_stream, scene_config
 
 DEMO_MODEL = Path(__file__).resolve().parents[2] / "models" / "demo_model"
-PROFILE = None  # the simulator's default detector profile
-RECORDED = {  # gate 0.5 m, flat-noise simulator, Tracker defaults with the covariances
-    "mota": 95.85,
-    "recall": 97.33,
-    "precision": 98.80,
-    "id_switches": 4,
-    "mean": 0.0931,
-    "acc@0.3": 97.71,
-    "single_mean": 0.1227,
-    "jitter_m": 0.0331,
-    "lag_s": 0.021,
+PROFILE = "nanodet"  # the measured default detector profile (models/simulate/profiles)
+RECORDED = {  # gate 0.5 m, nanodet profile, Tracker defaults fed the covariances
+    "mota": 43.77,  # the tracker before issue 14 (constant velocity, no covariances): 10.3
+    "recall": 78.19,  # 71.2
+    "precision": 69.85,  # 54.3
+    "id_switches": 9,  # 13
+    "mean": 0.1691,  # 0.205
+    "acc@0.3": 85.77,  # 76.0
+    "single_mean": 0.185,  # 0.240
+    "jitter_m": 0.0475,  # 0.090
+    "lag_s": 0.024,  # 0.018
 }
 
 
@@ -75,13 +75,13 @@ def test_matched_errors(scores):
     assert m["mean"] <= RECORDED["mean"] + 0.005, m["mean"]
     assert m["acc@0.3"] >= RECORDED["acc@0.3"] - 1.0, m["acc@0.3"]
     single = m["by_views"]["1"]
-    assert single["n"] > 100
+    assert single["n"] > 300
     assert single["mean"] <= RECORDED["single_mean"] + 0.01, single["mean"]
     assert m["by_views"]["2"]["mean"] < single["mean"]  # a second view corrects the depth
 
 
 def test_jitter_and_lag(scores):
     m = scores[0.5]
-    assert m["jitter_n"] > 100 and m["lag_n"] > 500
+    assert m["jitter_n"] > 80 and m["lag_n"] > 500
     assert m["jitter_m"] <= RECORDED["jitter_m"] + 0.002, m["jitter_m"]
     assert abs(m["lag_s"] - RECORDED["lag_s"]) <= 0.02, m["lag_s"]
