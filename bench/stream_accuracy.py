@@ -32,7 +32,7 @@ import numpy as np
 
 from models.mom_runtime import MomRuntime
 from service.stream_eval import run_stream, scene_config
-from service.tracking import Tracker
+from service.tracking import RECOMMENDED, Tracker
 
 RESULTS = Path(__file__).resolve().parent / "results"
 SCENES = (("indoor-2cam", 1), ("indoor-2cam", 3), ("indoor-2cam", 5), ("indoor-4cam", 3),
@@ -77,8 +77,8 @@ VARIANTS: dict[str, tuple[dict, bool]] = {  # name -> (Tracker options, use the 
     "before": (BEFORE, False),  # the tracker before issue 14
     "cv+cov": (BEFORE, True),
     "imm+cov": ({**BEFORE, "motion": "imm"}, True),
-    "default": ({}, True),  # Tracker defaults, fed the localizer's covariances
-    "default-nocov": ({}, False),  # the same without them
+    "default": (RECOMMENDED, True),  # service.tracking.RECOMMENDED, fed the covariances
+    "default-nocov": (RECOMMENDED, False),  # the same without them
 }
 
 
@@ -199,7 +199,8 @@ NOTES = (
     "shift that best aligns served and true trajectories of walking people (> 0.5 m/s). "
     "Seeds pooled per row (counts summed, errors match-weighted). *Variants*: `before` is the "
     "tracker before issue 14 (constant velocity, 2 m/s², isotropic 0.12 m, 0.3 s confirmation); "
-    "`default` the `Tracker` defaults fed the localizer's covariances and the cameras' coverage; "
+    "`default` `service.tracking.RECOMMENDED` fed the localizer's covariances and the cameras' "
+    "coverage; "
     "`default-nocov` the same without the covariances.\n"
 )
 

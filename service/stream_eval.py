@@ -37,7 +37,7 @@ from service.association import (
     associate,
     covering_cameras,
 )
-from service.tracking import Tracker
+from service.tracking import RECOMMENDED, Tracker
 
 MIN_VISIBLE_FRACTION = 0.5
 GATES = (0.5, 1.0)
@@ -93,12 +93,13 @@ def run_stream(
 ) -> dict[float, dict]:
     """Stream metrics per gate (metres → :meth:`StreamScorer.result`) of one scene run.
 
-    ``tracker`` defaults to ``Tracker(fps_hint=scene fps)``; ``use_covariance`` hands the
-    associations' covariances (when the model gives them) to the tracker as measurement noise;
+    ``tracker`` defaults to ``Tracker(fps_hint=scene fps, **RECOMMENDED)``; ``use_covariance``
+    hands the associations' covariances (when the model gives them) to the tracker as its
+    measurement noise;
     ``on_frame(i, associations, tracks)`` taps every frame (diagnostics, other scorers).
     """
     scene = Scene(config, seed=seed)
-    tracker = tracker if tracker is not None else Tracker(fps_hint=scene.fps)
+    tracker = tracker if tracker is not None else Tracker(fps_hint=scene.fps, **RECOMMENDED)
     rng = np.random.default_rng([seed, 77])
     scorers = {float(g): StreamScorer(g) for g in gates}
     reproject = getattr(runtime, "reproject", None)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from service.tracking import Tracker
+from service.tracking import RECOMMENDED, Tracker
 
 FPS = 30.0
 
@@ -128,7 +128,7 @@ def test_nan_positions_are_ignored_and_meta_checked() -> None:
 
 
 def test_one_camera_needs_longer_to_be_believed() -> None:
-    tracker = Tracker(fps_hint=FPS)
+    tracker = Tracker(fps_hint=FPS, confirm_single_s=1.0)
     one, two = [], []
     for i in range(40):
         tracks = tracker.update(
@@ -161,8 +161,8 @@ def test_single_view_ghost_where_another_camera_looks_is_dropped() -> None:
 def test_measurement_covariance_is_used_and_checked() -> None:
     """Measurements precise across the line of sight (y) follow a sideways step at once."""
     sight = np.diag([0.5**2, 0.02**2])
-    plain = Tracker(fps_hint=FPS, robust_chi2=0.0)
-    steered = Tracker(fps_hint=FPS, robust_chi2=0.0)
+    plain = Tracker(fps_hint=FPS, **{**RECOMMENDED, "robust_chi2": 0.0})
+    steered = Tracker(fps_hint=FPS, **{**RECOMMENDED, "robust_chi2": 0.0})
     for i in range(50):
         z = np.array([[3.0, 3.0 if i < 45 else 3.3]])
         a = plain.update(i / FPS, z, [{"cameras": [0]}])
