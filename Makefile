@@ -53,6 +53,7 @@ bench-service: $(VENV)/.stamp-dev
 	$(PY) -m bench.camera_shift
 	$(PY) -m bench.mqtt_fanout
 	$(PY) -m bench.realtime
+	$(PY) -m bench.stream_accuracy
 
 bench-setup: $(VENV)/.stamp-dev
 	$(PY) -m bench.floor_prior_study

@@ -318,6 +318,16 @@ class FloorPrior:
 
         NaN position and infinite std for rows that no fitted camera sees.
         """
+        xy, cov = self.predict_covariance(boxes, keypoints)
+        std = np.sqrt(np.clip(np.trace(cov, axis1=1, axis2=2) / 2, 0.0, None))
+        return xy, np.where(np.isfinite(xy).all(axis=1), std, np.inf)
+
+    def predict_covariance(
+        self, boxes: np.ndarray, keypoints: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Fused floor positions [B, 2] and their GLS covariance [B, 2, 2] (m²): long along a
+        lone camera's line of sight, short across it (the tracker's measurement noise). NaN
+        for rows no fitted camera sees."""
         est, info = self.views(boxes, keypoints)
         total = info.sum(axis=1)
         eta = (info @ est[..., None]).sum(axis=1)
@@ -325,8 +335,7 @@ class FloorPrior:
         safe = np.where(has[:, None, None], total, np.eye(2))
         xy = np.linalg.solve(safe, eta)[..., 0]
         cov = np.linalg.inv(safe)
-        std = np.sqrt(np.clip(np.trace(cov, axis1=1, axis2=2) / 2, 0.0, None))
-        return np.where(has[:, None], xy, np.nan), np.where(has, std, np.inf)
+        return np.where(has[:, None], xy, np.nan), np.where(has[:, None, None], cov, np.nan)
 
     def reproject(self, world: np.ndarray, point: str = "foot") -> np.ndarray:
         """Floor positions [B, 2] → the expected ``point`` pixel [B, K, 2] in every camera.

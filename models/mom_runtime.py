@@ -156,6 +156,32 @@ class MomRuntime:
             )
         return blend(encoder_xy, prior_xy, weight).astype(np.float32)
 
+    def covariance(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
+        """Covariance [B, 2, 2] (m²) of :meth:`localize`'s positions; NaN where unknown.
+
+        The floor prior's GLS covariance per row (long along a lone camera's line of sight),
+        scaled for the share of the encoder in the served blend by the ratio of the encoder's to
+        the prior's validation error (``model.json`` ``floor_prior.validation``; 1 when not
+        measured): ``(w + (1 - w) ρ)²`` for prior weight ``w``, i.e. the two localizers' errors
+        taken as fully correlated (they read the same boxes). NaN without a fitted prior or
+        where it sees nothing (the tracker then uses its own default).
+        """
+        boxes = self._check_boxes(boxes)
+        if self.floor_prior is None:
+            return np.full((len(boxes), 2, 2), np.nan)
+        prior_keypoints = keypoints if self.observation == "keypoints" else None
+        _, cov = self.floor_prior.predict_covariance(boxes, prior_keypoints)
+        weight = row_weights(boxes, self.prior_weights)
+        scale = weight + (1.0 - weight) * self.encoder_error_ratio
+        return cov * (scale**2)[:, None, None]
+
+    @property
+    def encoder_error_ratio(self) -> float:
+        """Encoder / prior mean validation error (1.0 when the training did not measure it)."""
+        validation = (self.meta.get("floor_prior") or {}).get("validation") or {}
+        encoder, prior = validation.get("encoder_mean_m"), validation.get("prior_mean_m")
+        return float(encoder) / float(prior) if encoder and prior else 1.0
+
     def encode(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
         """The MoM encoder's floor positions [B, 2] (the D draws averaged in the graph)."""
         estimators, mask = self.encoder_inputs(boxes, keypoints)

@@ -39,6 +39,10 @@ tried first and failed exactly there (an early wrong pair blocks the right one l
 People seen by one camera only are kept: their cluster is localized with the other views masked
 (NaN), which the MoM encoder supports when trained with missing views. Clusters whose position
 the model cannot produce (non-finite output) are dropped.
+
+A model with a ``covariance(boxes)`` method (``MomRuntime``: the floor prior's GLS covariance)
+also gives each association the covariance of its position, which the tracker takes as that
+measurement's noise (long along a lone camera's line of sight).
 """
 
 from __future__ import annotations
@@ -79,6 +83,7 @@ class Association:
     cost: float  # RMS normalised reprojection error over the seen cameras (see module doc)
     detection_index: list[int | None]  # per camera: index into that camera's detections
     errors: np.ndarray = field(default_factory=lambda: np.zeros(0))  # [K] px, NaN where unseen
+    covariance: np.ndarray | None = None  # [2, 2] m² of ``world`` when the model gives one
 
 
 @dataclass(frozen=True)
@@ -122,6 +127,7 @@ def associate(
         ]
     )
     world, errors, cost, _ = _evaluate(tuples, runtime)
+    covariance = _covariance(tuples, runtime)
     out = []
     for i, cluster in enumerate(clusters):
         if not np.isfinite(world[i]).all():
@@ -135,6 +141,7 @@ def associate(
                 cost=float(cost[i]),
                 detection_index=list(cluster),
                 errors=errors[i],
+                covariance=None if covariance is None else covariance[i],
             )
         )
     return out
@@ -260,6 +267,23 @@ def _single_view_positions(
         out.append(world[start : start + len(boxes)])
         start += len(boxes)
     return out
+
+
+def covering_cameras(runtime, world: np.ndarray, margin: float = 0.05) -> np.ndarray:
+    """[N, K] bool: camera k should see a person at floor position ``world`` [N, 2], i.e. the
+    decoder puts their body's mean point inside its image, ``margin`` (fraction of the image
+    size) away from the border. For the tracker's ghost check (``Tracker(ghost_s=...)``)."""
+    pixels = np.asarray(runtime.reproject(np.asarray(world, dtype=np.float64)), np.float64)
+    size = np.asarray(runtime.image_sizes, dtype=np.float64)[None]
+    inside = (pixels >= margin * size) & (pixels <= (1.0 - margin) * size)
+    return inside.all(axis=-1)
+
+
+def _covariance(tuples: np.ndarray, runtime: LocalizationModel) -> np.ndarray | None:
+    """The model's covariance [B, 2, 2] of each tuple's position, if it has one (optional:
+    ``MomRuntime.covariance``); rows it cannot tell are NaN."""
+    method = getattr(runtime, "covariance", None)
+    return None if method is None else np.asarray(method(tuples), dtype=np.float64)
 
 
 def _as_boxes(detections: np.ndarray, camera: int) -> np.ndarray:

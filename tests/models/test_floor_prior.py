@@ -245,3 +245,26 @@ def test_wrong_box_shape_is_a_user_error():
     prior = FloorPrior.fit_arrays(world, boxes, np.array([SIZE, SIZE]))
     with pytest.raises(MomlocError, match=r"\[B, 2, 4\]"):
         prior.predict(np.zeros((3, 3, 4)))
+
+
+def test_single_view_covariance_is_long_along_the_line_of_sight():
+    """One camera: the covariance's long axis points from the camera to the person, and its
+    size is the one ``predict`` reports; two cameras shrink it in every direction."""
+    world, boxes = _marks(per_mark=60, seed=3)
+    noisy = boxes + np.random.default_rng(5).normal(0, 2.0, boxes.shape)
+    prior = FloorPrior.fit_arrays(world, noisy, np.array([SIZE, SIZE]))
+    probe = np.array([[6.0, 6.0], [3.0, 7.0]])
+    one = _boxes(probe)
+    one[:, 1] = np.nan  # camera 0 (at the origin) only
+    _, cov = prior.predict_covariance(one)
+    _, std = prior.predict(one)
+    np.testing.assert_allclose(np.sqrt(np.trace(cov, axis1=1, axis2=2) / 2), std)
+    for p, c in zip(probe, cov, strict=True):
+        values, vectors = np.linalg.eigh(c)
+        sight = p / np.linalg.norm(p)  # camera 0 stands at (0, 0)
+        assert abs(vectors[:, 1] @ sight) > 0.95
+        assert values[1] > 4 * values[0]
+    _, both = prior.predict_covariance(_boxes(probe))
+    assert (np.linalg.eigvalsh(cov - both) > 0).all()
+    xy_none, cov_none = prior.predict_covariance(np.full((1, 2, 4), np.nan))
+    assert np.isnan(xy_none).all() and np.isnan(cov_none).all()

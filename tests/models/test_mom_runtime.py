@@ -121,3 +121,22 @@ def test_model_json_with_wrong_types_names_the_key(tmp_path, changes, key):
         MomRuntime.load(model)
     message = str(info.value)
     assert f"model.json: {key}" in message and "\n" not in message, message
+
+
+def test_covariance_follows_the_floor_prior_and_the_view_count():
+    out, _, _ = trained_model()
+    runtime = MomRuntime.load(out)
+    data, _ = make_dataset(200, cameras=2, seed=24)
+    both = data.visible().all(axis=1)
+    boxes = data.boxes[both][:50]
+    cov = runtime.covariance(boxes)
+    if runtime.floor_prior is None:  # no prior: the tracker's default applies
+        assert np.isnan(cov).all()
+        return
+    assert cov.shape == (len(boxes), 2, 2) and np.isfinite(cov).all()
+    np.testing.assert_allclose(cov, cov.transpose(0, 2, 1), atol=1e-12)
+    one = boxes.copy()
+    one[:, 1] = np.nan
+    single = runtime.covariance(one)
+    assert (np.trace(single, axis1=1, axis2=2) > np.trace(cov, axis1=1, axis2=2)).all()
+    assert np.isnan(runtime.covariance(np.full((1, 2, 4), np.nan))).all()

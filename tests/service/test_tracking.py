@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from service.tracking import Tracker
+from service.tracking import RECOMMENDED, Tracker
 
 FPS = 30.0
 
@@ -66,7 +66,7 @@ def test_one_second_occlusion_keeps_id_and_coasts() -> None:
         hidden = 60 <= i < 90  # exactly 1 s without detections
         pos = np.zeros((0, 2)) if hidden else (np.array([0.5, 2.0]) + t * velocity)[None]
         tracks = tracker.update(t, pos, [{"cameras": [1]}] * len(pos))
-        if t < tracker.confirm_s - 1e-9:  # tentative until confirmed
+        if t < tracker.confirm_single_s - 1e-9:  # one camera's word: tentative for longer
             assert tracks == []
             continue
         assert len(tracks) == 1
@@ -125,3 +125,50 @@ def test_nan_positions_are_ignored_and_meta_checked() -> None:
     assert [(tr.x, tr.y, tr.cameras) for tr in tracks] == [(2.0, 2.0, [2])]
     with pytest.raises(ValueError, match="meta"):
         tracker.update(0.1, np.array([[1.0, 1.0]]), [])
+
+
+def test_one_camera_needs_longer_to_be_believed() -> None:
+    tracker = Tracker(fps_hint=FPS, confirm_single_s=1.0)
+    one, two = [], []
+    for i in range(40):
+        tracks = tracker.update(
+            i / FPS, np.array([[1.0, 1.0], [4.0, 4.0]]), [{"cameras": [0]}, {"cameras": [0, 1]}]
+        )
+        one.append(any(abs(tr.x - 1.0) < 0.1 for tr in tracks))
+        two.append(any(abs(tr.x - 4.0) < 0.1 for tr in tracks))
+    assert two.index(True) == round(tracker.confirm_s * FPS)  # 0.3 s
+    assert one.index(True) == round(tracker.confirm_single_s * FPS)  # 1 s
+
+
+def test_single_view_ghost_where_another_camera_looks_is_dropped() -> None:
+    """A box only camera 0 reports, at a place camera 1 covers too, is a detector ghost."""
+    both = lambda xy: np.ones((len(xy), 2), dtype=bool)  # noqa: E731
+    only_zero = lambda xy: np.c_[np.ones(len(xy), bool), np.zeros(len(xy), bool)]  # noqa: E731
+    for coverage, reported in ((both, False), (only_zero, True), (None, True)):
+        tracker = Tracker(fps_hint=FPS, ghost_s=0.5)
+        for i in range(45):
+            tracks = tracker.update(
+                i / FPS, np.array([[2.0, 2.0]]), [{"cameras": [0]}], coverage=coverage
+            )
+        assert bool(tracks) == reported, coverage
+    tracker = Tracker(fps_hint=FPS, ghost_s=0.5)  # seen by both cameras once: a person
+    for i in range(45):
+        meta = [{"cameras": [0, 1] if i == 20 else [0]}]
+        tracks = tracker.update(i / FPS, np.array([[2.0, 2.0]]), meta, coverage=both)
+    assert len(tracks) == 1
+
+
+def test_measurement_covariance_is_used_and_checked() -> None:
+    """Measurements precise across the line of sight (y) follow a sideways step at once."""
+    sight = np.diag([0.5**2, 0.02**2])
+    plain = Tracker(fps_hint=FPS, **{**RECOMMENDED, "robust_chi2": 0.0})
+    steered = Tracker(fps_hint=FPS, **{**RECOMMENDED, "robust_chi2": 0.0})
+    for i in range(50):
+        z = np.array([[3.0, 3.0 if i < 45 else 3.3]])
+        a = plain.update(i / FPS, z, [{"cameras": [0]}])
+        b = steered.update(i / FPS, z, [{"cameras": [0]}], covariances=[sight])
+    assert b[0].y - 3.0 > 0.25 and a[0].y - 3.0 < b[0].y - 3.0
+    with pytest.raises(ValueError, match="covariances"):
+        steered.update(5.0, np.zeros((1, 2)), None, covariances=[])
+    # None or NaN covariances fall back to the isotropic default.
+    steered.update(5.1, np.array([[3.0, 3.0]]), None, covariances=[np.full((2, 2), np.nan)])
