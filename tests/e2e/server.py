@@ -89,7 +89,10 @@ class LockstepRig(SyntheticRig):
 def running_server(**settings: Any) -> Iterator[RunningServer]:
     """The demo daemon (synthetic scene, shipped model) on a free loopback port.
 
-    ``lockstep=True`` replaces the real-time synthetic rig by :class:`LockstepRig`.
+    ``lockstep=True`` replaces the real-time synthetic rig by :class:`LockstepRig` and runs the
+    detector inline on every frame set (``detection.schedule: every_frame``): the scheduled
+    detector runs beside the pipeline on wall-clock time, so how many frame sets got fresh
+    boxes would depend on the machine's load.
     """
     lockstep = settings.pop("lockstep", False)
     token = settings.pop("token", None)
@@ -98,6 +101,9 @@ def running_server(**settings: Any) -> Iterator[RunningServer]:
     config = demo_settings(host="127.0.0.1", **settings)
     if model_dir:
         config = config.model_copy(update={"model_dir": Path(model_dir)})
+    if lockstep:
+        inline = config.detection.model_copy(update={"schedule": "every_frame"})
+        config = config.model_copy(update={"detection": inline})
     daemon = build_daemon(config)
     daemon.token = token
     if lockstep:
