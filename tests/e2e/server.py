@@ -48,6 +48,9 @@ class RunningServer:
 def running_server(**settings: Any) -> Iterator[RunningServer]:
     """The demo daemon (synthetic scene, shipped model) on a free loopback port."""
     token = settings.pop("token", None)
+    # The simulator's boxes unless a test asks for the drawn frames through the detector: these
+    # tests are about the server, and the detector would only add CPU load and timing slack.
+    settings.setdefault("detections", "simulated")
     model_dir = settings.pop("model_dir", None)
     config = demo_settings(host="127.0.0.1", **settings)
     if model_dir:

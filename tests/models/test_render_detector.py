@@ -3,9 +3,10 @@
 Frames 0, 60, ..., 1140 of indoor-2cam, indoor-4cam, living-room and office-3cam (seed 2), every
 camera, NanoDet at its shipped settings (score 0.4). People are counted as
 ``models.simulate.detector_view`` does (clear: >= 90 % in the image, < 20 % covered by nearer
-people's boxes; found: one-to-one IoU >= 0.5). Recorded on this frame set (2026-12-01, see
-bench/results/render_recall.md for the larger run): RECORDED below; the gate allows a few points
-for retraining noise elsewhere, not for a worse drawing.
+people's boxes; found: one-to-one IoU >= 0.5). Recorded on this frame set (2026-12-01; 106, 322
+and 62 clear people by height, 642 in view): RECORDED below, the same as the 4x larger run of
+bench/results/render_recall.md within a point. The margin is about two people of the smallest
+bin: room for onnxruntime builds, not for a worse drawing.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from models.simulate.detector_view import camera_truth, match
 PRESET_NAMES = ("indoor-2cam", "indoor-4cam", "living-room", "office-3cam")
 FRAMES = range(0, 1200, 60)
 # recall of clear people by true box height (< 100, 100-200, > 200 px), all clear, all in view
-RECORDED = {"< 100": 1.0, "100-200": 0.99, "> 200": 0.89, "clear": 0.98, "in view": 0.89}
+RECORDED = {"< 100": 0.96, "100-200": 0.98, "> 200": 0.89, "clear": 0.965, "in view": 0.89}
 MARGIN = 0.04
 
 

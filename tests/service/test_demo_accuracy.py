@@ -1,43 +1,33 @@
-"""Regression gate: the demo scene through the real pipeline, deterministic (no wall clock).
+"""Regression gates: the demo scene through the real pipeline, deterministic (no wall clock).
 
-Simulated boxes -> association -> shipped demo model -> tracker, frame by frame with scene
-timestamps. Recorded on the shipped model (seed 7, 3 people, 600 frames = 20 s): median error
-0.09 m, 97 % within 0.5 m, 3 ids (one per person). The bounds leave a margin for retraining.
+``service.demo.replay_demo`` runs the demo daemon frame by frame with scene timestamps: boxes ->
+association -> shipped demo model -> tracker, scored against the simulator's truth (people whose
+true box is at least half inside a camera's image; reported people matched one-to-one within
+1 m). Recorded on the shipped model (seed 7, 3 people, frames 30..599 for simulated boxes,
+30..329 for the drawn frames through NanoDet), see the README ("The daemon"): the bounds leave a
+margin for retraining, not for a blinder detector or a worse drawing.
 """
 
 from __future__ import annotations
 
-import dataclasses
-
-import numpy as np
-from scipy.optimize import linear_sum_assignment
-
-from capture.rig import FrameSet
-from service.daemon import build_daemon
-from service.demo import demo_settings
+from service.demo import demo_settings, replay_demo
 
 
-def test_demo_scene_accuracy_and_ids():
-    daemon = build_daemon(demo_settings(detections="simulated"))
-    daemon.pipeline.rig.render_every = 0  # boxes only: no drawing needed
-    pipeline, rig = daemon.pipeline, daemon.pipeline.rig
-    errors, reported, visible, ids = [], 0, 0, set()
-    for i in range(600):
-        frames = [dataclasses.replace(f, timestamp=1e6 + i / 30) for f in rig.produce(i).frames]
-        snapshot = pipeline.process(FrameSet(frames, 0.0))
-        if i < 30:  # tracks confirmed
-            continue
-        truth = rig.observation(i)
-        gt = truth.world[np.isfinite(truth.boxes).all(axis=2).any(axis=1), :2]
-        got = np.array([[p["x"], p["y"]] for p in snapshot.people]).reshape(-1, 2)
-        reported, visible = reported + len(got), visible + len(gt)
-        ids |= {p["id"] for p in snapshot.people}
-        if len(got) and len(gt):
-            cost = np.linalg.norm(got[:, None] - gt[None], axis=2)
-            rows, cols = linear_sum_assignment(cost)
-            errors.extend(cost[rows, cols])
-    errors = np.array(errors)
-    assert 0.9 * visible <= reported <= 1.15 * visible, (reported, visible)
-    assert np.median(errors) < 0.15, np.median(errors)
-    assert np.mean(errors < 0.5) > 0.93, np.mean(errors < 0.5)
-    assert len(ids) <= 6, ids
+def test_demo_scene_with_simulated_boxes():
+    score = replay_demo(demo_settings(detections="simulated"), frames=600)
+    s = score.summary()
+    # recorded: mean 0.117 m, median 0.087 m, 97.7 % within 0.5 m, recall 1.0, precision 1.0, 3 ids
+    assert s["median_m"] < 0.15 and s["mean_m"] < 0.16, s
+    assert s["within_0.5m"] > 0.93 and s["recall"] > 0.95 and s["precision"] > 0.95, s
+    assert s["ids"] <= 6, s
+
+
+def test_demo_scene_with_drawn_frames_through_the_shipped_detector():
+    """The default demo: NanoDet on the drawn frames, the demo model trained on its boxes."""
+    score = replay_demo(demo_settings(detections="rendered"), frames=330)
+    s = score.summary()
+    # recorded: mean 0.108 m, median 0.065 m, 95.8 % within 0.5 m, recall 1.0, precision 0.841
+    # (coasting tracks, see the README), 5 ids; frames 30..599: 0.089 m mean, precision 0.906
+    assert s["median_m"] < 0.1 and s["mean_m"] < 0.14, s
+    assert s["within_0.5m"] > 0.92 and s["recall"] > 0.95 and s["precision"] > 0.78, s
+    assert s["ids"] <= 8, s
