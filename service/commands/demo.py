@@ -20,8 +20,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--detections",
         choices=("simulated", "rendered"),
         default=None,
-        help="simulated: the simulator's noisy boxes (default); "
-        "rendered: drawn frames through the real detector",
+        help="rendered: drawn frames through the real detector (default); "
+        "simulated: the simulator's noisy boxes (no drawing, no detector: for small machines)",
     )
     parser.add_argument("--people", type=int, default=None, help="walking people (default 3)")
     parser.add_argument("--seed", type=int, default=None, help="scene seed")

@@ -96,6 +96,9 @@ def running_server(**settings: Any) -> Iterator[RunningServer]:
     """
     lockstep = settings.pop("lockstep", False)
     token = settings.pop("token", None)
+    # The simulator's boxes unless a test asks for the drawn frames through the detector: these
+    # tests are about the server, and the detector would only add CPU load and timing slack.
+    settings.setdefault("detections", "simulated")
     model_dir = settings.pop("model_dir", None)
     guard = {k: settings.pop(k) for k in ("allowed_origins", "allowed_hosts") if k in settings}
     config = demo_settings(host="127.0.0.1", **settings)
