@@ -1,4 +1,4 @@
-"""Settings of the daemon's outputs beyond its own API: zones, MQTT, Home Assistant discovery.
+"""Settings of the daemon's outputs beyond its own API: zones, MQTT, Home Assistant discovery, OSC.
 
 Kept apart from ``service.settings`` (which only adds the two fields ``zones`` and ``mqtt``) so
 that the core settings and these can change independently. Same rules as there: unknown keys are
@@ -12,9 +12,11 @@ Example ``momloc.yaml`` lines::
       host: 192.168.1.10
       room: living-room
       home_assistant: {discovery: true}
+    osc: {host: 127.0.0.1, port: 9000, rate: 30}
 
 Environment variables work as for every setting: ``MOMLOC_MQTT__HOST=broker.local``,
 ``MOMLOC_MQTT__PORT=1884``, ``MOMLOC_MQTT__HOME_ASSISTANT__DISCOVERY=true``,
+``MOMLOC_OSC__HOST=10.0.0.5``, ``MOMLOC_OSC__PORT=9000``, ``MOMLOC_OSC__RATE=60``,
 ``MOMLOC_ZONES='[{"name": "sofa", "polygon": [[1,1],[3,1],[3,2.5]]}]'``.
 """
 
@@ -154,3 +156,17 @@ class MqttSettings(BaseModel):
 
     def topic(self, *levels: str) -> str:
         return "/".join((self.base_topic, self.room, *levels))
+
+
+class OscSettings(BaseModel):
+    """Send every snapshot as one OSC bundle over UDP (TouchDesigner, Max/MSP, Processing, ...).
+
+    Example: ``osc: {host: 127.0.0.1, port: 9000, rate: 30}``; or ``MOMLOC_OSC__PORT=9000``.
+    """
+
+    model_config = _STRICT
+    host: str = Field("127.0.0.1", min_length=1, description="Receiver host name or address (UDP).")
+    port: int = Field(9000, ge=1, le=65535, description="Receiver UDP port.")
+    rate: float = Field(
+        30.0, gt=0, le=200, description="Most bundles per second (newest snapshot wins)."
+    )

@@ -1,4 +1,4 @@
-"""Wires the optional outputs (zones, MQTT, Home Assistant discovery) to a daemon's hub.
+"""Wires the optional outputs (zones, MQTT, Home Assistant discovery, OSC) to a daemon's hub.
 
 ``build_outputs`` is the one call ``service.daemon.build_daemon`` makes; ``service.routes_zones``
 starts and stops the MQTT link with the app and serves the zone routes. Keeping the wiring here
@@ -12,6 +12,7 @@ from typing import Any
 
 from service.ha_discovery import discovery_messages, removal_messages
 from service.mqtt import MqttPublisher
+from service.osc import OscPublisher
 from service.zone_monitor import ZoneMonitor
 from service.zones import Zone
 
@@ -22,11 +23,14 @@ class Outputs:
 
     zones: ZoneMonitor
     mqtt: MqttPublisher | None = None
+    osc: OscPublisher | None = None
 
     def health(self) -> dict[str, Any]:
         out: dict[str, Any] = {"zones": self.zones.stats()}
         if self.mqtt is not None:
             out["mqtt"] = self.mqtt.stats()
+        if self.osc is not None:
+            out["osc"] = self.osc.stats()
         return out
 
     def remove_discovery(self) -> int:
@@ -72,6 +76,9 @@ def build_outputs(settings: Any, daemon: Any) -> Outputs:
         daemon.hub.add_publisher(publisher)
         monitor.add_listener(publisher)
         outputs.mqtt = publisher
+    if getattr(settings, "osc", None) is not None:
+        outputs.osc = OscPublisher(settings.osc, occupancy=monitor.occupancy)
+        daemon.hub.add_publisher(outputs.osc)
     return outputs
 
 
@@ -109,4 +116,7 @@ def output_metrics(daemon: Any) -> list[Any]:
             "events_dropped",
         ):
             families.append(CounterMetricFamily(f"momloc_mqtt_{key}", f"MQTT {key}", stats[key]))
+    if outputs.osc is not None:
+        for key, value in outputs.osc.counters.items():
+            families.append(CounterMetricFamily(f"momloc_osc_{key}", f"OSC {key}", value))
     return families

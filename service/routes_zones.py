@@ -47,9 +47,13 @@ def create_zones_router(daemon: Any) -> APIRouter:
         outputs.zones.events.bind(asyncio.get_running_loop())
         if outputs.mqtt is not None:
             await asyncio.to_thread(outputs.mqtt.start)
+        if getattr(outputs, "osc", None) is not None:
+            outputs.osc.start()
         try:
             yield
         finally:
+            if getattr(outputs, "osc", None) is not None:
+                await asyncio.to_thread(outputs.osc.stop)
             if outputs.mqtt is not None:
                 await asyncio.to_thread(outputs.mqtt.stop)
             outputs.zones.events.bind(None)

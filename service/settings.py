@@ -37,7 +37,7 @@ from pydantic import (
 from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict
 
 from models.errors import MomlocError
-from service.output_settings import MqttSettings, ZoneList
+from service.output_settings import MqttSettings, OscSettings, ZoneList
 
 DEMO_MODEL_DIR = Path(__file__).resolve().parent.parent / "models" / "demo_model"
 _STRICT = ConfigDict(extra="forbid")
@@ -316,6 +316,7 @@ class Settings(BaseSettings):
         default_factory=list, description="Named floor polygons with occupancy and events."
     )
     mqtt: MqttSettings | None = Field(None, description="MQTT publisher; absent: off.")
+    osc: OscSettings | None = Field(None, description="OSC bundles over UDP; absent: off.")
 
     @classmethod
     def settings_customise_sources(

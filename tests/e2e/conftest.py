@@ -1,3 +1,5 @@
-"""Shared e2e fixtures: ``mosquitto`` (a real broker per test session, tests/e2e/mqtt_broker.py)."""
+"""Shared e2e fixtures: ``mosquitto`` (a real broker per test session, tests/e2e/mqtt_broker.py)
+and ``unity_harness`` (the Unity client compiled with Mono, tests/e2e/toolchains.py)."""
 
 from tests.e2e.mqtt_broker import mosquitto  # noqa: F401
+from tests.e2e.toolchains import unity_harness  # noqa: F401

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -15,7 +16,14 @@ import httpx
 from capture.rig import FrameSet
 from capture.synthetic import SyntheticRig
 from capture.worker import Frame
-from service.daemon import Daemon, build_daemon, serve_in_thread
+from service.daemon import (
+    BackgroundServer,
+    Daemon,
+    bind_socket,
+    build_daemon,
+    make_server,
+    serve_in_thread,
+)
 from service.demo import demo_settings
 
 
@@ -85,9 +93,40 @@ class LockstepRig(SyntheticRig):
                     return
 
 
+def serve_with_static(
+    daemon: Daemon, port: int = 0, static: dict[str, Path] | None = None
+) -> BackgroundServer:
+    """``service.daemon.serve_in_thread`` plus test-only static mounts on the daemon's own app.
+
+    Client example pages (``examples/web``) are mounted here so a browser loads them from the
+    daemon's origin: a page on another origin would be refused by the Origin checks.
+    """
+    from fastapi.staticfiles import StaticFiles
+
+    if not static:
+        return serve_in_thread(daemon, port=port)
+    sock = bind_socket("127.0.0.1", port)
+    server = make_server(daemon, "127.0.0.1", sock.getsockname()[1])
+    for prefix, directory in (static or {}).items():
+        server.config.app.mount(prefix, StaticFiles(directory=directory), name=prefix)
+    thread = threading.Thread(
+        target=server.run, kwargs={"sockets": [sock]}, name="uvicorn", daemon=True
+    )
+    thread.start()
+    deadline = time.time() + 60
+    while not server.started:
+        if time.time() > deadline or not thread.is_alive():
+            sock.close()
+            raise RuntimeError("the HTTP server did not start")
+        time.sleep(0.02)
+    return BackgroundServer(daemon, sock.getsockname()[1], server, thread, sock)
+
+
 @contextmanager
-def running_server(**settings: Any) -> Iterator[RunningServer]:
-    """The demo daemon (synthetic scene, shipped model) on a free loopback port.
+def running_server(
+    *, port: int = 0, static: dict[str, Path] | None = None, **settings: Any
+) -> Iterator[RunningServer]:
+    """The demo daemon (synthetic scene, shipped model) on a loopback port (0: a free one).
 
     ``lockstep=True`` replaces the real-time synthetic rig by :class:`LockstepRig` and runs the
     detector inline on every frame set (``detection.schedule: every_frame``): the scheduled
@@ -113,7 +152,7 @@ def running_server(**settings: Any) -> Iterator[RunningServer]:
         daemon.pipeline.rig = LockstepRig(daemon.pipeline.rig, daemon.hub)
     for key, value in guard.items():
         setattr(daemon, key, list(value))
-    background = serve_in_thread(daemon)
+    background = serve_with_static(daemon, port, static)
     try:
         yield RunningServer(daemon, background.port, token)
     finally:
