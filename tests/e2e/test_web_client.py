@@ -158,7 +158,16 @@ def test_demo_page_reports_a_wrong_token_and_stops_retrying(chromium):
     with running_server(token=TOKEN, static=STATIC) as srv:
         srv.wait_for_seq(5)
         chromium.get(f"{srv.http}/examples/web/index.html?token=wrong")
-        state = wait_until(lambda: (s := page_state(chromium)) and s["rejected"] and s, what="4401")
+        # the page sets its rejected flag and its status line in two steps: wait for both
+        state = wait_until(
+            lambda: (
+                (s := page_state(chromium))
+                and s["rejected"]
+                and "token rejected" in s["status"]
+                and s
+            ),
+            what="4401 and the status line",
+        )
         assert "token rejected" in state["status"]
         time.sleep(3.0)  # several back-off periods: a retrying client would have tried again
         later = page_state(chromium)
