@@ -9,6 +9,7 @@ same record, so "the client shows what /v1/positions says" is checked seq by seq
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 from typing import Any
 
@@ -59,8 +60,13 @@ def check_states_match(srv: RunningServer, client: LineProcess, tap: Tap, after:
         what="20 snapshots applied by the client",
     )
     # /v1/positions serves the very snapshots the tap recorded (same seq -> same body)
+    # (the hub sets its latest snapshot before it offers it to publishers, so a GET can see a
+    # seq a moment before the tap does: wait for the tap rather than race it)
     for _ in range(5):
         body = srv.get("/v1/positions").json()
+        deadline = time.monotonic() + 5.0
+        while body["seq"] not in tap.by_seq and time.monotonic() < deadline:
+            time.sleep(0.01)
         assert body == tap.by_seq[body["seq"]].as_dict()
     checked = 0
     for state in states(client.snapshot()[after:]):
