@@ -22,35 +22,18 @@ from typing import Any
 
 import pytest
 
+from tests.e2e.debian import ensure_debian
+
 MOSQUITTO = "/usr/sbin/mosquitto"
 
 
 def ensure_mosquitto() -> str:
     """Path of the mosquitto binary, installing the Debian package if needed (else skip)."""
-    found = shutil.which("mosquitto") or (MOSQUITTO if Path(MOSQUITTO).exists() else None)
+    found = shutil.which("mosquitto")
     if found:
         return found
-    if shutil.which("apt-get") is None:
-        pytest.skip("mosquitto is missing and apt-get is not available to install it")
-    steps = (
-        ["apt-get", "update"],
-        ["apt-get", "install", "-y", "mosquitto", "mosquitto-clients"],
-    )
-    for step in steps:
-        result = subprocess.run(
-            step,
-            capture_output=True,
-            text=True,
-            timeout=900,
-            env={"DEBIAN_FRONTEND": "noninteractive", "PATH": "/usr/sbin:/usr/bin:/sbin:/bin"},
-        )
-        if result.returncode != 0:
-            tail = (result.stderr or result.stdout).strip().splitlines()[-1:] or ["no output"]
-            pytest.skip(f"cannot install mosquitto ({' '.join(step)}: {tail[0]})")
-    found = shutil.which("mosquitto") or (MOSQUITTO if Path(MOSQUITTO).exists() else None)
-    if not found:
-        pytest.skip("mosquitto installed but its binary is missing")
-    return found
+    ensure_debian((MOSQUITTO,), ("mosquitto", "mosquitto-clients"), recommends=True)
+    return MOSQUITTO
 
 
 def free_port() -> int:

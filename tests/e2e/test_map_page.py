@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import shutil
-import subprocess
 import time
 from pathlib import Path
 
 import pytest
 
+from tests.e2e.debian import ensure_debian
 from tests.e2e.server import running_server
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(600)]
@@ -29,24 +28,9 @@ FLAGS = (
 
 def ensure_chromium() -> None:
     """Install Debian's chromium + driver once if absent; skip (with the reason) if impossible."""
-    if CHROMIUM.exists() and CHROMEDRIVER.exists():
-        return
-    if shutil.which("apt-get") is None:
-        pytest.skip("Debian chromium is missing and apt-get is not available to install it")
-    steps = (["apt-get", "update"], ["apt-get", "install", "-y", "chromium", "chromium-driver"])
-    for step in steps:
-        result = subprocess.run(
-            step,
-            capture_output=True,
-            text=True,
-            timeout=900,
-            env={"DEBIAN_FRONTEND": "noninteractive", "PATH": "/usr/sbin:/usr/bin:/sbin:/bin"},
-        )
-        if result.returncode != 0:
-            tail = (result.stderr or result.stdout).strip().splitlines()[-1:] or ["no output"]
-            pytest.skip(f"cannot install chromium ({' '.join(step)}: {tail[0]})")
-    if not (CHROMIUM.exists() and CHROMEDRIVER.exists()):
-        pytest.skip("chromium installed but /usr/bin/chromium or chromedriver is missing")
+    ensure_debian(
+        (str(CHROMIUM), str(CHROMEDRIVER)), ("chromium", "chromium-driver"), recommends=True
+    )
 
 
 @pytest.fixture(scope="module")

@@ -1,14 +1,12 @@
 """Client toolchains for e2e tests, installed from Debian on first use (like chromium, mosquitto).
 
-``ensure_debian`` installs the named packages once when a binary is missing and skips the test
-with the reason when that is impossible (no apt-get, no network to the Debian mirror). The Unity
+Toolchains come from Debian on first use (``tests.e2e.debian.ensure_debian``). The Unity
 client is compiled with Mono's ``mcs`` against ``tests/unity/UnityEngineStub.cs`` (compiled first
 into its own ``UnityEngine.dll``, as in Unity, so the client sees only the public stand-in API).
 """
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 import threading
 import time
@@ -18,37 +16,13 @@ from typing import Any
 
 import pytest
 
+from tests.e2e.debian import ensure_debian
+
 ROOT = Path(__file__).resolve().parents[2]
 UNITY_CLIENT = ROOT / "examples" / "unity" / "MoMLocalizerClient.cs"
 UNITY_STUB = ROOT / "tests" / "unity" / "UnityEngineStub.cs"
 UNITY_HARNESS = ROOT / "tests" / "unity" / "Harness.cs"
 MONO_PACKAGES = ("mono-mcs", "mono-runtime", "libmono-system4.0-cil")
-
-
-def ensure_debian(binaries: tuple[str, ...], packages: tuple[str, ...]) -> None:
-    """Make ``binaries`` available, installing ``packages`` with apt-get if one is missing."""
-    if all(shutil.which(b) for b in binaries):
-        return
-    if shutil.which("apt-get") is None:
-        pytest.skip(f"{', '.join(binaries)} missing and apt-get is not available to install it")
-    steps = (
-        ["apt-get", "update"],
-        ["apt-get", "install", "-y", "--no-install-recommends", *packages],
-    )
-    for step in steps:
-        result = subprocess.run(
-            step,
-            capture_output=True,
-            text=True,
-            timeout=900,
-            env={"DEBIAN_FRONTEND": "noninteractive", "PATH": "/usr/sbin:/usr/bin:/sbin:/bin"},
-        )
-        if result.returncode != 0:
-            tail = (result.stderr or result.stdout).strip().splitlines()[-1:] or ["no output"]
-            pytest.skip(f"cannot install {' '.join(packages)} ({' '.join(step[:2])}: {tail[0]})")
-    missing = [b for b in binaries if not shutil.which(b)]
-    if missing:
-        pytest.skip(f"installed {' '.join(packages)} but {', '.join(missing)} is still missing")
 
 
 def compile_unity_harness(out_dir: Path) -> Path:
