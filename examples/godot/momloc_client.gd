@@ -24,7 +24,8 @@
 #   approach at rate `smoothing`, frame-rate independent; 0 jumps to each new position).
 #
 # Not tested inside the Godot editor: the project's tests run this script in Debian's headless
-# godot3-server build (3.2.3) against a live daemon (tests/godot/harness.gd).
+# godot3-server build (3.2.3) against a live daemon (tests/godot/harness.gd). Godot 4 replaced
+# WebSocketClient by WebSocketPeer (and Spatial by Node3D): this file is for Godot 3.
 extends Spatial
 
 signal connected
