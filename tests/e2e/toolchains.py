@@ -80,13 +80,17 @@ def compile_unity_harness(out_dir: Path) -> Path:
     return exe
 
 
-def godot_command() -> list[str]:
-    """The command that runs the Godot harness (arguments follow); Godot installed on first use."""
+def godot_command(work_dir: Path) -> list[str]:
+    """The command that runs the Godot harness (arguments follow); Godot installed on first use.
+
+    Godot without a project writes its log files to ``logs/`` under the working directory, so it
+    runs in ``work_dir`` (``env -C``) rather than in the checkout.
+    """
     ensure_debian((GODOT,), (GODOT,))
     # LANG: Godot takes its locale from LANG up to the '.', and "C" (C.UTF-8) makes it print two
     # ERROR lines at start. --no-window: no display anyway; -s: run a SceneTree script, no project.
     harness = [GODOT, "--no-window", "-s", str(GODOT_HARNESS), "--", str(GODOT_CLIENT)]
-    return ["env", "LANG=en_US.UTF-8", *harness]
+    return ["env", "-C", str(work_dir), "LANG=en_US.UTF-8", *harness]
 
 
 class LineProcess:
@@ -158,6 +162,6 @@ def unity_harness(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 @pytest.fixture(scope="session")
-def godot_harness() -> list[str]:
+def godot_harness(tmp_path_factory: pytest.TempPathFactory) -> list[str]:
     """The command running tests/godot/harness.gd headless (godot3-server installed if missing)."""
-    return godot_command()
+    return godot_command(tmp_path_factory.mktemp("godot"))
