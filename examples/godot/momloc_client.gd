@@ -15,9 +15,10 @@
 #   3.2+), so it never appears in a URL or a log line.
 # - Reconnects with exponential back-off (0.5 s doubling to max_backoff_seconds, reset after a
 #   successful connect). Close code 4401 (token missing or wrong), delivered by the
-#   server_close_request signal before connection_closed, stops retrying: token_rejected turns
+#   server_close_request signal before connection_closed, stops retrying: token_was_rejected turns
 #   true, an error is printed and the signal `token_rejected` is emitted, because retrying with
-#   the same token cannot succeed. Call restart() after setting a new token.
+#   the same token cannot succeed. Call restart() after setting a new token. (The daemon refuses a
+#   token after the handshake, so `connected` is emitted once before `token_rejected`.)
 # - Messages are parsed with Godot's JSON; unknown keys are ignored, so newer daemons that add
 #   fields keep working. A malformed message is skipped with a warning.
 # - A person missing from the stream for despawn_seconds is freed; motion is smoothed (exponential
