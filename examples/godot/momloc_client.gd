@@ -161,7 +161,10 @@ func _attempt_ended() -> void:
 	if _close_code == TOKEN_REJECTED_CLOSE_CODE:
 		token_was_rejected = true
 		last_error = "the daemon rejected the token"
-		push_error("MoMLocalizerClient: the daemon rejected the token (close code 4401); set token and call restart()")
+		push_error(
+			"MoMLocalizerClient: the daemon rejected the token (close code 4401); "
+			+ "set token and call restart()"
+		)
 		emit_signal("disconnected", last_error)
 		emit_signal("token_rejected")
 		return
