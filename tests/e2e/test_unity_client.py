@@ -1,21 +1,17 @@
 """The Unity C# client (examples/unity) run under Mono against the live demo daemon on loopback.
 
 ``tests/unity/Harness.cs`` drives the client's own code (OnEnable starts its socket task, Update
-applies snapshots and moves one GameObject per id) and prints what the scene holds. A tap on the
-hub records every snapshot the daemon published, and ``/v1/positions`` is checked against the
-same record, so "the client shows what /v1/positions says" is checked seq by seq.
+applies snapshots and moves one GameObject per id) and prints what the scene holds; the checks
+shared with the Godot client are in ``tests/e2e/client_checks.py``.
 """
 
 from __future__ import annotations
 
-import json
-import time
 from pathlib import Path
-from typing import Any
 
 import pytest
 
-from service.hub import Snapshot
+from tests.e2e.client_checks import Tap, check_states_match, states, statuses
 from tests.e2e.mqtt_broker import free_port
 from tests.e2e.server import RunningServer, running_server
 from tests.e2e.toolchains import LineProcess
@@ -24,66 +20,8 @@ pytestmark = pytest.mark.timeout(600)
 TOKEN = "unity-token"
 
 
-class Tap:
-    """A hub publisher keeping every snapshot by seq (test only)."""
-
-    name = "test-tap"
-
-    def __init__(self) -> None:
-        self.by_seq: dict[int, Snapshot] = {}
-
-    def offer(self, snapshot: Snapshot) -> None:
-        self.by_seq[snapshot.seq] = snapshot
-
-    def stats(self) -> dict[str, Any]:
-        return {}
-
-
-def states(lines: list[str]) -> list[dict[str, Any]]:
-    return [json.loads(line[6:]) for line in lines if line.startswith("STATE ")]
-
-
-def statuses(lines: list[str]) -> list[dict[str, Any]]:
-    return [json.loads(line[7:]) for line in lines if line.startswith("STATUS ")]
-
-
 def harness(exe: Path, srv: RunningServer, token: str) -> LineProcess:
     return LineProcess(["mono", str(exe), f"{srv.ws}/v1/stream", token, "0"])
-
-
-def check_states_match(srv: RunningServer, client: LineProcess, tap: Tap, after: int) -> int:
-    """Every client state for a recorded snapshot has exactly its people at (x, 0, y)."""
-    srv.daemon.hub.add_publisher(tap)
-    first = srv.daemon.hub.latest().seq + 1
-    client.wait_for(
-        lambda lines: len([s for s in states(lines[after:]) if s["seq"] > first]) >= 20,
-        what="20 snapshots applied by the client",
-    )
-    # /v1/positions serves the very snapshots the tap recorded (same seq -> same body)
-    # (the hub sets its latest snapshot before it offers it to publishers, so a GET can see a
-    # seq a moment before the tap does: wait for the tap rather than race it)
-    for _ in range(5):
-        body = srv.get("/v1/positions").json()
-        deadline = time.monotonic() + 5.0
-        while body["seq"] not in tap.by_seq and time.monotonic() < deadline:
-            time.sleep(0.01)
-        assert body == tap.by_seq[body["seq"]].as_dict()
-    checked = 0
-    for state in states(client.snapshot()[after:]):
-        snapshot = tap.by_seq.get(state["seq"])
-        if snapshot is None or state["seq"] < first:
-            continue
-        objects = state["people"]
-        assert state["t"] == pytest.approx(snapshot.t, abs=1e-6)
-        for person in snapshot.people:
-            x, y, z = objects[str(person["id"])]
-            assert (x, y, z) == pytest.approx((person["x"], 0.0, person["y"]), abs=1e-4)
-        # one GameObject per id; ids gone from the snapshot linger only until they despawn
-        assert state["objects"] == len(objects) >= len(snapshot.people)
-        checked += 1
-    assert checked >= 20
-    srv.daemon.hub.remove_publisher(tap)
-    return checked
 
 
 def test_unity_client_follows_the_stream_and_reconnects_after_a_restart(unity_harness):
@@ -108,9 +46,9 @@ def test_unity_client_follows_the_stream_and_reconnects_after_a_restart(unity_ha
             lambda lines: any(s["attempts"] >= 3 for s in statuses(lines[gone:])),
             what="reconnect attempts while the daemon is down",
         )
+        back = len(client.snapshot())  # before the restart: the client may reconnect at once
         with running_server(token=TOKEN, port=port) as again:
             again.wait_for_seq(5)
-            back = len(client.snapshot())
             client.wait_for(
                 lambda lines: any(x.startswith(connected) for x in lines[back:]),
                 what="the client to reconnect to the restarted daemon",

@@ -3,6 +3,8 @@
 Toolchains come from Debian on first use (``tests.e2e.debian.ensure_debian``). The Unity
 client is compiled with Mono's ``mcs`` against ``tests/unity/UnityEngineStub.cs`` (compiled first
 into its own ``UnityEngine.dll``, as in Unity, so the client sees only the public stand-in API).
+The Godot client runs in Debian's ``godot3-server`` (Godot 3.2.3 built without a renderer or a
+window: it runs scripts with no display, no X server and no xvfb).
 """
 
 from __future__ import annotations
@@ -23,6 +25,9 @@ UNITY_CLIENT = ROOT / "examples" / "unity" / "MoMLocalizerClient.cs"
 UNITY_STUB = ROOT / "tests" / "unity" / "UnityEngineStub.cs"
 UNITY_HARNESS = ROOT / "tests" / "unity" / "Harness.cs"
 MONO_PACKAGES = ("mono-mcs", "mono-runtime", "libmono-system4.0-cil")
+GODOT_CLIENT = ROOT / "examples" / "godot" / "momloc_client.gd"
+GODOT_HARNESS = ROOT / "tests" / "godot" / "harness.gd"
+GODOT = "godot3-server"
 
 
 def compile_unity_harness(out_dir: Path) -> Path:
@@ -49,10 +54,25 @@ def compile_unity_harness(out_dir: Path) -> Path:
     return exe
 
 
+def godot_command(work_dir: Path) -> list[str]:
+    """The command that runs the Godot harness (arguments follow); Godot installed on first use.
+
+    Godot without a project writes its log files to ``logs/`` under the working directory, so it
+    runs in ``work_dir`` (``env -C``) rather than in the checkout.
+    """
+    ensure_debian((GODOT,), (GODOT,))
+    # LANG: Godot takes its locale from LANG up to the '.', and "C" (C.UTF-8) makes it print two
+    # ERROR lines at start. --no-window: no display anyway; -s: run a SceneTree script, no project.
+    harness = [GODOT, "--no-window", "-s", str(GODOT_HARNESS), "--", str(GODOT_CLIENT)]
+    return ["env", "-C", str(work_dir), "LANG=en_US.UTF-8", *harness]
+
+
 class LineProcess:
     """A child process whose stdout lines are collected by a thread (nothing blocks on a pipe)."""
 
-    def __init__(self, command: list[str]) -> None:
+    def __init__(self, command: list[str], quit_line: str | None = "quit\n") -> None:
+        """``quit_line``: what ends the child on stdin; None: it cannot read stdin, SIGTERM it."""
+        self.quit_line = quit_line
         self.proc = subprocess.Popen(
             command,
             stdin=subprocess.PIPE,
@@ -93,11 +113,15 @@ class LineProcess:
         )
 
     def close(self) -> None:
+        """Ask the child to quit ("quit" on stdin, or SIGTERM), kill it if it does not."""
         if self.proc.poll() is None:
             try:
-                assert self.proc.stdin is not None
-                self.proc.stdin.write("quit\n")
-                self.proc.stdin.close()
+                if self.quit_line is None:
+                    self.proc.terminate()
+                else:
+                    assert self.proc.stdin is not None
+                    self.proc.stdin.write(self.quit_line)
+                    self.proc.stdin.close()
                 self.proc.wait(timeout=15)
             except (OSError, subprocess.TimeoutExpired):
                 self.proc.kill()
@@ -109,3 +133,9 @@ class LineProcess:
 def unity_harness(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The compiled Unity client console harness (Mono installed on first use)."""
     return compile_unity_harness(tmp_path_factory.mktemp("unity"))
+
+
+@pytest.fixture(scope="session")
+def godot_harness(tmp_path_factory: pytest.TempPathFactory) -> list[str]:
+    """The command running tests/godot/harness.gd headless (godot3-server installed if missing)."""
+    return godot_command(tmp_path_factory.mktemp("godot"))
