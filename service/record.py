@@ -9,7 +9,8 @@ frames and cannot be recorded.
 
 Simulated recordings draw every scene frame of every camera and stamp frame *i* at ``i / fps``
 seconds (scene time from 0, not wall clock): deterministic, and frame set *i* is frame *i* of
-the dataset written beside it, which ``momloc track --truth`` relies on.
+the dataset written beside it, which ``momloc track --truth`` relies on. The folder also gets
+``truth.npz``: everyone in view, the fairer truth for the real detector (see ``_InViewTruth``).
 """
 
 from __future__ import annotations
@@ -20,6 +21,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
+
+import numpy as np
 
 from capture.recording import RecordingWriter
 from capture.rig import FrameSet
@@ -130,6 +133,7 @@ def record_scene(
     names = [f"synthetic-{k}" for k in range(scene.num_cameras)]
     source = {"simulator": {"preset": scene.config.name, "seed": scene.seed, "fps": scene.fps}}
     writer = RecordingWriter(out, names, fps=scene.fps, source=source)
+    truth = _InViewTruth(scene.image_sizes)
     try:
         for i in tqdm(range(frames), desc="drawing", unit="frame", disable=not progress):
             t = i / scene.fps
@@ -137,6 +141,68 @@ def record_scene(
             writer.add(
                 FrameSet([Frame(k, image, t, i) for k, image in enumerate(images)], skew=0.0)
             )
+            truth.add(scene.observe(i))
     finally:
         writer.close()
+    truth.save(Path(out) / TRUTH_FILE)
     return RecordSummary(Path(out), writer.frame_sets, frames / scene.fps, writer.counts)
+
+
+TRUTH_FILE = "truth.npz"
+
+
+class _InViewTruth:
+    """Everyone in view of a simulated recording, as a dataset v1 file (``truth.npz``).
+
+    Why beside the dataset ``momloc simulate`` writes: that one has rows only for people the
+    *simulated* detector reports, so a person the real detector finds in the drawn frames but the
+    simulated one misses would count as a ghost (measured on the demo scene, 60 frames, shipped
+    detector and demo model: precision 68 % against that file, 78 % against this one; recall
+    88-89 % against both). Here a person is in view of camera k when their true body box keeps
+    at least half its area inside the image (``service.stream_eval.in_view``, the served-accuracy
+    benchmark's rule); ``boxes`` are those true boxes clipped to the image, NaN elsewhere.
+    """
+
+    def __init__(self, image_sizes: Any) -> None:
+        self.sizes = np.asarray(image_sizes, np.float64)
+        self.rows: dict[str, list[np.ndarray]] = {
+            "world": [],
+            "boxes": [],
+            "frame": [],
+            "track": [],
+        }
+
+    def add(self, obs: Any) -> None:
+        from service.stream_eval import MIN_VISIBLE_FRACTION, in_view
+
+        boxes = np.asarray(obs.true_boxes, np.float64)
+        seen = np.stack(
+            [
+                in_view(boxes[:, [k]], self.sizes[[k]], MIN_VISIBLE_FRACTION)
+                for k in range(len(self.sizes))
+            ],
+            axis=1,
+        )  # [P, K]
+        keep = seen.any(axis=1)
+        clipped = np.concatenate(
+            [np.clip(boxes[..., :2], 0, self.sizes), np.clip(boxes[..., 2:], 0, self.sizes)], -1
+        )
+        clipped[~seen] = np.nan
+        self.rows["world"].append(np.asarray(obs.world)[keep, :2])
+        self.rows["boxes"].append(clipped[keep])
+        self.rows["frame"].append(np.full(int(keep.sum()), obs.frame))
+        self.rows["track"].append(np.asarray(obs.track)[keep])
+
+    def save(self, path: Path) -> None:
+        from models.dataset import MomDataset
+
+        arrays = {key: np.concatenate(parts) for key, parts in self.rows.items()}
+        if not len(arrays["world"]):
+            return  # nobody in view: no truth to score against
+        MomDataset(
+            world=arrays["world"].astype(np.float32),
+            boxes=arrays["boxes"].astype(np.float32),
+            frame=arrays["frame"].astype(np.int64),
+            track=arrays["track"].astype(np.int64),
+            image_size=self.sizes.astype(np.int32),
+        ).save(path)

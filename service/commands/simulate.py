@@ -1,4 +1,5 @@
-"""`momloc simulate`: write a synthetic multi-camera recording as a MoM dataset v1 file."""
+"""`momloc simulate`: write a synthetic multi-camera recording as a MoM dataset v1 file (and with
+``--record DIR`` its drawn frames as a ``momloc record`` folder, ``service.record``)."""
 
 from __future__ import annotations
 
@@ -54,6 +55,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="camera CAM is bumped at FRAME: image shifted by DX, DY pixels and rolled by ROLL "
         "degrees (repeatable)",
     )  # fmt: skip
+    parser.add_argument(
+        "--record", default=None, metavar="DIR",
+        help="also draw every camera's frames into a recording folder (momloc record format), "
+        "frame set i = dataset frame i, for momloc track --truth",
+    )  # fmt: skip
     parser.set_defaults(func=run)
 
 
@@ -95,4 +101,8 @@ def run(args: argparse.Namespace) -> int:
     )  # fmt: skip
     path = result.dataset.save(args.out)
     print(f"{path}: {result.dataset.summary()}")
+    if args.record is not None:
+        from service.record import record_scene
+
+        print(record_scene(result.scene, args.frames, args.record).line())
     return 0
