@@ -5,8 +5,9 @@ Why not :class:`~capture.sources.VideoFileSource` at the container's rate: webca
 drop frames, and the tracker's velocities, time-outs and the association's skew rules must see
 the intervals that really happened. All cameras of one recording count from the *recording's*
 start (``manifest.json``'s ``start``, else the camera's first frame), so cameras opened together
-keep their recorded offsets to each other; a worker opening a few milliseconds later shifts that
-camera by as much, which is below a webcam's own jitter.
+keep their recorded offsets to each other, also when looping (one period for all: the
+recording's span plus one mean frame-set interval); a worker opening a few milliseconds later
+shifts that camera by as much, which is below a webcam's own jitter.
 
 Frames are stamped with the wall-clock time they are delivered (like a live camera), so latency
 and health read as live. Falling more than ``MAX_LAG_S`` behind (a loaded machine) restarts the
@@ -44,11 +45,11 @@ class RecordedSource:
         self.times, self.seqs = read_timestamps(timestamps_path(self.video))
         if not len(self.times):
             raise MomlocError(f"{self.video}: the recording has no frames of this camera")
-        self.t_start = _recording_start(self.video.parent, float(self.times[0]))
-        span = float(self.times[-1] - self.times[0])
-        interval = span / (len(self.times) - 1) if len(self.times) > 1 else 1 / 30
+        self.t_start, t_end, sets = _recording_span(self.video.parent, self.times)
+        interval = (t_end - self.t_start) / (sets - 1) if sets > 1 else 1 / 30
         self.fps = 1.0 / interval if interval > 0 else 30.0
-        self.period = float(self.times[-1] - self.t_start) + interval  # one pass, for looping
+        # one pass, for looping: the same for every camera of the recording, so they stay in step
+        self.period = t_end - self.t_start + interval
         self.last_timestamp: float | None = None
         self.last_seq: int | None = None
         self._capture: cv2.VideoCapture | None = None
@@ -91,12 +92,16 @@ class RecordedSource:
             self._capture = None
 
 
-def _recording_start(folder: Path, fallback: float) -> float:
+def _recording_span(folder: Path, times: np.ndarray) -> tuple[float, float, int]:
+    """Start and end time and frame-set count of the whole recording (from its manifest), or of
+    this camera's frames when the video was copied out of its folder."""
+    own = float(times[0]), float(times[-1]), len(times)
     try:
-        start = json.loads((folder / MANIFEST).read_text()).get("start")
-    except (OSError, ValueError, AttributeError):
-        return fallback
-    return float(start) if isinstance(start, int | float) else fallback
+        meta = json.loads((folder / MANIFEST).read_text())
+        span = float(meta["start"]), float(meta["end"]), int(meta["frame_sets"])
+    except (OSError, ValueError, TypeError, KeyError):
+        return own
+    return span if span[0] <= own[0] and span[1] >= own[1] else own
 
 
 def open_file_source(

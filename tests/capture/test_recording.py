@@ -99,6 +99,14 @@ def test_replay_keeps_the_recorded_intervals(tmp_path):
     assert len(delivered) == len(offsets)
     assert all(got >= want - 0.005 for got, want in zip(delivered, offsets, strict=True))
     assert delivered[2] - delivered[0] >= 0.3 - 0.005  # the long gap is kept
+    # looping starts over one mean interval after the end: frame 0 again at 0.4 + 0.4 / 3 s
+    looping = open_file_source(tmp_path / "rec", camera=0)
+    looping.open()
+    start = time.monotonic()
+    for _ in range(len(offsets) + 1):
+        assert looping.read() is not None
+    assert time.monotonic() - start >= 0.4 + 0.4 / 3 - 0.005
+    looping.close()
 
 
 def test_file_camera_kinds(tmp_path):
