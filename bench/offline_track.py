@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 from bench.report import RESULTS, machine_line, markdown_table
+from capture.recording import Recording
 from models.dataset import MomDataset
 from models.mom_runtime import MomRuntime
 from models.simulate import simulate
@@ -52,9 +53,10 @@ def main() -> None:
         truth = MomDataset.load(folder / "rec" / TRUTH_FILE)
         videos = [str(folder / "rec" / f"cam{k}.avi") for k in range(2)]
         settings = offline.offline_settings(None, videos)
+        recording = Recording.open(folder / "rec")
         runs = {
             "recording, shipped detector (nanodet) every frame set": timed_track(
-                offline.recording_feed(folder / "rec", settings), settings, folder / "a", truth
+                offline.recording_feed(recording, settings), settings, folder / "a", truth
             ),
             "--detections (simulated boxes, no detector)": timed_track(
                 offline.detections_feed(data, fps=15.0), settings, folder / "b", truth

@@ -53,14 +53,14 @@ class Feed:
         return len(self.image_sizes)
 
 
-def recording_feed(folder: str | Path, settings: Settings) -> Feed:
+def recording_feed(recording: Recording, settings: Settings) -> Feed:
     """A recording through the detector of ``settings`` (scheduled inline, see above)."""
     from service.daemon import build_detect_stage
 
-    recording = Recording.open(folder)
     inline = settings.detection.model_copy(update={"schedule": "every_frame"})
     detect = build_detect_stage(settings.model_copy(update={"detection": inline}), None)
-    return Feed(recording.frame_sets(), len(recording), recording.image_sizes, detect, str(folder))
+    sets, sizes = recording.frame_sets(), recording.image_sizes
+    return Feed(sets, len(recording), sizes, detect, str(recording.folder))
 
 
 class DatasetDetections:

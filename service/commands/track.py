@@ -70,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
 
         recording = Recording.open(args.recording)
         settings = offline.offline_settings(args.config, [str(c.video) for c in recording.cameras])
-        feed = offline.recording_feed(args.recording, settings)
+        feed = offline.recording_feed(recording, settings)
     pipeline = offline.offline_pipeline(settings, runtime, feed, args.model)
     score = None if truth is None else TruthScore(truth, feed.num_cameras, feed.total)
     summary = offline.run_track(pipeline, feed, args.out, as_csv=args.csv, score=score)
