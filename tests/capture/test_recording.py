@@ -118,5 +118,7 @@ def test_file_camera_kinds(tmp_path):
     plain = tmp_path / "plain.avi"
     plain.write_bytes((folder / "cam0.avi").read_bytes())
     assert isinstance(open_file_source(plain), VideoFileSource)
+    with pytest.raises(MomlocError, match=re.escape("camera: 1 is only for a recording folder")):
+        open_file_source(plain, camera=1)
     # a fixed fps asks for the plain reader even when timestamps are there
     assert isinstance(open_file_source(folder / "cam0.avi", fps=5), VideoFileSource)
