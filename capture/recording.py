@@ -69,6 +69,14 @@ def timestamps_path(video: Path) -> Path:
     return video.with_suffix(".csv")
 
 
+def check_new_folder(out: str | Path) -> Path:
+    """``out`` as a Path if a recording may be written there (absent or an empty folder)."""
+    out = Path(out)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise MomlocError(f"{out}: exists and is not an empty folder (not overwritten)")
+    return out
+
+
 class RecordingWriter:
     """Writes frame sets into a new recording folder; :meth:`close` writes the manifest.
 
@@ -83,9 +91,7 @@ class RecordingWriter:
         fps: float = 30.0,
         source: dict[str, Any] | None = None,
     ) -> None:
-        self.out = Path(out)
-        if self.out.exists() and (not self.out.is_dir() or any(self.out.iterdir())):
-            raise MomlocError(f"{self.out}: exists and is not an empty folder (not overwritten)")
+        self.out = check_new_folder(out)
         self.out.mkdir(parents=True, exist_ok=True)
         self.names = [str(n) for n in names]
         self.fps, self.source = float(fps), source or {}

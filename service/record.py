@@ -30,7 +30,7 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from capture.recording import RecordingWriter
+from capture.recording import RecordingWriter, check_new_folder
 from capture.rig import FrameSet
 from capture.worker import Frame
 from models.errors import MomlocError
@@ -73,6 +73,7 @@ def record_live(
     if any(isinstance(c, SyntheticCamera) for c in settings.cameras):
         drawn = settings.synthetic.model_copy(update={"detections": "rendered"})
         settings = settings.model_copy(update={"synthetic": drawn})
+    check_new_folder(out)  # before opening cameras
     names = [camera_name(c) for c in settings.cameras]
     rig, player = build_rig(settings)
     source: dict[str, Any] = {"cameras": [c.model_dump(mode="json") for c in settings.cameras]}

@@ -92,8 +92,11 @@ def _bumps(texts: list[str]):
 
 
 def run(args: argparse.Namespace) -> int:
+    from capture.recording import check_new_folder
     from models.simulate import simulate
 
+    if args.record is not None:
+        check_new_folder(args.record)  # before minutes of simulation, not after
     result = simulate(
         args.preset, args.frames, seed=args.seed, people=args.people, fps=args.fps,
         perturbation=_bumps(args.bump), room=_room(args.room), cameras=args.cameras,

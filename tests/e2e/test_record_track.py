@@ -229,6 +229,8 @@ def test_bad_inputs_are_one_line_and_exit_2(tmp_path):
         (["track", "--model", DEMO_MODEL_DIR, "--out", out], "either RECORDING_DIR"),
         (["record", "--config", tmp_path / "none.yaml", "--out", tmp_path / "r2"],
          "cannot read settings file"),
+        (["simulate", "--frames", 3, "--out", tmp_path / "e.npz", "--record", rec],
+         "exists and is not an empty folder"),
     ]  # fmt: skip
     for args, message in cases:
         result = momloc(*args)
