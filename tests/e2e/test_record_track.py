@@ -15,7 +15,9 @@ import cv2
 import numpy as np
 import pytest
 
-from capture.recording import Recording
+from capture.recording import Recording, RecordingWriter
+from capture.rig import FrameSet
+from capture.worker import Frame
 from capture.synthetic import make_scene
 from service.demo import DEMO_PRESET, DEMO_SEED
 from service.settings import DEMO_MODEL_DIR
@@ -215,6 +217,10 @@ def test_bad_inputs_are_one_line_and_exit_2(tmp_path):
     unfinished = tmp_path / "unfinished"
     unfinished.mkdir()
     (unfinished / "cam0.avi").write_bytes(b"")
+    small = tmp_path / "small"
+    with RecordingWriter(small, ["a", "b"]) as writer:
+        picture = np.zeros((48, 64, 3), np.uint8)
+        writer.add(FrameSet([Frame(k, picture, 1.0, 0) for k in range(2)], skew=0.0))
     out = tmp_path / "p.jsonl"
     cases = [
         (["track", tmp_path / "missing", "--model", DEMO_MODEL_DIR, "--out", out],
@@ -222,6 +228,8 @@ def test_bad_inputs_are_one_line_and_exit_2(tmp_path):
         (["track", rec, "--model", not_model, "--out", out], "not a model directory"),
         (["track", "--detections", three, "--model", DEMO_MODEL_DIR, "--out", out],
          "model expects 2 cameras"),
+        (["track", small, "--model", DEMO_MODEL_DIR, "--out", out],
+         "model expects 640x480 images from camera 0"),
         (["track", unfinished, "--model", DEMO_MODEL_DIR, "--out", out], "no manifest.json"),
         (["track", rec, "--model", DEMO_MODEL_DIR, "--out", out, "--truth", three],
          "the file has 3 cameras"),
