@@ -17,8 +17,8 @@ import pytest
 
 from capture.recording import Recording, RecordingWriter
 from capture.rig import FrameSet
-from capture.worker import Frame
 from capture.synthetic import make_scene
+from capture.worker import Frame
 from service.demo import DEMO_PRESET, DEMO_SEED
 from service.settings import DEMO_MODEL_DIR
 
