@@ -54,6 +54,7 @@ bench-service: $(VENV)/.stamp-dev
 	$(PY) -m bench.mqtt_fanout
 	$(PY) -m bench.realtime
 	$(PY) -m bench.stream_accuracy
+	$(PY) -m bench.offline_track
 
 bench-setup: $(VENV)/.stamp-dev
 	$(PY) -m bench.floor_prior_study

@@ -22,6 +22,8 @@ COMMANDS = (
     "collect",
     "train",
     "eval",
+    "record",
+    "track",
     "bridge",
 )
 

@@ -131,7 +131,7 @@ def camera_name(camera: Any) -> str:
     if isinstance(camera, V4l2Camera):
         return camera.device
     if isinstance(camera, FileCamera):
-        return camera.path.name
+        return camera.path.name if camera.camera is None else f"{camera.path.name}/{camera.camera}"
     return f"synthetic-{camera.index}"
 
 
@@ -174,14 +174,13 @@ def build_rig(settings: Settings) -> tuple[Any, Any]:
 
 
 def _open_source(camera: Any) -> Any:
-    from capture.sources import V4L2Source, VideoFileSource
+    from capture.replay import open_file_source
+    from capture.sources import V4L2Source
 
     if isinstance(camera, V4l2Camera):
         device: int | str = int(camera.device) if camera.device.isdigit() else camera.device
         return V4L2Source(device, width=camera.width, height=camera.height, fps=camera.fps)
-    if not camera.path.is_file():
-        raise MomlocError(f"cameras: video file {camera.path} does not exist")
-    return VideoFileSource(camera.path, fps=camera.fps, loop=camera.loop)
+    return open_file_source(camera.path, camera=camera.camera, fps=camera.fps, loop=camera.loop)
 
 
 def build_detect_stage(settings: Settings, player: Any) -> Any:

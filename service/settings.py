@@ -58,13 +58,26 @@ class V4l2Camera(BaseModel):
 
 
 class FileCamera(BaseModel):
-    """A recorded video file, played at its own frame rate (for replays and tests)."""
+    """A video file, or a camera of a ``momloc record`` folder replayed with its recorded timing
+    (``capture.replay``)."""
 
     model_config = _STRICT
     type: Literal["file"] = Field(description="Source kind: a video file.")
-    path: Path = Field(description="Video file path (anything OpenCV can decode).")
+    path: Path = Field(
+        description="Video file (anything OpenCV can decode; a recording's camN.avi replays "
+        "with the camN.csv timestamps beside it) or a momloc record folder (with camera)."
+    )
     loop: bool = Field(True, description="Start again at the end instead of disconnecting.")
-    fps: float | None = Field(None, gt=0, le=240, description="Playback rate; default: file's.")
+    fps: float | None = Field(
+        None,
+        gt=0,
+        le=240,
+        description="Fixed playback rate; default: the recorded timing (momloc record) or the "
+        "file's rate.",
+    )
+    camera: int | None = Field(
+        None, ge=0, le=8, description="Which camera, when path is a momloc record folder."
+    )
     name: str | None = Field(None, description="Display name; defaults to the file name.")
 
 

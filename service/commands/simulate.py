@@ -1,4 +1,5 @@
-"""`momloc simulate`: write a synthetic multi-camera recording as a MoM dataset v1 file."""
+"""`momloc simulate`: write a synthetic multi-camera recording as a MoM dataset v1 file (and with
+``--record DIR`` its drawn frames as a ``momloc record`` folder, ``service.record``)."""
 
 from __future__ import annotations
 
@@ -54,6 +55,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="camera CAM is bumped at FRAME: image shifted by DX, DY pixels and rolled by ROLL "
         "degrees (repeatable)",
     )  # fmt: skip
+    parser.add_argument(
+        "--record", default=None, metavar="DIR",
+        help="also draw every camera's frames into a recording folder (momloc record format), "
+        "frame set i = dataset frame i, for momloc track --truth",
+    )  # fmt: skip
     parser.set_defaults(func=run)
 
 
@@ -86,8 +92,11 @@ def _bumps(texts: list[str]):
 
 
 def run(args: argparse.Namespace) -> int:
+    from capture.recording import check_new_folder
     from models.simulate import simulate
 
+    if args.record is not None:
+        check_new_folder(args.record)  # before minutes of simulation, not after
     result = simulate(
         args.preset, args.frames, seed=args.seed, people=args.people, fps=args.fps,
         perturbation=_bumps(args.bump), room=_room(args.room), cameras=args.cameras,
@@ -95,4 +104,8 @@ def run(args: argparse.Namespace) -> int:
     )  # fmt: skip
     path = result.dataset.save(args.out)
     print(f"{path}: {result.dataset.summary()}")
+    if args.record is not None:
+        from service.record import record_scene
+
+        print(record_scene(result.scene, args.frames, args.record).line())
     return 0
