@@ -116,7 +116,7 @@ class ReplayedBoxes:
 
 
 def drawn_clips(frames: int) -> tuple[list[list[np.ndarray]], Any]:
-    from capture.synthetic import make_scene
+    from models.simulate import make_scene
     from service.demo import DEMO_PEOPLE, DEMO_PRESET, DEMO_SEED
 
     scene = make_scene(DEMO_PRESET, seed=DEMO_SEED, people=DEMO_PEOPLE, fps=30.0)

@@ -227,7 +227,9 @@ def camera_centre(projection: np.ndarray) -> np.ndarray:
     return c[:3] / c[3]
 
 
-def _board(setup: ChessboardSetup, centre: np.ndarray, facing: np.ndarray, rng) -> np.ndarray:
+def _board(
+    setup: ChessboardSetup, centre: np.ndarray, facing: np.ndarray, rng: np.random.Generator
+) -> np.ndarray:
     """Corner positions [M, 3] of a board centred at ``centre`` turned towards ``facing``."""
     normal = facing - centre
     normal[2] = 0.0

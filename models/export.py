@@ -55,7 +55,9 @@ def export_encoder(
         )
 
 
-def pixel_decoder(matrices: np.ndarray, centre: np.ndarray, scale: float, sizes: np.ndarray):
+def pixel_decoder(
+    matrices: np.ndarray, centre: np.ndarray, scale: float, sizes: np.ndarray
+) -> np.ndarray:
     """P̄_k from normalised units to pixels and metres: ``A_k · P̄_k · T`` (z column kept 0)."""
     to_norm = np.array(
         [[1 / scale, 0, -centre[0] / scale], [0, 1 / scale, -centre[1] / scale], [0, 0, 1]]

@@ -20,6 +20,8 @@ the marks cannot fix a map at all. Numpy + scipy only: used at serving time too.
 
 from __future__ import annotations
 
+from typing import Literal
+
 import numpy as np
 from scipy.optimize import least_squares
 
@@ -86,7 +88,7 @@ def fit_homography(
     dst: np.ndarray,
     *,
     weights: np.ndarray | None = None,
-    loss: str = "soft_l1",
+    loss: Literal["linear", "soft_l1", "huber", "cauchy", "arctan"] = "soft_l1",
     scale: float = 0.15,
     max_nfev: int = 200,
 ) -> np.ndarray:

@@ -22,9 +22,11 @@ import math
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any, NoReturn
 
 import numpy as np
 import torch
+from tqdm import tqdm
 
 from models.dataset import MomDataset
 from models.errors import MomlocError
@@ -109,7 +111,16 @@ def _check(data: MomDataset, observation: str) -> None:
 class _Trainer:
     """Holds one training run's data, model and optimiser."""
 
-    def __init__(self, data, sampler, decoder, settings, seed, train_rows, val_rows):
+    def __init__(
+        self,
+        data: MomDataset,
+        sampler: SamplerConfig,
+        decoder: bool,
+        settings: TrainSettings,
+        seed: int,
+        train_rows: np.ndarray,
+        val_rows: np.ndarray,
+    ) -> None:
         self.data, self.settings, self.decoder_on = data, settings, decoder
         self.sampler = sampler
         self.rng = np.random.default_rng(seed)
@@ -264,7 +275,16 @@ def train_model(
         torch.set_num_threads(threads)
 
 
-def _train(dataset, out_dir, sampler, decoder, epochs, seed, progress, tuning) -> dict:
+def _train(
+    dataset: MomDataset,
+    out_dir: Path,
+    sampler: SamplerConfig,
+    decoder: bool,
+    epochs: int | None,
+    seed: int,
+    progress: bool,
+    tuning: dict[str, Any],
+) -> dict:
     torch.manual_seed(seed)
     started = time.monotonic()
     probe = adaptive_settings(dataset.n, dataset.num_cameras, epochs)
@@ -348,7 +368,5 @@ def _final_metrics(
     return metrics, np.where(ok[:, None], pred, np.nan)
 
 
-def _progress(total: int, enabled: bool):
-    from tqdm import tqdm
-
+def _progress(total: int, enabled: bool) -> tqdm[NoReturn]:
     return tqdm(total=total, desc="momloc train", unit="epoch", disable=not enabled, leave=True)

@@ -141,16 +141,11 @@ def build_rig(settings: Settings) -> tuple[Any, Any]:
     if SyntheticCamera in kinds:
         if len(kinds) > 1:
             raise MomlocError("cameras: synthetic cameras cannot be mixed with real ones")
-        from capture.synthetic import SyntheticRig, make_scene
+        from capture.synthetic import SyntheticRig
+        from service.simulated_detections import scene_for
 
         syn = settings.synthetic
-        scene = make_scene(
-            syn.preset,
-            seed=syn.seed,
-            people=syn.people,
-            fps=syn.fps,
-            detector_profile=syn.detector_profile,
-        )
+        scene = scene_for(syn)
         indices = [c.index for c in settings.cameras]
         available = len(scene.cameras)
         for position, index in enumerate(indices):
@@ -165,7 +160,7 @@ def build_rig(settings: Settings) -> tuple[Any, Any]:
         else:
             render_every = 0
         rig = SyntheticRig(scene, indices, fps=syn.fps, render_every=render_every)
-        return rig, rig
+        return rig, scene
     from capture.rig import CameraRig
     from capture.worker import CameraWorker
 
@@ -187,9 +182,9 @@ def _open_source(camera: Any) -> Any:
 def build_detect_stage(settings: Settings, player: Any) -> Any:
     """The detector stage, or the simulator's boxes when the demo asks for them."""
     if player is not None and settings.synthetic.detections == "simulated":
-        from capture.synthetic import SimulatedDetections
+        from service.simulated_detections import SimulatedDetections
 
-        return SimulatedDetections(player)
+        return SimulatedDetections(player, [c.index for c in settings.cameras])
     from models.detector import create_detector
 
     options = {
