@@ -31,7 +31,7 @@ from tqdm import tqdm
 from models.dataset import MomDataset
 from models.errors import MomlocError
 from models.export import write_model_dir
-from models.mom_torch import MomDecoder, MomEncoder, fit_homography
+from models.mom_torch import MomDecoder, MomEncoder, initial_decoder_matrix
 from models.prior_policy import choose_policy, summary
 from models.sampling import (
     InferenceSampler,
@@ -157,7 +157,7 @@ class _Trainer:
             if len(seen) < 3:
                 matrices.append(np.array([[0, 0, 0, 0], [0, 0, 0, 0], [0, 0, 0, 1.0]]))
                 continue
-            matrices.append(fit_homography(self.target[seen], self.pix[seen, k]))
+            matrices.append(initial_decoder_matrix(self.target[seen], self.pix[seen, k]))
         return np.stack(matrices).astype(np.float32)
 
     def epoch(self, index: int) -> float:
