@@ -270,11 +270,6 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
         tracker=Tracker(fps_hint=30.0, max_missing_s=settings.tracking.max_missing_s),
         max_error_px=settings.tracking.max_error_px,
     )
-    if runtime is not None and int(runtime.num_cameras) != len(settings.cameras):
-        raise MomlocError(
-            f"model_dir: {settings.model_dir} expects {runtime.num_cameras} cameras, "
-            f"{len(settings.cameras)} are configured"
-        )
     extras = {}
     if player is not None:
         extras["source"] = {"synthetic": settings.synthetic.model_dump()}

@@ -31,6 +31,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from models.errors import MomlocError
+from service.association import DEFAULT_MAX_ERROR_PX
 from service.camera_shift import CameraShiftMonitor, ShiftWorker
 from service.hub import Hub, Snapshot
 from service.setup.camera_monitor import CameraMotionMonitor, CameraMoved, combine
@@ -112,7 +113,7 @@ class Pipeline:
         model_dir: Path | None = None,
         tracker: Any = None,
         associate: Callable[..., list[Any]] | None = None,
-        max_error_px: float = 100.0,  # service.association.DEFAULT_MAX_ERROR_PX
+        max_error_px: float = DEFAULT_MAX_ERROR_PX,
         load_runtime: Callable[[Path], Any] | None = None,
         shift_threaded: bool = True,
     ) -> None:
@@ -147,6 +148,8 @@ class Pipeline:
         self.camera_shift = CameraShiftMonitor(num_cameras)
         self._shift_worker = ShiftWorker(self.camera_shift, threaded=shift_threaded)
         self._detection_listeners: list[Callable[[float, list[np.ndarray]], None]] = []
+        if runtime is not None and (problem := self._sizes_match(runtime)) is not None:
+            raise MomlocError(f"model_dir: {model_dir}: {problem}")  # the one camera-count check
 
     def add_detection_listener(self, listener: Callable[[float, list[np.ndarray]], None]) -> None:
         """Call ``listener(t_capture, boxes per camera)`` for every frame set (must not block)."""
