@@ -223,9 +223,7 @@ def scheduled(detector: Any, **options: Any) -> Any:
     from service.pipeline import DetectorStage
 
     carrier = {k: options.pop(k) for k in ("flow",) if k in options}
-    return DetectorStage(
-        detector, 0.4, DetectionScheduler(detector, 0.4, carrier=carrier, **options)
-    )
+    return DetectorStage(detector, DetectionScheduler(detector, carrier=carrier, **options))
 
 
 VARIANTS: list[tuple[str, int, dict[str, Any] | None]] = [
@@ -250,7 +248,7 @@ def live_table(
     stages = [(baseline_name, baseline)]
     for label, threads, options in VARIANTS:
         det = detectors[threads]
-        stage = DetectorStage(det, 0.4) if options is None else scheduled(det, **dict(options))
+        stage = DetectorStage(det) if options is None else scheduled(det, **dict(options))
         stages.append((label, stage))
     raw: dict[str, list[dict]] = {label: [] for label, _ in stages}
     for _ in range(rounds):

@@ -209,14 +209,13 @@ def build_detect_stage(settings: Settings, player: Any) -> Any:
         detection = settings.detection
         schedule = DetectionScheduler(
             detector,
-            settings.detector.score_threshold,
             max_duty=detection.max_duty,
             cameras_per_call=detection.cameras_per_call,
             nice=detection.nice,
             carrier={"flow": detection.flow, "max_age_s": detection.max_age_s},
             refiner=_window_refiner(detector, detection.windows, detection.window_below_px),
         )
-    return DetectorStage(detector, settings.detector.score_threshold, schedule)
+    return DetectorStage(detector, schedule)
 
 
 def _window_refiner(detector: Any, windows: int, below_px: float) -> WindowRefiner | None:

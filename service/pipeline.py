@@ -51,15 +51,15 @@ class Rig(Protocol):
 
 
 class DetectorStage:
-    """Real detector: one batched call for all cameras, low-score boxes removed.
+    """Real detector: one batched call for all cameras.
 
+    Boxes are kept as the detector returns them: its own ``score_threshold`` is the one filter.
     With ``schedule`` (a ``service.detection_schedule.DetectionScheduler``) the scheduler runs
     the detector beside the pipeline and carries boxes between detections instead.
     """
 
-    def __init__(self, detector: Any, score_threshold: float, schedule: Any = None) -> None:
+    def __init__(self, detector: Any, schedule: Any = None) -> None:
         self.detector = detector
-        self.score_threshold = score_threshold
         self.schedule = schedule
 
     def stats(self) -> dict[str, Any] | None:
@@ -79,8 +79,7 @@ class DetectorStage:
             return out
         results = self.detector.detect([frames[k].image for k in present])
         for k, det in zip(present, results, strict=True):
-            keep = np.asarray(det.scores) >= self.score_threshold
-            out[k] = np.asarray(det.boxes, np.float32)[keep].reshape(-1, 4)
+            out[k] = np.asarray(det.boxes, np.float32).reshape(-1, 4)
         return out
 
 
