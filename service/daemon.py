@@ -136,7 +136,7 @@ def camera_name(camera: Any) -> str:
 
 
 def build_rig(settings: Settings) -> tuple[Any, Any]:
-    """The camera rig for ``settings.cameras`` and, for synthetic scenes, the scene player."""
+    """The camera rig for ``settings.cameras`` and, for synthetic cameras, the scene it shows."""
     kinds = {type(c) for c in settings.cameras}
     if SyntheticCamera in kinds:
         if len(kinds) > 1:
