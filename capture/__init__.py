@@ -1,8 +1,9 @@
 """Frames in: sources (V4L2 webcam, video file, synthetic scene), one worker thread per camera
 keeping only the newest frame, watchdog and reconnect, and multi-camera frame sets.
 
-``capture`` imports only ``models.errors`` (the project's one user-facing error type, a module
-that imports nothing) from the rest of the project: synthetic cameras take any scene with the
+``capture`` imports only two leaf modules of the rest of the project, ``models.errors`` (the one
+user-facing error type) and ``models.atomic`` (the one atomic file writer), which import nothing
+of it themselves: synthetic cameras take any scene with the
 ``capture.synthetic.RenderedScene`` shape, and opening a camera from settings is the service's
 job (``service.daemon``). ``tests/test_layering.py`` enforces this.
 """
