@@ -1,4 +1,4 @@
-"""Synthetic cameras: the simulator's scene rendered per camera in lock-step, with ground truth.
+"""Synthetic cameras: a simulated scene rendered per camera in lock-step.
 
 Design: one clock drives every synthetic camera, so camera k and camera j always show the same
 scene frame (a real rig has skew; the simulator's frames are simultaneous by construction). The
@@ -14,7 +14,7 @@ Two ways in:
   :class:`SceneClock` with its siblings.
 
 Capture gives frames only: the scene is anything with the :class:`RenderedScene` shape (the
-simulator's ``models.simulate.Scene``, built by ``models.simulate.make_scene``), so ``capture``
+simulator's ``models.simulate.Scene``, built by ``models.simulate.make_scene``), so this module
 imports nothing of ``models``. Ground truth and the simulator's own boxes (the demo's
 ``simulated`` detections) are the simulator's and the service's business
 (``service.simulated_detections``).
