@@ -17,7 +17,7 @@ $(VENV)/.stamp-run: pyproject.toml | $(VENV)/bin/python
 	$(PIP) -e .
 	touch $@
 
-# Training + tests: torch==2.13.0 (CPU wheel), pytest, ruff, Chromium for the map-page test.
+# Training + tests: torch==2.13.0 (CPU wheel), pytest, ruff, mypy, Chromium for the map-page test.
 $(VENV)/.stamp-dev: pyproject.toml | $(VENV)/bin/python
 	$(PIP) -e '.[train,dev]'
 	touch $(VENV)/.stamp-run $@
@@ -28,9 +28,11 @@ demo: $(VENV)/.stamp-run
 test: $(VENV)/.stamp-dev
 	$(PY) -m pytest -q
 
+# mypy's settings (packages, strictness, the per-module overrides) are in pyproject.toml.
 lint: $(VENV)/.stamp-dev
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
+	$(VENV)/bin/mypy
 
 format: $(VENV)/.stamp-dev
 	$(VENV)/bin/ruff check --fix .

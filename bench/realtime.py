@@ -116,7 +116,7 @@ class ReplayedBoxes:
 
 
 def drawn_clips(frames: int) -> tuple[list[list[np.ndarray]], Any]:
-    from capture.synthetic import make_scene
+    from models.simulate import make_scene
     from service.demo import DEMO_PEOPLE, DEMO_PRESET, DEMO_SEED
 
     scene = make_scene(DEMO_PRESET, seed=DEMO_SEED, people=DEMO_PEOPLE, fps=30.0)
@@ -223,9 +223,7 @@ def scheduled(detector: Any, **options: Any) -> Any:
     from service.pipeline import DetectorStage
 
     carrier = {k: options.pop(k) for k in ("flow",) if k in options}
-    return DetectorStage(
-        detector, 0.4, DetectionScheduler(detector, 0.4, carrier=carrier, **options)
-    )
+    return DetectorStage(detector, DetectionScheduler(detector, carrier=carrier, **options))
 
 
 VARIANTS: list[tuple[str, int, dict[str, Any] | None]] = [
@@ -250,7 +248,7 @@ def live_table(
     stages = [(baseline_name, baseline)]
     for label, threads, options in VARIANTS:
         det = detectors[threads]
-        stage = DetectorStage(det, 0.4) if options is None else scheduled(det, **dict(options))
+        stage = DetectorStage(det) if options is None else scheduled(det, **dict(options))
         stages.append((label, stage))
     raw: dict[str, list[dict]] = {label: [] for label, _ in stages}
     for _ in range(rounds):

@@ -49,29 +49,29 @@ def start_daemon(detections: str, clip_frames: int, model_dir: Path | None) -> A
     from service.daemon import build_daemon, serve_in_thread
     from service.demo import demo_settings
 
-    class ReplayRig(SyntheticRig):
-        """Loops a pre-drawn clip: camera-like timing without the simulator's drawing cost."""
+    class LoopedScene:
+        """Loops a pre-drawn clip of a scene: camera-like timing without the drawing cost."""
 
-        def __init__(self, scene: Any, cameras: list[int], fps: float) -> None:
-            super().__init__(scene, cameras, fps=fps, render_every=1)
-            self.clip = [[scene.render(i, k) for k in cameras] for i in range(clip_frames)]
+        def __init__(self, scene: Any, cameras: list[int]) -> None:
+            self.scene, self.fps, self.num_cameras = scene, scene.fps, scene.num_cameras
+            self.clip = {k: [scene.render(i, k) for i in range(clip_frames)] for k in cameras}
 
-        def render(self, index: int, camera: int) -> np.ndarray:
-            return self.clip[index % clip_frames][self.cameras.index(camera)]
+        def render(self, frame_index: int, camera_index: int) -> np.ndarray:
+            return self.clip[camera_index][frame_index % clip_frames]
 
-        def observation(self, index: int) -> Any:
-            return super().observation(index % clip_frames)
+        def observe(self, frame_index: int) -> Any:
+            return self.scene.observe(frame_index % clip_frames)
 
     settings = demo_settings(detections=detections)
     if model_dir is not None:
         settings = settings.model_copy(update={"model_dir": model_dir})
     daemon = build_daemon(settings)
     rig = daemon.pipeline.rig
-    replay = ReplayRig(rig.scene, rig.cameras, rig.fps)
-    daemon.pipeline.rig = replay
+    looped = LoopedScene(rig.scene, rig.cameras)
+    daemon.pipeline.rig = SyntheticRig(looped, rig.cameras, fps=rig.fps, render_every=1)
     stage = daemon.pipeline.detect
-    if hasattr(stage, "rig"):
-        stage.rig = replay
+    if hasattr(stage, "scene"):  # simulated detections: the looped clip's boxes
+        stage.scene = looped
     publish_times: list[tuple[int, float]] = []
     original = daemon.hub.publish
 

@@ -140,19 +140,20 @@ class RecordingWriter:
         if self._last_seq[k] == frame.seq and self._counts[k] > 0:
             return self._counts[k] - 1  # the camera had no newer frame: same image again
         h, w = frame.image.shape[:2]
-        if self._writers[k] is None:
+        writer, size = self._writers[k], self._sizes[k]
+        if writer is None or size is None:
             fourcc = cv2.VideoWriter.fourcc(*_FOURCC)
             path = str(self.out / video_name(k))
-            self._writers[k] = cv2.VideoWriter(path, fourcc, self.fps, (w, h))
-            if not self._writers[k].isOpened():
+            writer = cv2.VideoWriter(path, fourcc, self.fps, (w, h))
+            if not writer.isOpened():
                 raise MomlocError(f"{path}: OpenCV cannot write MJPG video here")
-            self._sizes[k] = (w, h)
-        elif self._sizes[k] != (w, h):
+            self._writers[k], self._sizes[k] = writer, (w, h)
+        elif size != (w, h):
             raise MomlocError(
                 f"camera {self.names[k]}: frame size changed from "
-                f"{self._sizes[k][0]}x{self._sizes[k][1]} to {w}x{h} during the recording"
+                f"{size[0]}x{size[1]} to {w}x{h} during the recording"
             )
-        self._writers[k].write(np.ascontiguousarray(frame.image))
+        writer.write(np.ascontiguousarray(frame.image))
         index = self._counts[k]
         self._rows[k].writerow([index, f"{frame.timestamp:.6f}", int(frame.seq)])
         self._stamps[k].append(float(frame.timestamp))

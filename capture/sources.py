@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import os
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol, runtime_checkable
 
@@ -40,6 +41,16 @@ class FrameSource(Protocol):
     def read(self) -> np.ndarray | None: ...
 
     def close(self) -> None: ...
+
+
+@dataclass(frozen=True)
+class Negotiated:
+    """What the driver granted when asked for a format (it may differ from what was asked)."""
+
+    fourcc: str
+    width: int
+    height: int
+    fps: float
 
 
 class V4L2Source:
@@ -71,7 +82,7 @@ class V4L2Source:
         self.read_timeout = float(read_timeout)
         self.name = f"video{device}" if isinstance(device, int) else Path(device).name
         self.last_timestamp: float | None = None
-        self.negotiated: dict[str, object] = {}
+        self.negotiated: Negotiated | None = None  # set by open()
         self._capture: cv2.VideoCapture | None = None
 
     def open(self) -> None:
@@ -95,12 +106,12 @@ class V4L2Source:
         capture.set(cv2.CAP_PROP_FPS, self.fps)
         capture.set(cv2.CAP_PROP_BUFFERSIZE, 1)
         code = int(capture.get(cv2.CAP_PROP_FOURCC))
-        self.negotiated = {
-            "fourcc": "".join(chr((code >> (8 * i)) & 0xFF) for i in range(4)),
-            "width": int(capture.get(cv2.CAP_PROP_FRAME_WIDTH)),
-            "height": int(capture.get(cv2.CAP_PROP_FRAME_HEIGHT)),
-            "fps": float(capture.get(cv2.CAP_PROP_FPS)),
-        }
+        self.negotiated = Negotiated(
+            fourcc="".join(chr((code >> (8 * i)) & 0xFF) for i in range(4)),
+            width=int(capture.get(cv2.CAP_PROP_FRAME_WIDTH)),
+            height=int(capture.get(cv2.CAP_PROP_FRAME_HEIGHT)),
+            fps=float(capture.get(cv2.CAP_PROP_FPS)),
+        )
         self._capture = capture
 
     def read(self) -> np.ndarray | None:
@@ -213,12 +224,3 @@ class VideoFileSource:
         if self._capture is not None:
             self._capture.release()
             self._capture = None
-
-
-def open_source(spec: str | int, **options: object) -> FrameSource:
-    """A source from a settings string: an int or ``/dev/video*`` path → V4L2, a file → video."""
-    if isinstance(spec, int) or (isinstance(spec, str) and spec.isdigit()):
-        return V4L2Source(int(spec), **options)  # type: ignore[arg-type]
-    if str(spec).startswith("/dev/"):
-        return V4L2Source(str(spec), **options)  # type: ignore[arg-type]
-    return VideoFileSource(spec, **options)  # type: ignore[arg-type]

@@ -1,10 +1,10 @@
-"""Synthetic cameras: the simulator's scene rendered per camera in lock-step, with ground truth.
+"""Synthetic cameras: a simulated scene rendered per camera in lock-step.
 
 Design: one clock drives every synthetic camera, so camera k and camera j always show the same
 scene frame (a real rig has skew; the simulator's frames are simultaneous by construction). The
 scene frame index is the frame's ``seq``; ``timestamp`` is the wall-clock time the frame was
-produced. Both let tests and the demo look up the exact ground truth (``observation(seq)``,
-``observation_at(t)``) of whatever the pipeline reports.
+produced. Both let tests and the demo find the scene frame behind whatever the pipeline reports
+(``index_at(t)``), whose ground truth the simulator gives (``scene.observe(index)``).
 
 Two ways in:
 
@@ -13,8 +13,11 @@ Two ways in:
 - :class:`SyntheticSource` is a ``FrameSource`` for one camera (for ``CameraWorker``), sharing a
   :class:`SceneClock` with its siblings.
 
-:class:`SimulatedDetections` is a detection stage returning the simulator's noisy boxes for the
-frames' scene indices, for when the real detector is not wanted (or cannot see the drawings).
+Capture gives frames only: the scene is anything with the :class:`RenderedScene` shape (the
+simulator's ``models.simulate.Scene``, built by ``models.simulate.make_scene``), so this module
+imports nothing of ``models``. Ground truth and the simulator's own boxes (the demo's
+``simulated`` detections) are the simulator's and the service's business
+(``service.simulated_detections``).
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ import threading
 import time
 from collections import OrderedDict
 from collections.abc import Sequence
-from typing import Any
+from typing import Protocol, TypeVar
 
 import numpy as np
 
@@ -31,36 +34,28 @@ from capture.rig import FrameSet
 from capture.worker import CameraState, Frame
 
 
-def make_scene(
-    preset: str,
-    *,
-    seed: int,
-    people: int | None = None,
-    fps: float | None = None,
-    perturbations: Sequence[Any] | None = None,
-    detector_profile: str | None = None,
-) -> Any:
-    """A simulator scene from a preset name, with the people count and frame rate overridden,
-    optionally cameras bumped mid-run (``models.simulate.Perturbation``) and the simulated
-    detector's profile chosen (name or JSON path; default the shipped detector's)."""
-    from models.simulate import Scene, get_config
+class RenderedScene(Protocol):
+    """What synthetic cameras need of a scene: its frame rate, camera count and images."""
 
-    bumps = None if perturbations is None else tuple(perturbations)
-    config = get_config(
-        preset, people=people, fps=fps, perturbations=bumps, detector_profile=detector_profile
-    )
-    return Scene(config, seed=seed)
+    @property
+    def fps(self) -> float: ...
+
+    @property
+    def num_cameras(self) -> int: ...
+
+    def render(self, frame_index: int, camera_index: int) -> np.ndarray:
+        """uint8 BGR [H, W, 3]: what camera ``camera_index`` sees at scene frame ``frame_index``."""
+        ...
 
 
 class SceneClock:
     """Maps wall-clock time to scene frame indices for every camera of one scene."""
 
-    def __init__(self, scene: Any, fps: float | None = None, *, cache: int = 64) -> None:
+    def __init__(self, scene: RenderedScene, fps: float | None = None, *, cache: int = 64) -> None:
         self.scene = scene
         self.fps = float(fps or scene.fps)
         self.t0 = time.time()
         self._lock = threading.Lock()
-        self._observations: OrderedDict[int, Any] = OrderedDict()
         self._images: OrderedDict[tuple[int, int], np.ndarray] = OrderedDict()
         self._stamps: OrderedDict[int, float] = OrderedDict()
         self._cache = cache
@@ -84,23 +79,11 @@ class SceneClock:
             self._stamps.setdefault(index, timestamp)
             _trim(self._stamps, self._cache * 8)
 
-    def observation(self, index: int) -> Any:
-        """Ground truth and simulated boxes of scene frame ``index`` (cached)."""
-        with self._lock:
-            if index in self._observations:
-                return self._observations[index]
-        obs = self.scene.observe(index)
-        with self._lock:
-            self._observations[index] = obs
-            _trim(self._observations, self._cache)
-        return obs
-
-    def observation_at(self, timestamp: float) -> Any:
-        """Ground truth for the frames captured at ``timestamp`` (a snapshot's ``t``)."""
+    def index_at(self, timestamp: float) -> int:
+        """The scene frame of the frames stamped ``timestamp`` (a snapshot's ``t``)."""
         with self._lock:
             matches = [i for i, s in self._stamps.items() if abs(s - timestamp) < 1e-6]
-        index = matches[0] if matches else round((timestamp - self.t0) * self.fps)
-        return self.observation(index)
+        return matches[0] if matches else round((timestamp - self.t0) * self.fps)
 
     def render(self, index: int, camera: int) -> np.ndarray:
         key = (index, camera)
@@ -113,15 +96,12 @@ class SceneClock:
             _trim(self._images, self._cache)
         return image
 
-    def floor_extent(self) -> dict[str, float] | None:
-        room = getattr(getattr(self.scene, "config", None), "room", None)
-        if room is None:
-            return None
-        width, depth = float(room[0]), float(room[1])
-        return {"xmin": 0.0, "xmax": width, "ymin": 0.0, "ymax": depth}
+
+_Key = TypeVar("_Key")
+_Value = TypeVar("_Value")
 
 
-def _trim(cache: OrderedDict, size: int) -> None:
+def _trim(cache: OrderedDict[_Key, _Value], size: int) -> None:
     while len(cache) > size:
         cache.popitem(last=False)
 
@@ -135,15 +115,15 @@ class SyntheticRig(SceneClock):
 
     def __init__(
         self,
-        scene: Any,
+        scene: RenderedScene,
         cameras: Sequence[int] | None = None,
         *,
         fps: float | None = None,
         render_every: int = 1,
     ) -> None:
         super().__init__(scene, fps)
-        self.cameras = list(range(len(scene.cameras))) if cameras is None else list(cameras)
-        self.render_every = render_every if hasattr(scene, "render") else 0
+        self.cameras = list(range(scene.num_cameras)) if cameras is None else list(cameras)
+        self.render_every = render_every
         self._latest: FrameSet | None = None
         self._new_frames = threading.Condition()
         self._stop = threading.Event()
@@ -183,7 +163,7 @@ class SyntheticRig(SceneClock):
         images = [self.render(index, camera) if drawn else None for camera in self.cameras]
         timestamp = time.time()
         self.stamp(index, timestamp)
-        frames = [
+        frames: list[Frame | None] = [
             Frame(camera=k, image=image, timestamp=timestamp, seq=index)
             for k, image in enumerate(images)
         ]
@@ -243,27 +223,3 @@ class SyntheticSource:
 
     def close(self) -> None:
         self._open = False
-
-
-class SimulatedDetections:
-    """Detection stage: the simulator's noisy boxes for each frame's scene index, followed by
-    the profile's false positives for that camera (a real detector reports them too)."""
-
-    def __init__(self, rig: SyntheticRig) -> None:
-        self.rig = rig
-
-    def __call__(self, frame_set: FrameSet) -> list[np.ndarray]:
-        out = []
-        for frame in frame_set.frames:
-            if frame is None:
-                out.append(np.zeros((0, 4), np.float32))
-                continue
-            observation = self.rig.observation(frame.seq)
-            boxes = np.asarray(observation.boxes, np.float32)
-            camera = self.rig.cameras[frame.camera]
-            per_camera = boxes[:, camera, :] if boxes.size else np.zeros((0, 4), np.float32)
-            false = np.asarray(getattr(observation, "false_boxes", np.zeros((0, 0, 4))))
-            if false.size:
-                per_camera = np.concatenate([per_camera, false[camera].astype(np.float32)])
-            out.append(per_camera[np.all(np.isfinite(per_camera), axis=1)])
-        return out

@@ -16,8 +16,9 @@ import glob
 import os
 import re
 import struct
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from typing import Any
 
 IoctlFn = Callable[[int, int, bytearray], None]
 
@@ -85,7 +86,9 @@ def _ioctl(fd: int, request: int, buffer: bytearray) -> None:
     fcntl.ioctl(fd, request, buffer, True)
 
 
-def _enumerate(ioctl: IoctlFn, fd: int, layout: struct.Struct, request: int, fields: tuple):
+def _enumerate(
+    ioctl: IoctlFn, fd: int, layout: struct.Struct, request: int, fields: tuple[int, ...]
+) -> Iterator[tuple[Any, ...]]:
     """Yield unpacked structs for index 0, 1, ... until the driver answers EINVAL."""
     for index in range(MAX_ENTRIES):
         buffer = bytearray(layout.size)
@@ -181,8 +184,9 @@ def probe_with_opencv(path: str) -> VideoDevice:
     try:
         source.open()
         got = source.negotiated
-        size = FrameSize(int(got["width"]), int(got["height"]), (float(got["fps"]),))
-        device.formats.append(PixelFormat(str(got["fourcc"]), "negotiated by OpenCV", (size,)))
+        assert got is not None  # open() returned, so it negotiated
+        size = FrameSize(got.width, got.height, (got.fps,))
+        device.formats.append(PixelFormat(got.fourcc, "negotiated by OpenCV", (size,)))
     except Exception as error:
         device.capture = False
         device.error = str(error)

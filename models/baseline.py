@@ -30,59 +30,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from models.dlt import fit_dlt, homogeneous
 from models.errors import MomlocError
 
 METHODS = ("triangulate", "foot")
 _BORDER_PX = 2.0
 
 
-def _homogeneous(points: np.ndarray) -> np.ndarray:
-    return np.concatenate([points, np.ones((*points.shape[:-1], 1))], axis=-1)
-
-
-def _normaliser(points: np.ndarray) -> np.ndarray:
-    """Hartley normalisation: centroid to 0, mean distance to sqrt(dim). Returns [d+1, d+1]."""
-    dim = points.shape[1]
-    centre = points.mean(axis=0)
-    scale = np.sqrt(dim) / max(np.linalg.norm(points - centre, axis=1).mean(), 1e-12)
-    transform = np.eye(dim + 1) * scale
-    transform[:dim, dim] = -scale * centre
-    transform[dim, dim] = 1.0
-    return transform
-
-
-def calibrate_dlt(world: np.ndarray, pixels: np.ndarray) -> np.ndarray:
-    """Estimate P [3, 4] (up to scale, unit norm) from >= 6 non-coplanar 3D [M,3] ↔ 2D [M,2] pairs.
-
-    Hartley-normalised DLT: without the normalisation the 12-column system mixes metres and
-    hundreds of pixels and the SVD loses digits.
-    """
-    world = np.asarray(world, dtype=np.float64)
-    pixels = np.asarray(pixels, dtype=np.float64)
-    if world.shape[0] < 6 or world.shape[0] != pixels.shape[0]:
-        raise MomlocError(f"calibration: need >= 6 matched points, got {world.shape[0]}")
-    t3, t2 = _normaliser(world), _normaliser(pixels)
-    x = (t3 @ _homogeneous(world).T).T
-    u = (t2 @ _homogeneous(pixels).T).T
-    zero = np.zeros_like(x)
-    rows_u = np.concatenate([x, zero, -u[:, :1] * x], axis=1)
-    rows_v = np.concatenate([zero, x, -u[:, 1:2] * x], axis=1)
-    _, sing, vt = np.linalg.svd(np.concatenate([rows_u, rows_v]))
-    if sing[-2] < 1e-9 * sing[0]:
-        raise MomlocError("calibration: points are degenerate (coplanar or collinear)")
-    p = np.linalg.inv(t2) @ vt[-1].reshape(3, 4) @ t3
-    return p / np.linalg.norm(p)
-
-
 def project(projection: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Pinhole projection of [..., 3] world points to [..., 2] pixels."""
-    h = _homogeneous(np.asarray(points, dtype=np.float64)) @ projection.T
+    h = homogeneous(np.asarray(points, dtype=np.float64)) @ projection.T
     return h[..., :2] / h[..., 2:3]
 
 
 def depth_sign(projection: np.ndarray, points: np.ndarray) -> np.ndarray:
     """+1 where a point is in front of the camera, for P of either overall sign."""
-    w = _homogeneous(np.asarray(points, dtype=np.float64)) @ projection[2]
+    w = homogeneous(np.asarray(points, dtype=np.float64)) @ projection[2]
     return np.sign(w * np.linalg.det(projection[:, :3]))
 
 
@@ -125,7 +88,7 @@ def floor_backproject(
     for k, p in enumerate(projections):
         plane = np.stack([p[:, 0], p[:, 1], p[:, 2] * height + p[:, 3]], axis=1)
         seen = np.isfinite(pixels[:, k]).all(axis=-1)
-        h = _homogeneous(pixels[seen, k]) @ np.linalg.inv(plane).T
+        h = homogeneous(pixels[seen, k]) @ np.linalg.inv(plane).T
         xy = h[:, :2] / h[:, 2:3]
         point = np.concatenate([xy, np.full((len(xy), 1), height)], axis=1)
         xy[depth_sign(p, point) <= 0] = np.nan
@@ -227,7 +190,9 @@ def camera_centre(projection: np.ndarray) -> np.ndarray:
     return c[:3] / c[3]
 
 
-def _board(setup: ChessboardSetup, centre: np.ndarray, facing: np.ndarray, rng) -> np.ndarray:
+def _board(
+    setup: ChessboardSetup, centre: np.ndarray, facing: np.ndarray, rng: np.random.Generator
+) -> np.ndarray:
     """Corner positions [M, 3] of a board centred at ``centre`` turned towards ``facing``."""
     normal = facing - centre
     normal[2] = 0.0
@@ -280,4 +245,4 @@ def chessboard_calibration(
         believed = (true - origin) @ tilt.T + origin + rng.normal(0, setup.placement_noise, 3)
         measured.append(believed)
         seen.append(pix + rng.normal(0, setup.pixel_noise, pix.shape))
-    return calibrate_dlt(np.concatenate(measured), np.concatenate(seen))
+    return fit_dlt(np.concatenate(measured), np.concatenate(seen), what="calibration")

@@ -112,7 +112,7 @@ class MomDataset:
 
         def produce(tmp: Path) -> None:
             with open(tmp, "wb") as handle:  # a handle: np.savez would append ".npz" to a name
-                np.savez_compressed(handle, **arrays)
+                np.savez_compressed(handle, allow_pickle=False, **arrays)
 
         return atomic_write(path, produce)
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import warnings
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -55,7 +56,9 @@ def export_encoder(
         )
 
 
-def pixel_decoder(matrices: np.ndarray, centre: np.ndarray, scale: float, sizes: np.ndarray):
+def pixel_decoder(
+    matrices: np.ndarray, centre: np.ndarray, scale: float, sizes: np.ndarray
+) -> np.ndarray:
     """P̄_k from normalised units to pixels and metres: ``A_k · P̄_k · T`` (z column kept 0)."""
     to_norm = np.array(
         [[1 / scale, 0, -centre[0] / scale], [0, 1 / scale, -centre[1] / scale], [0, 0, 1]]
@@ -82,10 +85,12 @@ def write_model_dir(
     metrics: dict,
     settings: dict,
     floor_prior: dict | None = None,
+    extra: dict[str, Any] | None = None,
 ) -> None:
     """Write all three files, each atomically (:mod:`models.atomic`), ``model.json`` last and
-    once, complete with the ``floor_prior`` entry, so a reader (the daemon's hot reload) never
-    sees a half-written or intermediate model."""
+    once, complete with the ``floor_prior`` entry and any ``extra`` top-level entries (e.g. the
+    demo model's provenance), so a reader (the daemon's hot reload) never sees a half-written
+    or intermediate model."""
     out_dir.mkdir(parents=True, exist_ok=True)
     atomic_write(
         out_dir / ONNX_NAME, lambda tmp: export_encoder(encoder, centre, scale, tmp, sampler.rows)
@@ -118,4 +123,7 @@ def write_model_dir(
     }
     if floor_prior is not None:
         meta["floor_prior"] = floor_prior
-    atomic_write_json(out_dir / JSON_NAME, meta)
+    clashes = set(extra or {}) & set(meta)
+    if clashes:
+        raise ValueError(f"extra model.json entries would replace {sorted(clashes)}")
+    atomic_write_json(out_dir / JSON_NAME, {**meta, **(extra or {})})

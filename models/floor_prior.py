@@ -46,6 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from models.baseline import box_points, truncated
+from models.dataset import MomDataset
 from models.errors import MomlocError
 from models.homography import (
     apply_homography,
@@ -111,7 +112,9 @@ def image_points(boxes: np.ndarray, keypoints: np.ndarray | None = None) -> dict
     return points
 
 
-def _residual(g, pixels, world, boxes, rows) -> np.ndarray:
+def _residual(
+    g: np.ndarray, pixels: np.ndarray, world: np.ndarray, boxes: np.ndarray, rows: np.ndarray
+) -> np.ndarray:
     """Training pixel residuals [M, 2] of a pixel → floor map, per unit box height."""
     predicted = apply_homography(np.linalg.inv(g), world[rows])
     return (pixels[rows] - predicted) / _box_height(boxes[rows])[:, None]
@@ -182,7 +185,14 @@ class FloorPrior:
         return len(self.cameras)
 
     @classmethod
-    def fit(cls, dataset, *, points: str | tuple[str, ...] = "both", **options) -> FloorPrior:
+    def fit(
+        cls,
+        dataset: MomDataset,
+        *,
+        points: str | tuple[str, ...] = "both",
+        cut_inflation: float = 25.0,
+        height_spread: float = HEIGHT_SPREAD,
+    ) -> FloorPrior:
         """Fit from a :class:`~models.dataset.MomDataset` (its ``world``, ``boxes``, sizes)."""
         return cls.fit_arrays(
             dataset.world,
@@ -190,7 +200,8 @@ class FloorPrior:
             dataset.image_size,
             keypoints=dataset.keypoints,
             points=points,
-            **options,
+            cut_inflation=cut_inflation,
+            height_spread=height_spread,
         )
 
     @classmethod

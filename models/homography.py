@@ -5,8 +5,9 @@ feet, or the plane at a fixed height through a person's middle) is related to it
 by a 3×3 projective map, whatever the camera's pose and focal length. Four or more floor marks
 seen by a camera fix it, with no calibration.
 
-The fit (:func:`fit_homography`) is Hartley-normalised DLT (both point sets moved to centroid 0,
-mean distance sqrt 2, so pixels and metres get equal say in the SVD) followed by a robust
+The fit (:func:`fit_homography`) is the project's Hartley-normalised DLT
+(:func:`models.dlt.fit_dlt`: both point sets moved to centroid 0, mean distance sqrt 2, so pixels
+and metres get equal say in the SVD) followed by a robust
 refinement of the *transfer* error in the destination plane (metres on the floor when fitting
 pixel → floor) with ``scipy.optimize.least_squares`` and a soft-L1 loss: DLT minimises an
 algebraic error that over-weights far points, and a few bad boxes (occlusion, a second person
@@ -20,10 +21,12 @@ the marks cannot fix a map at all. Numpy + scipy only: used at serving time too.
 
 from __future__ import annotations
 
+from typing import Literal
+
 import numpy as np
 from scipy.optimize import least_squares
 
-from models.baseline import _normaliser as hartley_normaliser
+from models.dlt import fit_dlt, hartley_normaliser
 from models.errors import MomlocError
 
 
@@ -51,34 +54,8 @@ def homography_jacobian(h: np.ndarray, points: np.ndarray) -> np.ndarray:
     return (h[:2, :2] - xy * h[2, :2]) / w
 
 
-def dlt_homography(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
-    """Normalised DLT: H [3, 3] with dst ~ H src, from >= 4 pairs [M, 2] (unit Frobenius norm)."""
-    src = np.asarray(src, dtype=np.float64)
-    dst = np.asarray(dst, dtype=np.float64)
-    if src.shape != dst.shape or src.ndim != 2 or src.shape[1] != 2 or src.shape[0] < 4:
-        raise MomlocError(f"homography: need >= 4 matched 2D points, got {src.shape}/{dst.shape}")
-    ts, td = hartley_normaliser(src), hartley_normaliser(dst)
-    h_n = _dlt_normalised(_transform(ts, src), _transform(td, dst))
-    h = np.linalg.inv(td) @ h_n @ ts
-    return h / np.linalg.norm(h)
-
-
 def _transform(t: np.ndarray, points: np.ndarray) -> np.ndarray:
     return points @ t[:2, :2].T + t[:2, 2]
-
-
-def _dlt_normalised(s: np.ndarray, d: np.ndarray) -> np.ndarray:
-    one = np.ones((len(s), 1))
-    x = np.concatenate([s, one], axis=1)
-    zero = np.zeros_like(x)
-    rows_a = np.concatenate([x, zero, -d[:, :1] * x], axis=1)
-    rows_b = np.concatenate([zero, x, -d[:, 1:2] * x], axis=1)
-    _, sing, vt = np.linalg.svd(np.concatenate([rows_a, rows_b]), full_matrices=False)
-    if sing[-2] < 1e-9 * sing[0]:
-        raise MomlocError(
-            "homography: the points are degenerate (fewer than 4 in general position)"
-        )
-    return vt[-1].reshape(3, 3)
 
 
 def fit_homography(
@@ -86,7 +63,7 @@ def fit_homography(
     dst: np.ndarray,
     *,
     weights: np.ndarray | None = None,
-    loss: str = "soft_l1",
+    loss: Literal["linear", "soft_l1", "huber", "cauchy", "arctan"] = "soft_l1",
     scale: float = 0.15,
     max_nfev: int = 200,
 ) -> np.ndarray:
@@ -99,9 +76,10 @@ def fit_homography(
     """
     src = np.asarray(src, dtype=np.float64)
     dst = np.asarray(dst, dtype=np.float64)
+    h_dlt = fit_dlt(src, dst, what="homography")
     ts, td = hartley_normaliser(src), hartley_normaliser(dst)
     s, d = _transform(ts, src), _transform(td, dst)
-    h0 = _dlt_normalised(s, d)
+    h0 = td @ h_dlt @ np.linalg.inv(ts)  # the same map in normalised coordinates
     if abs(h0[2, 2]) < 1e-12:
         raise MomlocError("homography: the data centroid maps to infinity")
     h0 = h0 / h0[2, 2]

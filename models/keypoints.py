@@ -50,7 +50,9 @@ def landmarks_to_coco(landmarks: np.ndarray, box: Sequence[float]) -> np.ndarray
     return coco
 
 
-def crop_box(box: Sequence[float], width: int, height: int, margin: float) -> np.ndarray:
+def crop_box(
+    box: Sequence[float] | np.ndarray, width: int, height: int, margin: float
+) -> np.ndarray:
     """The detector box widened by ``margin`` of its size on each side, in whole pixels, clipped."""
     x0, y0, x1, y1 = (float(v) for v in box)
     dx, dy = (x1 - x0) * margin, (y1 - y0) * margin

@@ -17,14 +17,19 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from models.errors import MomlocError, shorten
 from models.floor_prior import FloorPrior
 from models.model_schema import validate_model_json
+from models.onnx_session import open_session
 from models.prior_policy import POLICY_WEIGHTS, VIEW_CLASSES, blend, row_weights
 from models.sampling import InferenceSampler, SamplerConfig, draws_from_json, unit_mean
+
+if TYPE_CHECKING:
+    from onnxruntime import InferenceSession
 
 MODEL_FORMAT = "mom-model-v1"  # same literal as models.export (which imports torch)
 
@@ -32,7 +37,7 @@ MODEL_FORMAT = "mom-model-v1"  # same literal as models.export (which imports to
 class MomRuntime:
     """A loaded model: encoder session, sampler, decoder matrices."""
 
-    def __init__(self, meta: dict, session, model_dir: Path) -> None:
+    def __init__(self, meta: dict[str, Any], session: InferenceSession, model_dir: Path) -> None:
         self.meta = meta
         self.model_dir = model_dir
         self._session = session
@@ -61,8 +66,6 @@ class MomRuntime:
         One non-spinning thread by default: serving batches are a handful of people, and the
         daemon shares a small CPU with the detector (see bench/results/encoder_speed.md).
         """
-        import onnxruntime as ort
-
         model_dir = Path(model_dir)
         meta_path = model_dir / "model.json"
         shown = shorten(model_dir)
@@ -84,20 +87,7 @@ class MomRuntime:
         onnx_path = model_dir / schema.encoder.file
         if not onnx_path.is_file():
             raise MomlocError(f"{shown}: encoder file {schema.encoder.file} is missing")
-        options = ort.SessionOptions()
-        options.intra_op_num_threads = threads
-        options.inter_op_num_threads = 1
-        options.add_session_config_entry("session.intra_op.allow_spinning", "0")
-        try:
-            session = ort.InferenceSession(
-                str(onnx_path), options, providers=["CPUExecutionProvider"]
-            )
-        except Exception as error:  # onnxruntime raises its own exception types
-            raise MomlocError(
-                shorten(
-                    f"{shown}/{schema.encoder.file}: cannot load the ONNX encoder ({error})", 300
-                )
-            ) from None
+        session = open_session(onnx_path, threads, what="ONNX encoder")
         try:
             return cls(meta, session, model_dir)
         except (KeyError, TypeError, ValueError) as error:
@@ -142,7 +132,7 @@ class MomRuntime:
         the encoder per row: all geometry for a model trained on marks, a blend chosen on
         validation rows for dense labels; the encoder alone where no fitted camera sees the row.
         """
-        if max(self.prior_weights) == 0.0:
+        if max(self.prior_weights) == 0.0 or self.floor_prior is None:
             return self.encode(boxes, keypoints)
         boxes = self._check_boxes(boxes)
         prior_keypoints = keypoints if self.observation == "keypoints" else None
@@ -200,7 +190,7 @@ class MomRuntime:
         denominator = np.where(np.abs(denominator) < 1e-9, 1e-9, denominator)
         return (projected[..., :2] / denominator).astype(np.float32)
 
-    def observed_pixels(self, boxes: np.ndarray, keypoints: np.ndarray | None = None):
+    def observed_pixels(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
         """Mean pixel per camera [B, K, 2] that the decoder predicts (NaN where unseen)."""
         boxes = self._check_boxes(boxes)
         if self.observation == "bbox":
@@ -215,7 +205,7 @@ class MomRuntime:
         vis = keypoint_visible(kp)
         total = np.where(vis[..., None], kp[..., :2], 0.0).sum(axis=-2)
         mean = total / np.maximum(vis.sum(axis=-1, keepdims=True), 1)
-        return np.where(vis.any(-1)[..., None], mean, np.nan).astype(np.float32)
+        return np.where(np.any(vis, axis=-1)[..., None], mean, np.nan).astype(np.float32)
 
     def reprojection_error(
         self, boxes: np.ndarray, world: np.ndarray, keypoints: np.ndarray | None = None

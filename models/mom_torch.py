@@ -23,6 +23,9 @@ import numpy as np
 import torch
 from torch import nn
 
+from models.dlt import fit_dlt
+from models.errors import MomlocError
+
 DENOMINATOR_FLOOR = 0.05
 
 
@@ -98,27 +101,23 @@ class DrawAverage(nn.Module):
         return world * self.scale + self.centre
 
 
-def fit_homography(world: np.ndarray, pixels: np.ndarray) -> np.ndarray:
-    """Least-squares (DLT) floor→image map as a 3×4 matrix acting on (x, y, 0, 1).
+def initial_decoder_matrix(world: np.ndarray, pixels: np.ndarray) -> np.ndarray:
+    """A decoder's starting P̄_k: the floor → image map fitted to the training pairs, as a 3×4
+    matrix acting on (x, y, 0, 1) (z column 0).
 
-    Needs ≥ 4 pairs in general position; with fewer (or a degenerate fit) falls back to the
-    best affine map, which is always defined. Scaled so the denominator is +1 on average.
+    The homography is :func:`models.dlt.fit_dlt`; with fewer than 8 pairs, points in a
+    degenerate configuration, a denominator that changes sign or vanishes over the data, or a
+    fit worse than the best affine map, it is that affine map (always defined). Scaled so the
+    denominator is +1 on average.
     """
-    n = len(world)
     affine = _fit_affine(world, pixels)
-    if n < 8:
+    if len(world) < 8:
         return affine
-    x, y = world[:, 0], world[:, 1]
-    u, v = pixels[:, 0], pixels[:, 1]
-    o, z = np.ones(n), np.zeros(n)
-    rows = np.concatenate(
-        [
-            np.stack([x, y, o, z, z, z, -u * x, -u * y, -u], axis=1),
-            np.stack([z, z, z, x, y, o, -v * x, -v * y, -v], axis=1),
-        ]
-    )
-    _, _, vt = np.linalg.svd(rows, full_matrices=False)
-    h = vt[-1].reshape(3, 3)
+    try:
+        h = fit_dlt(world, pixels, what="decoder initialisation")
+    except MomlocError:
+        return affine
+    o = np.ones(len(world))
     denominator = world @ h[2, :2] + h[2, 2]
     if np.abs(denominator).min() < 1e-6 or np.sign(denominator).min() != np.sign(denominator).max():
         return affine

@@ -43,7 +43,11 @@ def label_coverage(world: np.ndarray, cell_m: float = CELL_M) -> float:
 
 
 VIEW_CLASSES = ("1 view", "2 views", "3+ views")  # the prior's weight is chosen per class
-POLICY_WEIGHTS = {"mom": (0.0,) * 3, "prior": (1.0,) * 3, "blend": (0.5,) * 3}  # if not stored
+POLICY_WEIGHTS: dict[str, tuple[float, ...]] = {
+    "mom": (0.0,) * 3,
+    "prior": (1.0,) * 3,
+    "blend": (0.5,) * 3,
+}  # if not stored
 WEIGHT_GRID = np.round(np.linspace(0.0, 1.0, 11), 2)
 MIN_CLASS_ROWS = 30  # fewer validation rows in a class: it takes the weight chosen on all rows
 
@@ -89,7 +93,9 @@ def fit_prior(dataset: MomDataset, observation: str, rows: np.ndarray | None = N
     )
 
 
-def _mean_errors(encoder_xy, prior_xy, boxes, world) -> np.ndarray:
+def _mean_errors(
+    encoder_xy: np.ndarray, prior_xy: np.ndarray, boxes: np.ndarray, world: np.ndarray
+) -> np.ndarray:
     """Mean error [rows of WEIGHT_GRID] for each prior weight, over the given rows."""
     errors = [np.linalg.norm(blend(encoder_xy, prior_xy, w) - world, axis=1) for w in WEIGHT_GRID]
     return np.nanmean(np.stack(errors), axis=1)
@@ -161,7 +167,13 @@ def choose_policy(
     return entry, prior
 
 
-def _weigh_on_validation(dataset, observation, val_rows, encoder_xy, coverage):
+def _weigh_on_validation(
+    dataset: MomDataset,
+    observation: str,
+    val_rows: np.ndarray,
+    encoder_xy: np.ndarray,
+    coverage: float,
+) -> tuple[tuple[float, ...], str, dict[str, float]]:
     """Weights from a prior fitted on the training rows only, scored on the validation rows."""
     train_rows = np.setdiff1d(np.arange(dataset.n), val_rows)
     try:
@@ -173,8 +185,8 @@ def _weigh_on_validation(dataset, observation, val_rows, encoder_xy, coverage):
             {},
         )
     boxes = dataset.boxes[val_rows]
-    keypoints = dataset.keypoints[val_rows] if observation == "keypoints" else None
-    prior_xy, _ = prior.predict(boxes, keypoints)
+    keypoints = dataset.keypoints if observation == "keypoints" else None
+    prior_xy, _ = prior.predict(boxes, None if keypoints is None else keypoints[val_rows])
     world = dataset.world[val_rows, :2].astype(np.float64)
     weights = choose_weights(encoder_xy, prior_xy, boxes, world)
 

@@ -139,7 +139,8 @@ def draws_to_json(draws: Draws) -> dict:
 
 
 def draws_from_json(data: dict) -> Draws:
-    return Draws(*(np.asarray(data[k], dtype=np.float32) for k in ("unit", "keys", "frac")))
+    unit, keys, frac = (np.asarray(data[k], dtype=np.float32) for k in ("unit", "keys", "frac"))
+    return Draws(unit, keys, frac)
 
 
 def _pow2(n: int) -> int:
@@ -213,7 +214,7 @@ def observation_mask(
     """Float [B, K]: 1 where the camera observes the person in the configured mode."""
     if config.observation == "bbox":
         return np.isfinite(boxes).all(axis=-1).astype(np.float32)
-    return keypoint_visible(_need_keypoints(keypoints)).any(axis=-1).astype(np.float32)
+    return np.any(keypoint_visible(_need_keypoints(keypoints)), axis=-1).astype(np.float32)
 
 
 def observation_center(
@@ -228,7 +229,8 @@ def observation_center(
     vis = keypoint_visible(kp)
     xy = np.where(vis[..., None], kp[..., :2], 0.0).sum(axis=-2)
     mean = xy / np.maximum(vis.sum(axis=-1, keepdims=True), 1)
-    return np.where(vis.any(-1)[..., None], normalise_pixels(mean, size), 0.0).astype(np.float32)
+    seen = np.any(vis, axis=-1)[..., None]
+    return np.where(seen, normalise_pixels(mean, size), 0.0).astype(np.float32)
 
 
 def observation_corners(
@@ -286,9 +288,8 @@ class InferenceSampler:
         self.config = config
         self.draws = fixed_draws(config) if draws is None else draws
         # [1, D, 1, ...]: a leading batch axis and a camera axis to broadcast against
-        self._kp_draws = Draws(
-            *(a[None, :, None] for a in (self.draws.unit, self.draws.keys, self.draws.frac))
-        )
+        unit, keys, frac = self.draws.unit, self.draws.keys, self.draws.frac
+        self._kp_draws = Draws(unit[None, :, None], keys[None, :, None], frac[None, :, None])
         self._unit = unit_estimators(self._kp_draws)  # [1, D, 1, E, 2], fixed once
 
     def __call__(

@@ -152,7 +152,13 @@ class StreamScorer:
         self._tp += len(pairs)
         self._fp += len(served_ids) - len(pairs)
 
-    def _match(self, truth_ids, truth_xy, served_ids, served_xy) -> list[tuple[int, int]]:
+    def _match(
+        self,
+        truth_ids: Sequence[int],
+        truth_xy: np.ndarray,
+        served_ids: Sequence[int],
+        served_xy: np.ndarray,
+    ) -> list[tuple[int, int]]:
         if not len(truth_ids) or not len(served_ids):
             return []
         dist = np.linalg.norm(truth_xy[:, None] - served_xy[None], axis=2)

@@ -22,14 +22,16 @@ import math
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any, NoReturn
 
 import numpy as np
 import torch
+from tqdm import tqdm
 
 from models.dataset import MomDataset
 from models.errors import MomlocError
 from models.export import write_model_dir
-from models.mom_torch import MomDecoder, MomEncoder, fit_homography
+from models.mom_torch import MomDecoder, MomEncoder, initial_decoder_matrix
 from models.prior_policy import choose_policy, summary
 from models.sampling import (
     InferenceSampler,
@@ -109,7 +111,16 @@ def _check(data: MomDataset, observation: str) -> None:
 class _Trainer:
     """Holds one training run's data, model and optimiser."""
 
-    def __init__(self, data, sampler, decoder, settings, seed, train_rows, val_rows):
+    def __init__(
+        self,
+        data: MomDataset,
+        sampler: SamplerConfig,
+        decoder: bool,
+        settings: TrainSettings,
+        seed: int,
+        train_rows: np.ndarray,
+        val_rows: np.ndarray,
+    ) -> None:
         self.data, self.settings, self.decoder_on = data, settings, decoder
         self.sampler = sampler
         self.rng = np.random.default_rng(seed)
@@ -146,7 +157,7 @@ class _Trainer:
             if len(seen) < 3:
                 matrices.append(np.array([[0, 0, 0, 0], [0, 0, 0, 0], [0, 0, 0, 1.0]]))
                 continue
-            matrices.append(fit_homography(self.target[seen], self.pix[seen, k]))
+            matrices.append(initial_decoder_matrix(self.target[seen], self.pix[seen, k]))
         return np.stack(matrices).astype(np.float32)
 
     def epoch(self, index: int) -> float:
@@ -238,10 +249,12 @@ def train_model(
     seed: int = 0,
     progress: bool = True,
     tuning: dict | None = None,
+    extra_meta: dict[str, Any] | None = None,
 ) -> dict:
     """Train on ``dataset``, write ``out_dir`` (encoder.onnx, model.pt, model.json); metrics.
 
-    ``tuning`` overrides TrainSettings / SamplerConfig fields (for measurements and sweeps).
+    ``tuning`` overrides TrainSettings / SamplerConfig fields (for measurements and sweeps);
+    ``extra_meta`` adds top-level entries to ``model.json`` in its one write.
     """
     tuning = dict(tuning or {})
     sampler_keys = set(SamplerConfig.__dataclass_fields__) - {"observation"}
@@ -259,12 +272,24 @@ def train_model(
     # two spinning threads were measured 10x slower (147 s vs 13 s for the same 15 epochs).
     torch.set_num_threads(1)
     try:
-        return _train(dataset, Path(out_dir), sampler, decoder, epochs, seed, progress, tuning)
+        return _train(
+            dataset, Path(out_dir), sampler, decoder, epochs, seed, progress, tuning, extra_meta
+        )
     finally:
         torch.set_num_threads(threads)
 
 
-def _train(dataset, out_dir, sampler, decoder, epochs, seed, progress, tuning) -> dict:
+def _train(
+    dataset: MomDataset,
+    out_dir: Path,
+    sampler: SamplerConfig,
+    decoder: bool,
+    epochs: int | None,
+    seed: int,
+    progress: bool,
+    tuning: dict[str, Any],
+    extra_meta: dict[str, Any] | None,
+) -> dict:
     torch.manual_seed(seed)
     started = time.monotonic()
     probe = adaptive_settings(dataset.n, dataset.num_cameras, epochs)
@@ -325,6 +350,7 @@ def _train(dataset, out_dir, sampler, decoder, epochs, seed, progress, tuning) -
         metrics=metrics,
         settings={**asdict(settings), "decoder": decoder, "seed": seed},
         floor_prior=floor_prior,
+        extra=extra_meta,
     )
     metrics["floor_prior"] = summary(floor_prior)
     return metrics
@@ -348,7 +374,5 @@ def _final_metrics(
     return metrics, np.where(ok[:, None], pred, np.nan)
 
 
-def _progress(total: int, enabled: bool):
-    from tqdm import tqdm
-
+def _progress(total: int, enabled: bool) -> tqdm[NoReturn]:
     return tqdm(total=total, desc="momloc train", unit="epoch", disable=not enabled, leave=True)

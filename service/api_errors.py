@@ -11,7 +11,7 @@ truth and a schema-driven fuzzer can check it.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -67,7 +67,7 @@ def error_response(
     status: int,
     detail: str,
     errors: Iterable[dict[str, Any]] = (),
-    headers: dict[str, str] | None = None,
+    headers: Mapping[str, str] | None = None,
 ) -> JSONResponse:
     body = ErrorBody(detail=shorten(detail, 500), errors=[ErrorItem(**e) for e in errors])
     return JSONResponse(body.model_dump(), status_code=status, headers=headers)

@@ -48,7 +48,7 @@ measurement's noise (long along a lone camera's line of sight).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -269,14 +269,25 @@ def _single_view_positions(
     return out
 
 
-def covering_cameras(runtime, world: np.ndarray, margin: float = 0.05) -> np.ndarray:
+@runtime_checkable
+class ReprojectingModel(Protocol):
+    """A model whose decoder maps floor positions back into the cameras (``MomRuntime``)."""
+
+    image_sizes: np.ndarray  # [K, 2] width, height
+
+    def reproject(self, world: np.ndarray) -> np.ndarray: ...
+
+
+def covering_cameras(
+    runtime: ReprojectingModel, world: np.ndarray, margin: float = 0.05
+) -> np.ndarray:
     """[N, K] bool: camera k should see a person at floor position ``world`` [N, 2], i.e. the
     decoder puts their body's mean point inside its image, ``margin`` (fraction of the image
     size) away from the border. For the tracker's ghost check (``Tracker(ghost_s=...)``)."""
     pixels = np.asarray(runtime.reproject(np.asarray(world, dtype=np.float64)), np.float64)
     size = np.asarray(runtime.image_sizes, dtype=np.float64)[None]
     inside = (pixels >= margin * size) & (pixels <= (1.0 - margin) * size)
-    return inside.all(axis=-1)
+    return np.all(inside, axis=-1)
 
 
 def _covariance(tuples: np.ndarray, runtime: LocalizationModel) -> np.ndarray | None:

@@ -190,7 +190,9 @@ class BoxCarrier:
             iou = box_iou(np.array([tr.box_at(t) for tr in judged]), boxes)
             rows, cols = linear_sum_assignment(-iou)
             matches = [
-                (r, c) for r, c in zip(rows, cols, strict=True) if iou[r, c] >= self.match_iou
+                (int(r), int(c))
+                for r, c in zip(rows, cols, strict=True)
+                if iou[r, c] >= self.match_iou
             ]
         matched_tracks = {r for r, _ in matches}
         matched_boxes = {c for _, c in matches}
@@ -275,7 +277,16 @@ class BoxCarrier:
         track.p = (np.eye(_F_DIM) - k @ h) @ track.p
         track.x[2:4] = np.maximum(track.x[2:4], 2.0)
 
-    def _spawn(self, box, now, t, score, keypoints, index, detected) -> _Track:
+    def _spawn(
+        self,
+        box: np.ndarray,
+        now: float,
+        t: float,
+        score: float,
+        keypoints: np.ndarray | None,
+        index: int,
+        detected: np.ndarray,
+    ) -> _Track:
         p = np.diag([1.0, 1.0, 1.0, 1.0, 4.0, 4.0, 1.0, 1.0]) * (self.det_noise * 200) ** 2
         p[4:, 4:] = np.eye(4) * (1.0 * max(float(box[3] - box[1]), 10.0)) ** 2
         track = _Track(np.r_[_to_state(box), np.zeros(4)], p, now, t, score, None)
@@ -334,9 +345,13 @@ class BoxCarrier:
         rel = np.stack(np.meshgrid(u, v), -1).reshape(-1, 2)
         points = [np.asarray(b[:2]) + rel * (np.asarray(b[2:]) - np.asarray(b[:2])) for b in boxes]
         p0 = np.concatenate(points).astype(np.float32).reshape(-1, 1, 2)
-        params = {"winSize": (15, 15), "maxLevel": self.levels}
-        p1, ok1, _ = cv2.calcOpticalFlowPyrLK(old, new, p0, None, **params)
-        back, ok2, _ = cv2.calcOpticalFlowPyrLK(new, old, p1, None, **params)
+        size, levels = (15, 15), self.levels
+        p1, ok1, _ = cv2.calcOpticalFlowPyrLK(
+            old, new, p0, np.empty_like(p0), winSize=size, maxLevel=levels
+        )
+        back, ok2, _ = cv2.calcOpticalFlowPyrLK(
+            new, old, p1, np.empty_like(p1), winSize=size, maxLevel=levels
+        )
         good = (ok1.ravel() == 1) & (ok2.ravel() == 1)
         good &= np.linalg.norm((back - p0).reshape(-1, 2), axis=1) < 1.0
         out: list[np.ndarray | None] = []

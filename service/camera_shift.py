@@ -135,7 +135,7 @@ class ShiftReference:
         if not self.usable or gray.shape != self.gray.shape:
             return None
         tracked, status, _ = cv2.calcOpticalFlowPyrLK(
-            self.gray, gray, self.corners, None, winSize=(15, 15), maxLevel=3
+            self.gray, gray, self.corners, np.empty_like(self.corners), winSize=(15, 15), maxLevel=3
         )
         ok = status.ravel() == 1
         fit = rigid_ransac(self.corners[ok, 0].astype(float), tracked[ok, 0].astype(float), 1.5)
@@ -309,9 +309,9 @@ class ShiftWorker:
                 self._wake.wait_for(lambda: self._slot is not None or self._stop)
                 if self._stop:
                     return
-                t, images = self._slot
-                self._slot = None
-            self.monitor.offer(t, images)
+                slot, self._slot = self._slot, None
+            if slot is not None:  # a frame set was waiting (the wait ends for it or for stop)
+                self.monitor.offer(*slot)
 
     def stop(self) -> None:
         with self._wake:

@@ -136,21 +136,16 @@ def camera_name(camera: Any) -> str:
 
 
 def build_rig(settings: Settings) -> tuple[Any, Any]:
-    """The camera rig for ``settings.cameras`` and, for synthetic scenes, the scene player."""
+    """The camera rig for ``settings.cameras`` and, for synthetic cameras, the scene it shows."""
     kinds = {type(c) for c in settings.cameras}
     if SyntheticCamera in kinds:
         if len(kinds) > 1:
             raise MomlocError("cameras: synthetic cameras cannot be mixed with real ones")
-        from capture.synthetic import SyntheticRig, make_scene
+        from capture.synthetic import SyntheticRig
+        from service.simulated_detections import scene_for
 
         syn = settings.synthetic
-        scene = make_scene(
-            syn.preset,
-            seed=syn.seed,
-            people=syn.people,
-            fps=syn.fps,
-            detector_profile=syn.detector_profile,
-        )
+        scene = scene_for(syn)
         indices = [c.index for c in settings.cameras]
         available = len(scene.cameras)
         for position, index in enumerate(indices):
@@ -165,7 +160,7 @@ def build_rig(settings: Settings) -> tuple[Any, Any]:
         else:
             render_every = 0
         rig = SyntheticRig(scene, indices, fps=syn.fps, render_every=render_every)
-        return rig, rig
+        return rig, scene
     from capture.rig import CameraRig
     from capture.worker import CameraWorker
 
@@ -186,9 +181,9 @@ def _open_source(camera: Any) -> Any:
 def build_detect_stage(settings: Settings, player: Any) -> Any:
     """The detector stage, or the simulator's boxes when the demo asks for them."""
     if player is not None and settings.synthetic.detections == "simulated":
-        from capture.synthetic import SimulatedDetections
+        from service.simulated_detections import SimulatedDetections
 
-        return SimulatedDetections(player)
+        return SimulatedDetections(player, [c.index for c in settings.cameras])
     from models.detector import create_detector
 
     options = {
@@ -213,14 +208,13 @@ def build_detect_stage(settings: Settings, player: Any) -> Any:
         detection = settings.detection
         schedule = DetectionScheduler(
             detector,
-            settings.detector.score_threshold,
             max_duty=detection.max_duty,
             cameras_per_call=detection.cameras_per_call,
             nice=detection.nice,
             carrier={"flow": detection.flow, "max_age_s": detection.max_age_s},
             refiner=_window_refiner(detector, detection.windows, detection.window_below_px),
         )
-    return DetectorStage(detector, settings.detector.score_threshold, schedule)
+    return DetectorStage(detector, schedule)
 
 
 def _window_refiner(detector: Any, windows: int, below_px: float) -> WindowRefiner | None:
@@ -274,11 +268,6 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
         tracker=Tracker(fps_hint=30.0, max_missing_s=settings.tracking.max_missing_s),
         max_error_px=settings.tracking.max_error_px,
     )
-    if runtime is not None and int(runtime.num_cameras) != len(settings.cameras):
-        raise MomlocError(
-            f"model_dir: {settings.model_dir} expects {runtime.num_cameras} cameras, "
-            f"{len(settings.cameras)} are configured"
-        )
     extras = {}
     if player is not None:
         extras["source"] = {"synthetic": settings.synthetic.model_dump()}

@@ -33,6 +33,7 @@ from typing import Literal
 
 import numpy as np
 
+from models.errors import MomlocError
 from models.simulate import get_config
 from service.settings import DEMO_MODEL_DIR, Settings, load_settings
 
@@ -135,26 +136,35 @@ def replay_demo(settings: Settings, frames: int = 600, warmup: int = 30) -> Demo
     from scipy.optimize import linear_sum_assignment
 
     from capture.rig import FrameSet
+    from capture.synthetic import SyntheticRig
+    from capture.worker import Frame
     from service.daemon import build_daemon
+    from service.simulated_detections import scene_for
 
     # Offline means every frame set gets its own detection: the live scheduler detects on wall
     # clock time beside the pipeline, so its rate (and the score) would follow the machine's load.
     inline = settings.detection.model_copy(update={"schedule": "every_frame"})
     daemon = build_daemon(settings.model_copy(update={"detection": inline}))
     pipeline, rig = daemon.pipeline, daemon.pipeline.rig
+    if not isinstance(rig, SyntheticRig):
+        raise MomlocError("replay_demo: the settings must describe synthetic cameras")
     if settings.synthetic.detections == "simulated":
         rig.render_every = 0  # boxes only: nothing needs drawing
-    sizes = np.array([rig.scene.cameras[k].image_size for k in rig.cameras], float)
+    scene = scene_for(settings.synthetic)  # seeded: the very scene the rig shows
+    sizes = np.array([scene.cameras[k].image_size for k in rig.cameras], np.float64)
     errors: list[float] = []
     in_view = reported = 0
     ids: set[int] = set()
     for i in range(frames):
         produced = rig.produce(i).frames
-        stamped = [dataclasses.replace(f, timestamp=1e6 + i / rig.fps) for f in produced]
+        stamped: list[Frame | None] = [
+            None if f is None else dataclasses.replace(f, timestamp=1e6 + i / rig.fps)
+            for f in produced
+        ]
         snapshot = pipeline.process(FrameSet(stamped, 0.0))
         if i < warmup:  # tracks confirmed
             continue
-        truth = rig.observation(i)
+        truth = scene.observe(i)
         boxes = truth.true_boxes[:, rig.cameras]  # [P, K, 4]
         lo = np.clip(boxes[..., :2], 0, sizes)
         hi = np.clip(boxes[..., 2:], 0, sizes)

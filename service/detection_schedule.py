@@ -228,13 +228,13 @@ class DetectionScheduler:
     ``clock`` (seconds, monotonic) times the duty cycle and must be the runner's clock when a
     :class:`DeferredRunner` is injected; ``wall`` (the frames' clock) measures how late a frame
     set arrives, for ``flow_max_lag_s``. ``carrier`` options go to every camera's
-    :class:`BoxCarrier`.
+    :class:`BoxCarrier`. Boxes are used as the detector returns them: its own
+    ``score_threshold`` (from ``detector.score_threshold`` in the settings) is the one filter.
     """
 
     def __init__(
         self,
         detector: PersonDetector,
-        score_threshold: float = 0.0,
         *,
         mode: Mode = "auto",
         max_duty: float = 1.0,
@@ -252,7 +252,7 @@ class DetectionScheduler:
             raise ValueError(f"detection schedule {mode!r}: choose auto or every_frame")
         if not 0.0 < max_duty <= 1.0:
             raise ValueError("max_duty must be in (0, 1]")
-        self.detector, self.score_threshold, self.mode = detector, float(score_threshold), mode
+        self.detector, self.mode = detector, mode
         self.refiner = refiner
         self.max_duty, self.cameras_per_call = float(max_duty), int(cameras_per_call)
         self.clock, self.wall, self.flow_max_lag_s = clock, wall, float(flow_max_lag_s)
@@ -310,7 +310,6 @@ class DetectionScheduler:
         self.jobs += 1
         self.frames_detected += len(present)
         for k, det in zip(present, results, strict=True):
-            det = self._filtered(det)
             out[k] = CarriedDetections(
                 det.boxes, det.scores, det.keypoints, np.zeros(len(det), np.float32)
             )
@@ -389,14 +388,7 @@ class DetectionScheduler:
         for carrier in self.carriers:
             carrier.max_age_s = max(self._max_age_s, 2.5 * period)
         for (camera, t, _), det in zip(result.job.frames, result.detections, strict=True):
-            det = self._filtered(det)
             self.carriers[camera].correct(t, det.boxes, det.scores, det.keypoints)
-
-    def _filtered(self, det: Detections) -> Detections:
-        keep = np.asarray(det.scores) >= self.score_threshold
-        boxes = np.asarray(det.boxes, np.float32)[keep].reshape(-1, 4)
-        keypoints = None if det.keypoints is None else np.asarray(det.keypoints)[keep]
-        return Detections(boxes, np.asarray(det.scores, np.float32)[keep], keypoints)
 
     def _measured(self, cost: float) -> None:
         self.cost_s = cost if self.cost_s is None else 0.8 * self.cost_s + 0.2 * cost

@@ -67,7 +67,9 @@ def initial_covariance(r: np.ndarray) -> np.ndarray:
     return cov
 
 
-def _kalman(mean, cov, z, r):
+def _kalman(
+    mean: np.ndarray, cov: np.ndarray, z: np.ndarray, r: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, float]:
     """Corrected mean, covariance and the measurement's log-likelihood."""
     s = _H @ cov @ _H.T + r
     s_inv = np.linalg.inv(s)

@@ -79,7 +79,8 @@ class DatasetDetections:
 
     def __call__(self, frame_set: FrameSet) -> list[np.ndarray]:
         seq = next((f.seq for f in frame_set.frames if f is not None), None)
-        rows = self._rows.get(int(seq), np.zeros(0, np.int64)) if seq is not None else []
+        empty = np.zeros(0, np.int64)
+        rows = self._rows.get(int(seq), empty) if seq is not None else empty
         out = []
         for k in range(self.data.num_cameras):
             boxes = self.data.boxes[rows, k].reshape(-1, 4)

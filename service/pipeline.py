@@ -31,6 +31,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from models.errors import MomlocError
+from service.association import DEFAULT_MAX_ERROR_PX
 from service.camera_shift import CameraShiftMonitor, ShiftWorker
 from service.hub import Hub, Snapshot
 from service.setup.camera_monitor import CameraMotionMonitor, CameraMoved, combine
@@ -50,15 +51,15 @@ class Rig(Protocol):
 
 
 class DetectorStage:
-    """Real detector: one batched call for all cameras, low-score boxes removed.
+    """Real detector: one batched call for all cameras.
 
+    Boxes are kept as the detector returns them: its own ``score_threshold`` is the one filter.
     With ``schedule`` (a ``service.detection_schedule.DetectionScheduler``) the scheduler runs
     the detector beside the pipeline and carries boxes between detections instead.
     """
 
-    def __init__(self, detector: Any, score_threshold: float, schedule: Any = None) -> None:
+    def __init__(self, detector: Any, schedule: Any = None) -> None:
         self.detector = detector
-        self.score_threshold = score_threshold
         self.schedule = schedule
 
     def stats(self) -> dict[str, Any] | None:
@@ -78,8 +79,7 @@ class DetectorStage:
             return out
         results = self.detector.detect([frames[k].image for k in present])
         for k, det in zip(present, results, strict=True):
-            keep = np.asarray(det.scores) >= self.score_threshold
-            out[k] = np.asarray(det.boxes, np.float32)[keep].reshape(-1, 4)
+            out[k] = np.asarray(det.boxes, np.float32).reshape(-1, 4)
         return out
 
 
@@ -112,7 +112,7 @@ class Pipeline:
         model_dir: Path | None = None,
         tracker: Any = None,
         associate: Callable[..., list[Any]] | None = None,
-        max_error_px: float = 100.0,  # service.association.DEFAULT_MAX_ERROR_PX
+        max_error_px: float = DEFAULT_MAX_ERROR_PX,
         load_runtime: Callable[[Path], Any] | None = None,
         shift_threaded: bool = True,
     ) -> None:
@@ -147,6 +147,8 @@ class Pipeline:
         self.camera_shift = CameraShiftMonitor(num_cameras)
         self._shift_worker = ShiftWorker(self.camera_shift, threaded=shift_threaded)
         self._detection_listeners: list[Callable[[float, list[np.ndarray]], None]] = []
+        if runtime is not None and (problem := self._sizes_match(runtime)) is not None:
+            raise MomlocError(f"model_dir: {model_dir}: {problem}")  # the one camera-count check
 
     def add_detection_listener(self, listener: Callable[[float, list[np.ndarray]], None]) -> None:
         """Call ``listener(t_capture, boxes per camera)`` for every frame set (must not block)."""

@@ -37,6 +37,7 @@ from pydantic import (
 from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict
 
 from models.errors import MomlocError
+from service.association import DEFAULT_MAX_ERROR_PX
 from service.output_settings import MqttSettings, OscSettings, ZoneList
 
 DEMO_MODEL_DIR = Path(__file__).resolve().parent.parent / "models" / "demo_model"
@@ -230,7 +231,7 @@ class TrackingSettings(BaseModel):
         1.5, gt=0, le=60, description="Keep an unseen person's id this many seconds."
     )
     max_error_px: float = Field(
-        100.0,
+        DEFAULT_MAX_ERROR_PX,
         gt=0,
         description="Largest reprojection error (px, scaled to a 200 px box) for a match.",
     )

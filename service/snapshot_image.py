@@ -17,7 +17,7 @@ def id_colour(track_id: int | None) -> tuple[int, int, int]:
     if track_id is None:
         return (160, 160, 160)
     hue = (track_id * 47) % 180
-    hsv = np.uint8([[[hue, 200, 255]]])
+    hsv = np.array([[[hue, 200, 255]]], np.uint8)
     b, g, r = cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)[0, 0]
     return int(b), int(g), int(r)
 

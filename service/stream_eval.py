@@ -24,16 +24,18 @@ Example::
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from models.simulate import Scene, get_config
+from models.simulate import FrameObservation, Scene, SceneConfig, get_config
 from models.stream_metrics import StreamScorer
 from service.association import (
     DEFAULT_MAX_ERROR_PX,
     DEFAULT_MAX_VIEW_GAP_M,
     LocalizationModel,
+    ReprojectingModel,
     associate,
     covering_cameras,
 )
@@ -43,12 +45,9 @@ MIN_VISIBLE_FRACTION = 0.5
 GATES = (0.5, 1.0)
 
 
-def scene_config(preset: str, people: int | None = None, profile: str | None = None):
+def scene_config(preset: str, people: int | None = None, profile: str | None = None) -> SceneConfig:
     """A preset with ``people`` and, when given, a detector ``profile`` (name or JSON path)."""
-    options: dict = {"people": people}
-    if profile is not None:
-        options["detector_profile"] = profile
-    return get_config(preset, **options)
+    return get_config(preset, people=people, detector_profile=profile)
 
 
 def in_view(true_boxes: np.ndarray, image_sizes: np.ndarray, min_fraction: float) -> np.ndarray:
@@ -60,17 +59,17 @@ def in_view(true_boxes: np.ndarray, image_sizes: np.ndarray, min_fraction: float
     area = np.prod(true_boxes[..., 2:] - true_boxes[..., :2], axis=-1)
     with np.errstate(invalid="ignore", divide="ignore"):
         fraction = np.where(area > 0, inside / area, 0.0)
-    return (np.nan_to_num(fraction) >= min_fraction).any(axis=1)
+    return np.any(np.nan_to_num(fraction) >= min_fraction, axis=1)
 
 
-def frame_detections(obs, rng: np.random.Generator) -> list[np.ndarray]:
+def frame_detections(obs: FrameObservation, rng: np.random.Generator) -> list[np.ndarray]:
     """Per camera the detector's boxes [M, 4] (people and false positives), shuffled."""
-    false = getattr(obs, "false_boxes", None)
+    false = obs.false_boxes
     out = []
     for k in range(obs.boxes.shape[1]):
         boxes = obs.boxes[:, k]
         boxes = boxes[np.isfinite(boxes).all(axis=1)]
-        if false is not None and len(false):
+        if len(false):
             extra = false[k]
             boxes = np.concatenate([boxes, extra[np.isfinite(extra).all(axis=1)]])
         out.append(boxes[rng.permutation(len(boxes))].astype(np.float32).reshape(-1, 4))
@@ -79,7 +78,7 @@ def frame_detections(obs, rng: np.random.Generator) -> list[np.ndarray]:
 
 def run_stream(
     runtime: LocalizationModel,
-    config,
+    config: SceneConfig,
     seed: int,
     frames: int,
     *,
@@ -102,8 +101,9 @@ def run_stream(
     tracker = tracker if tracker is not None else Tracker(fps_hint=scene.fps, **RECOMMENDED)
     rng = np.random.default_rng([seed, 77])
     scorers = {float(g): StreamScorer(g) for g in gates}
-    reproject = getattr(runtime, "reproject", None)
-    coverage = None if reproject is None else (lambda xy: covering_cameras(runtime, xy))
+    coverage: Callable[[np.ndarray], np.ndarray] | None = None
+    if isinstance(runtime, ReprojectingModel):  # the tracker's ghost check needs the decoder
+        coverage = functools.partial(covering_cameras, runtime)
     for i in range(frames):
         obs = scene.observe(i)
         t = i / scene.fps

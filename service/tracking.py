@@ -205,7 +205,7 @@ class Tracker:
         which cameras should see a person standing there (used with ``ghost_s``).
         """
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
-        keep = np.isfinite(positions).all(axis=1)
+        keep = np.all(np.isfinite(positions), axis=1)
         meta = list(meta) if meta is not None else [{} for _ in range(len(positions))]
         if len(meta) != len(positions):
             raise ValueError(f"meta has {len(meta)} entries for {len(positions)} positions")
@@ -268,7 +268,9 @@ class Tracker:
 
     # -- filters -------------------------------------------------------------------------------
 
-    def _noise(self, covariances, count: int) -> np.ndarray:
+    def _noise(
+        self, covariances: Sequence[np.ndarray | None] | np.ndarray | None, count: int
+    ) -> np.ndarray:
         """Measurement covariance [P, 2, 2] per position (isotropic default where not given)."""
         out = np.tile(np.eye(2) * self.measurement_var, (count, 1, 1))
         if covariances is None:

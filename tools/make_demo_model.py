@@ -114,13 +114,13 @@ def main(argv: list[str] | None = None) -> int:
     demo["data_seconds"] = round(time.monotonic() - started, 1)
     print(f"training on {data.n} rows ({args.boxes} boxes) from {args.frames} frames of "
           f"{DEMO_PRESET}, {demo['data_seconds']} s to collect", flush=True)  # fmt: skip
-    metrics = train_model(data, args.out, epochs=args.epochs, seed=0, progress=progress)
+    # model.json is written once, complete with the provenance, mode 0644 (models.atomic): the
+    # container's non-root user reads it
+    metrics = train_model(
+        data, args.out, epochs=args.epochs, seed=0, progress=progress, extra_meta={"demo": demo}
+    )
     for extra in ("model.pt",):
         (args.out / extra).unlink(missing_ok=True)
-    meta = json.loads((args.out / "model.json").read_text())
-    meta["demo"] = demo
-    (args.out / "model.json").write_text(json.dumps(meta, indent=1) + "\n")
-    (args.out / "model.json").chmod(0o644)  # readable by the container's non-root user
     shown = {k: v for k, v in metrics.items() if k != "val_history"}
     print(json.dumps(shown, indent=1))
     return 0

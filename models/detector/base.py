@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import hashlib
 import inspect
-import os
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -151,31 +150,3 @@ def warm_up(detector: PersonDetector, path: Path, frames: int) -> None:
     except Exception as error:
         lines = str(error).strip().splitlines() or [type(error).__name__]
         raise MomlocError(f"detector model {path}: fails on a test frame ({lines[0]})") from None
-
-
-def open_session(path: str | Path, threads: int | None = None, what: str = "detector model"):
-    """An onnxruntime CPU session tuned for a small shared machine, or one clear error.
-
-    Threads: ``intra_op`` uses ``threads`` (default: the CPUs this process may use, at most 4);
-    ``inter_op`` is 1 and execution sequential because these graphs are chains, and thread
-    spinning is off so idle inference threads do not steal the CPU the camera workers need.
-    """
-    import onnxruntime as ort
-
-    path = Path(path)
-    if not path.is_file():
-        raise MomlocError(f"{what} {path}: file not found")
-    if threads is None:
-        threads = max(1, min(4, len(os.sched_getaffinity(0))))
-    options = ort.SessionOptions()
-    options.intra_op_num_threads = int(threads)
-    options.inter_op_num_threads = 1
-    options.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
-    options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
-    options.add_session_config_entry("session.intra_op.allow_spinning", "0")
-    options.log_severity_level = 3
-    try:
-        return ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
-    except Exception as error:  # onnxruntime raises its own Fail/InvalidProtobuf/... types
-        first_line = str(error).strip().splitlines()[0] if str(error).strip() else type(error)
-        raise MomlocError(f"{what} {path}: not a loadable ONNX model ({first_line})") from None

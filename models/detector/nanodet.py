@@ -29,13 +29,13 @@ import numpy as np
 from models.detector.base import (
     Detections,
     PersonDetector,
-    open_session,
     register_detector,
     verify_shipped,
     warm_up,
 )
 from models.detector.preprocessing import Geometry, make_batch, nms
 from models.errors import MomlocError
+from models.onnx_session import open_session
 
 WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
 DEFAULT_MODEL = WEIGHTS_DIR / "nanodet_person.onnx"
@@ -102,7 +102,7 @@ class NanoDetDetector(PersonDetector):
         self.iou_threshold = float(iou_threshold)
         self.max_detections = int(max_detections)
         self.centres, self.strides = anchor_grid(self.input_size)
-        self.session = open_session(path, threads)
+        self.session = open_session(path, threads, what="detector model")
         self._check_interface()
         warm_up(self, path, frames=2)
 

@@ -68,9 +68,10 @@ def fit_frame(
         scale = min(net_w / width, net_h / height)
         new_w, new_h = max(1, round(width * scale)), max(1, round(height * scale))
         pad_x, pad_y = (net_w - new_w) // 2, (net_h - new_h) // 2
-        canvas = np.full((net_h, net_w, 3), PAD_VALUE, np.uint8)
+        padded = np.full((net_h, net_w, 3), PAD_VALUE, np.uint8)
         resized = cv2.resize(frame, (new_w, new_h), interpolation=_interpolation(scale))
-        canvas[pad_y : pad_y + new_h, pad_x : pad_x + new_w] = resized
+        padded[pad_y : pad_y + new_h, pad_x : pad_x + new_w] = resized
+        canvas: np.ndarray = padded
         geometry = Geometry(new_w / width, new_h / height, pad_x, pad_y, width, height)
     else:
         scale_x, scale_y = net_w / width, net_h / height

@@ -24,13 +24,13 @@ import numpy as np
 from models.detector.base import (
     Detections,
     PersonDetector,
-    open_session,
     register_detector,
     verify_shipped,
     warm_up,
 )
 from models.detector.preprocessing import Geometry, make_batch
 from models.errors import MomlocError
+from models.onnx_session import open_session
 
 WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
 DEFAULT_MODEL = WEIGHTS_DIR / "ssdlite_pedestrian.onnx"
@@ -67,7 +67,7 @@ class SSDLiteDetector(PersonDetector):
         self.model_path = path
         self.score_threshold = float(score_threshold)
         self.letterbox = bool(letterbox)
-        self.session = open_session(path, threads)
+        self.session = open_session(path, threads, what="detector model")
         self._check_interface()
         warm_up(self, path, frames=2)
 

@@ -28,12 +28,12 @@ import numpy as np
 from models.detector.base import (
     Detections,
     PersonDetector,
-    open_session,
     register_detector,
     warm_up,
 )
 from models.detector.preprocessing import Geometry, make_batch, nms
 from models.errors import MomlocError
+from models.onnx_session import open_session
 
 
 @register_detector("yolov8")
@@ -59,7 +59,7 @@ class YoloV8Detector(PersonDetector):
         self.person_class = int(person_class)
         self.letterbox = bool(letterbox)
         self.max_detections = int(max_detections)
-        self.session = open_session(self.model_path, threads)
+        self.session = open_session(self.model_path, threads, what="detector model")
         self._configure(input_size)
         warm_up(self, self.model_path, frames=1)  # also checks the output shape
 

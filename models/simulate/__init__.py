@@ -9,7 +9,7 @@ See ARCHITECTURE.md ("Synthetic scene simulator") and CONTRIBUTING.md (``models.
 """
 
 from models.simulate.camera import PinholeCamera
-from models.simulate.presets import PRESETS, get_config, ring_cameras, room_config
+from models.simulate.presets import PRESETS, get_config, make_scene, ring_cameras, room_config
 from models.simulate.profile import (
     DEFAULT_PROFILE,
     DetectorProfile,
@@ -33,6 +33,7 @@ __all__ = [
     "available_profiles",
     "get_config",
     "load_profile",
+    "make_scene",
     "ring_cameras",
     "room_config",
     "simulate",

@@ -143,13 +143,14 @@ class PinholeCamera:
 
     def project_depth(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Like :meth:`project` but returns the camera depth (metres) instead of in_front."""
-        return project_points(
+        pixels, depth = project_points(
             np.asarray(points, dtype=np.float64),
             self.K,
             self.R,
             self.t,
             np.asarray(self.distortion),
         )
+        return pixels, depth
 
     def perturbed(self, dx: float = 0.0, dy: float = 0.0, roll_deg: float = 0.0) -> PinholeCamera:
         """The camera after a bump: image shifted by (dx, dy) pixels and rolled by ``roll_deg``.

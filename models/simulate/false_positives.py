@@ -58,7 +58,9 @@ def slot_count(profile: DetectorProfile, fps: float, block: int) -> tuple[int, f
     return slots, rate / slots
 
 
-def hotspots(profile: DetectorProfile, image_sizes: np.ndarray, rng: np.random.Generator):
+def hotspots(
+    profile: DetectorProfile, image_sizes: np.ndarray, rng: np.random.Generator
+) -> np.ndarray:
     """Per camera ``H`` fixed places: [K, H, 3] = x centre, bottom y, height (own pixels)."""
     fp = profile.false_positives
     k, h = len(image_sizes), fp.hotspots
@@ -135,7 +137,9 @@ def visible(
     return out
 
 
-def _log_uniform(rng: np.random.Generator, span: tuple[float, float], shape) -> np.ndarray:
+def _log_uniform(
+    rng: np.random.Generator, span: tuple[float, float], shape: tuple[int, ...]
+) -> np.ndarray:
     return np.exp(rng.uniform(np.log(span[0]), np.log(span[1]), shape))
 
 

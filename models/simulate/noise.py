@@ -144,8 +144,8 @@ def detect(
     # Occlusion on a grid of sample points inside each clipped box.
     gx = (np.arange(_GRID_X) + 0.5) / _GRID_X
     gy = (np.arange(_GRID_Y) + 0.5) / _GRID_Y
-    u, v = np.meshgrid(gx, gy)
-    u, v = u.ravel(), v.ravel()
+    grid_u, grid_v = np.meshgrid(gx, gy)
+    u, v = grid_u.ravel(), grid_v.ravel()
     x0, y0, x1, y1 = (clipped[..., i, None] for i in range(4))
     samples = np.stack([x0 + (x1 - x0) * u, y0 + (y1 - y0) * v], -1)  # [F,K,P,G,2]
     nearer = depth[..., None, :] < depth[..., :, None] - 0.1  # [F,K,P(i),P(j)]: j nearer than i
@@ -159,7 +159,7 @@ def detect(
     # thread-safe (live demo camera workers share a scene).
     low = np.where(free[..., None], samples, np.inf).min(axis=-2)
     high = np.where(free[..., None], samples, -np.inf).max(axis=-2)
-    none_free = ~free.any(-1)[..., None]
+    none_free = ~np.any(free, axis=-1)[..., None]
     visible_box = np.concatenate(
         [np.where(none_free, np.nan, low - cell), np.where(none_free, np.nan, high + cell)], -1
     )

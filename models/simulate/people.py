@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -34,6 +35,15 @@ class WalkerStates:
     heading: np.ndarray
     phase: np.ndarray
     amplitude: np.ndarray
+
+
+class Walking(Protocol):
+    """What a scene needs of its people: their heights and their states over a frame range
+    (:class:`Walkers` for random walks, ``models.simulate.scripted`` for a set path)."""
+
+    heights: np.ndarray
+
+    def states(self, start: int, stop: int) -> WalkerStates: ...
 
 
 class Walkers:

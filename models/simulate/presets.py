@@ -19,10 +19,11 @@ single-cam      6 × 5      1        640×480    2       one webcam (K = 1 tests
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 
 from models.errors import MomlocError
 from models.simulate.profile import DetectorProfile, load_profile
-from models.simulate.scene import CameraSpec, SceneConfig
+from models.simulate.scene import CameraSpec, Perturbation, Scene, SceneConfig
 
 INSET = 0.05
 _HEIGHTS = (2.3, 2.4, 2.2, 2.5, 2.35, 2.25, 2.45, 2.15, 2.55)
@@ -60,12 +61,15 @@ def room_config(
     depth: float,
     cameras: int,
     people: int = 3,
-    **camera_options: object,
+    *,
+    hfov_deg: float = 65.0,
+    image_size: tuple[int, int] = (640, 480),
+    distortion: tuple[float, float] = (0.0, 0.0),
+    heights: tuple[float, ...] = _HEIGHTS,
 ) -> SceneConfig:
     """A scene of any size with 1-9 ring cameras (see :func:`ring_cameras` for the options)."""
-    return SceneConfig(
-        name, (width, depth), ring_cameras(width, depth, cameras, **camera_options), people=people
-    )
+    ring = ring_cameras(width, depth, cameras, hfov_deg, image_size, distortion, heights)
+    return SceneConfig(name, (width, depth), ring, people=people)
 
 
 PRESETS: dict[str, SceneConfig] = {
@@ -109,7 +113,7 @@ def get_config(
     preset: str | SceneConfig,
     people: int | None = None,
     fps: float | None = None,
-    perturbations: tuple | None = None,
+    perturbations: Sequence[Perturbation] | None = None,
     room: tuple[float, float] | None = None,
     cameras: int | None = None,
     detector_profile: str | DetectorProfile | None = None,
@@ -128,24 +132,46 @@ def get_config(
         raise MomlocError(
             f"unknown scene preset '{preset}' (available: {', '.join(sorted(PRESETS))})"
         )
-    changes: dict[str, object] = {}
     if room is not None or cameras is not None:
         width, depth = room if room is not None else config.room
         if min(width, depth) <= 1.0:
             raise MomlocError(f"room {width} x {depth} m: each side must be over 1 m")
         first = config.cameras[0]
-        changes["room"] = (float(width), float(depth))
-        changes["cameras"] = ring_cameras(
+        ring = ring_cameras(
             width, depth, cameras if cameras is not None else len(config.cameras),
             first.hfov_deg, first.image_size, first.distortion,
         )  # fmt: skip
-        changes["name"] = f"{config.name}-custom"
+        config = dataclasses.replace(
+            config, room=(float(width), float(depth)), cameras=ring, name=f"{config.name}-custom"
+        )
     if people is not None:
-        changes["people"] = int(people)
+        config = dataclasses.replace(config, people=int(people))
     if fps is not None:
-        changes["fps"] = float(fps)
+        config = dataclasses.replace(config, fps=float(fps))
     if perturbations is not None:
-        changes["perturbations"] = tuple(perturbations)
-    if detector_profile is not None:
-        changes["detector_profile"] = load_profile(detector_profile)  # fail early, name the key
-    return dataclasses.replace(config, **changes) if changes else config
+        config = dataclasses.replace(config, perturbations=tuple(perturbations))
+    if detector_profile is not None:  # loaded now: fail early, name the key
+        config = dataclasses.replace(config, detector_profile=load_profile(detector_profile))
+    return config
+
+
+def make_scene(
+    preset: str,
+    *,
+    seed: int,
+    people: int | None = None,
+    fps: float | None = None,
+    perturbations: Sequence[Perturbation] | None = None,
+    detector_profile: str | None = None,
+) -> Scene:
+    """The scene of a preset with the people count and frame rate overridden, optionally
+    cameras bumped mid-run and the simulated detector's profile chosen (name or JSON path;
+    default the shipped detector's): what synthetic cameras show (``capture.synthetic``)."""
+    config = get_config(
+        preset,
+        people=people,
+        fps=fps,
+        perturbations=perturbations,
+        detector_profile=detector_profile,
+    )
+    return Scene(config, seed=seed)

@@ -122,7 +122,8 @@ def _against(wall: int, a0: float, a1: float, top: float, thick: float, width: f
         lo, hi = (a0, 0.0, 0.0), (a1, thick, top)
     else:
         lo, hi = (a0, depth - thick, 0.0), (a1, depth, top)
-    return Furniture(lo, hi, tuple(float(c) for c in colour), shelves)
+    red, green, blue = (float(c) for c in colour)
+    return Furniture(lo, hi, (red, green, blue), shelves)
 
 
 def camera_rays(camera: PinholeCamera) -> np.ndarray:

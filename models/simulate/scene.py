@@ -25,6 +25,7 @@ import itertools
 import threading
 from collections import OrderedDict
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -32,9 +33,12 @@ from models.errors import MomlocError
 from models.simulate import false_positives
 from models.simulate.camera import NEAR, PinholeCamera, project_points
 from models.simulate.noise import correlated_normals, detect
-from models.simulate.people import Walkers
+from models.simulate.people import Walkers, Walking
 from models.simulate.profile import DEFAULT_PROFILE, DetectorProfile, load_profile
 from models.simulate.skeleton import HEAD, MID_HIP, RADII, body_points
+
+if TYPE_CHECKING:  # imported when the first frame is drawn (it needs cv2)
+    from models.simulate.render import Renderer
 
 BLOCK = 64  # frames observed (and noised) together
 MAX_CAMERAS = 9
@@ -127,17 +131,17 @@ class Scene:
         self._fp_places = false_positives.hotspots(
             self.profile, self.image_sizes, np.random.default_rng([self.seed, 5])
         )
-        self.walkers = Walkers(
+        self.walkers: Walking = Walkers(
             config.room, config.people, config.fps, np.random.default_rng([self.seed, 0])
         )
-        self._perturbed = {}
+        self._perturbed: dict[int, list[tuple[int, PinholeCamera]]] = {}
         for p in sorted(config.perturbations, key=lambda q: q.start_frame):
             base = self.cameras[p.camera]
             self._perturbed.setdefault(p.camera, []).append(
                 (p.start_frame, base.perturbed(p.dx, p.dy, p.roll_deg))
             )
         self._blocks: OrderedDict[int, dict[str, np.ndarray]] = OrderedDict()
-        self._renderer = None
+        self._renderer: Renderer | None = None
         # Camera workers of a live demo may share one scene: the walker cache and block cache
         # are filled lazily, so those fills are serialised.
         self._lock = threading.RLock()
@@ -154,6 +158,11 @@ class Scene:
     def image_sizes(self) -> np.ndarray:
         """[K, 2] int32 width, height."""
         return np.array([c.image_size for c in self.cameras], dtype=np.int32)
+
+    def floor_extent(self) -> dict[str, float]:
+        """The room's floor in metres (the map's extent for a synthetic scene)."""
+        width, depth = self.config.room
+        return {"xmin": 0.0, "xmax": float(width), "ymin": 0.0, "ymax": float(depth)}
 
     def cameras_at(self, frame_index: int) -> list[PinholeCamera]:
         """The cameras in force at a frame (perturbed ones after their bump)."""
@@ -302,7 +311,8 @@ class Scene:
             for b in (block - 1, block)
         ]
         rng = np.random.default_rng([self.seed, 8, block])
-        return false_positives.visible(*born, self.profile, self.image_sizes, rng)
+        previous, current = born
+        return false_positives.visible(previous, current, self.profile, self.image_sizes, rng)
 
     def _camera_arrays(self, start: int, stop: int) -> tuple[np.ndarray, ...]:
         """Per frame and camera: K [F,K,3,3], R [F,K,3,3], t [F,K,3], distortion [F,K,2]."""

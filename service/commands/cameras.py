@@ -11,6 +11,10 @@ from __future__ import annotations
 import argparse
 import json
 from dataclasses import asdict
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # loaded when the command runs: `momloc --help` stays fast
+    from capture.v4l2 import VideoDevice
 
 WANTED = ("MJPG", 640, 480, 30.0)
 
@@ -47,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def describe(device) -> list[str]:  # device: capture.v4l2.VideoDevice
+def describe(device: VideoDevice) -> list[str]:
     title = device.card or "(unknown camera)"
     extra = ", ".join(x for x in (device.driver, device.bus) if x)
     lines = [f"{device.path}  {title}" + (f" ({extra})" if extra else "")]

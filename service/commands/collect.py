@@ -3,6 +3,11 @@
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # the command's modules load when it runs: `momloc --help` stays fast
+    from service.setup.collector import Progress
+    from service.setup.feeds import LiveFeed, SyntheticFeed
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -80,7 +85,9 @@ def run(args: argparse.Namespace) -> int:
         feed.close()
         print(f"all {len(marks)} marks are already in {args.out}; use --redo to record again")
         return 0
-    start = (todo[0].x, todo[0].y) if args.source == "cameras" else _room_centre(feed)
+    from service.setup.feeds import SyntheticFeed
+
+    start = _room_centre(feed) if isinstance(feed, SyntheticFeed) else (todo[0].x, todo[0].y)
     steps = plan_steps(
         todo,
         args.seconds,
@@ -97,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
     bar = tqdm(total=round(total, 1), unit="s", desc="collect", mininterval=0.5)
     shown = {"step": -1}
 
-    def on_progress(progress) -> None:
+    def on_progress(progress: Progress) -> None:
         if progress.step_index != shown["step"]:
             shown["step"] = progress.step_index
             tqdm.write(f"[{progress.step_index + 1}/{progress.steps}] {progress.step.instruction}")
@@ -126,19 +133,16 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _room_centre(feed) -> tuple[float, float]:
+def _room_centre(feed: SyntheticFeed) -> tuple[float, float]:
     return (feed.room[0] / 2, feed.room[1] / 2)
 
 
-def _open_feed(args: argparse.Namespace):
+def _open_feed(args: argparse.Namespace) -> SyntheticFeed | LiveFeed:
     from models.errors import MomlocError
+    from service.setup.feeds import LiveFeed, SyntheticFeed
 
     if args.source == "synthetic":
-        from service.setup.feeds import SyntheticFeed
-
         return SyntheticFeed(args.preset, args.seed, detector_profile=args.profile)
     if not args.config:
         raise MomlocError("live collection needs --config FILE (cameras and detector)")
-    from service.setup.feeds import LiveFeed
-
     return LiveFeed.from_config(args.config)

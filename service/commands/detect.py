@@ -10,6 +10,12 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # loaded when the command runs: `momloc --help` stays fast
+    import numpy as np
+
+    from models.detector import Detections
 
 BATCH = 8
 
@@ -80,7 +86,9 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def report(path: Path, image, found, written: Path | None, as_json: bool) -> None:
+def report(
+    path: Path, image: np.ndarray, found: Detections, written: Path | None, as_json: bool
+) -> None:
     height, width = image.shape[:2]
     if as_json:
         record = {
@@ -109,7 +117,7 @@ def report(path: Path, image, found, written: Path | None, as_json: bool) -> Non
         print(f"  annotated: {written}")
 
 
-def annotate(image, found):
+def annotate(image: np.ndarray, found: Detections) -> np.ndarray:
     """A copy of ``image`` with boxes, scores and (if present) keypoints drawn."""
     import cv2
     import numpy as np

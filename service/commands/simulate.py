@@ -4,8 +4,12 @@
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
 from models.errors import MomlocError
+
+if TYPE_CHECKING:  # the simulator loads when the command runs: `momloc --help` stays fast
+    from models.simulate import Perturbation
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -73,7 +77,7 @@ def _room(text: str | None) -> tuple[float, float] | None:
     return width, depth
 
 
-def _bumps(texts: list[str]):
+def _bumps(texts: list[str]) -> list[Perturbation] | None:
     from models.simulate import Perturbation
 
     out = []

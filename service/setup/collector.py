@@ -28,8 +28,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,6 +35,7 @@ from typing import Literal, Protocol
 
 import numpy as np
 
+from models.atomic import atomic_write_json
 from models.dataset import MomDataset
 from models.errors import MomlocError
 from service.setup.marks import FloorMark
@@ -286,19 +285,9 @@ def _read_progress(path: Path) -> tuple[list[dict], int] | None:
 
 
 def _write_progress(path: Path, done: list[dict], legacy_rows: int) -> None:
-    """Atomic rewrite (temporary file, fsync, rename), like the data file itself."""
+    """Atomic rewrite (:mod:`models.atomic`), like the data file itself."""
     document = {"format": PROGRESS_FORMAT, "done": done, "legacy_rows": legacy_rows}
-    text = json.dumps(document, indent=1)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as handle:
-            handle.write(text)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp_name, path)
-    except BaseException:
-        Path(tmp_name).unlink(missing_ok=True)
-        raise
+    atomic_write_json(path, document)
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,7 @@ import time
 import numpy as np
 import pytest
 
-from capture import FrameSource, V4L2Source, VideoFileSource, open_source
+from capture import FrameSource, V4L2Source, VideoFileSource
 from models.errors import MomlocError
 from tests.capture.fakes import FaultySource, frame_number, write_mjpg
 
@@ -67,11 +67,9 @@ def test_v4l2_source_reports_missing_devices(tmp_path):
     assert source.read() is None and source.name == "video63"
 
 
-def test_open_source_picks_the_kind(tmp_path):
-    assert isinstance(open_source(0), V4L2Source)
-    assert isinstance(open_source("2"), V4L2Source)
-    assert isinstance(open_source("/dev/v4l/by-id/usb-cam-index0"), V4L2Source)
-    assert isinstance(open_source(str(tmp_path / "a.avi")), VideoFileSource)
+def test_sources_keep_the_frame_source_protocol(tmp_path):
+    assert isinstance(V4L2Source(0), FrameSource)
+    assert isinstance(VideoFileSource(tmp_path / "a.avi"), FrameSource)
     assert isinstance(FaultySource(), FrameSource)
 
 

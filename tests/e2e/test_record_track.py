@@ -17,9 +17,8 @@ import pytest
 
 from capture.recording import Recording, RecordingWriter
 from capture.rig import FrameSet
-from capture.synthetic import make_scene
 from capture.worker import Frame
-from models.simulate import simulate
+from models.simulate import make_scene, simulate
 from service.cli import main
 from service.demo import DEMO_PRESET, DEMO_SEED
 from service.record import record_scene

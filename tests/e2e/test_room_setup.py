@@ -45,7 +45,7 @@ def install_model(source: Path, target: Path) -> None:
 def matched_errors(messages: list[dict], rig) -> np.ndarray:
     errors = []
     for m in messages:
-        truth = rig.observation_at(m["t"])
+        truth = rig.scene.observe(rig.index_at(m["t"]))
         seen = np.isfinite(truth.boxes).all(axis=2).any(axis=1)
         got = np.array([[p["x"], p["y"]] for p in m["people"]]).reshape(-1, 2)
         if len(got) and seen.any():

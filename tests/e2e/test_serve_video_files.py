@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import websockets
 
-from capture.synthetic import make_scene
+from models.simulate import make_scene
 from service.daemon import build_daemon, serve_in_thread
 from service.demo import DEMO_PRESET, DEMO_SEED
 from service.settings import load_settings

@@ -61,7 +61,7 @@ def test_positions_follow_ground_truth():
         messages = asyncio.run(receive(server.ws + "/v1/stream", 330))[30:]  # tracks confirmed
     errors, reported, visible = [], 0, 0
     for m in messages:
-        truth = rig.observation_at(m["t"])
+        truth = rig.scene.observe(rig.index_at(m["t"]))
         seen = np.isfinite(truth.boxes).all(axis=2).any(axis=1)  # seen by some camera
         gt = truth.world[seen, :2]
         got = np.array([[p["x"], p["y"]] for p in m["people"]]).reshape(-1, 2)
@@ -237,7 +237,7 @@ def test_rendered_frames_through_the_real_detector():
         # model trained on its boxes): all reported 83.5 % within 1 m, confidence >= 0.5 99.2 %.
         errors = []
         for m in messages:
-            truth = rig.observation_at(m["t"]).world[:, :2]
+            truth = rig.scene.observe(rig.index_at(m["t"])).world[:, :2]
             for p in m["people"]:
                 if p["confidence"] >= 0.5:
                     errors.append(np.linalg.norm(truth - [p["x"], p["y"]], axis=1).min())

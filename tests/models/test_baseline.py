@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from models import baseline
+from models.dlt import fit_dlt
 from models.errors import MomlocError
 
 F, CX, CY = 500.0, 320.0, 240.0
@@ -117,7 +118,7 @@ def test_dlt_calibration_recovers_p_up_to_scale() -> None:
     rng = np.random.default_rng(2)
     world = rng.uniform([-1, -1, 0], [2, 2, 1.5], size=(12, 3))
     for p in TILTED:
-        est = baseline.calibrate_dlt(world, baseline.project(p, world))
+        est = fit_dlt(world, baseline.project(p, world))
         np.testing.assert_allclose(_unit(est), _unit(p), atol=1e-9)
         assert baseline.depth_sign(est, world).min() > 0
 
@@ -126,9 +127,9 @@ def test_dlt_calibration_refuses_coplanar_points() -> None:
     rng = np.random.default_rng(3)
     world = np.concatenate([rng.uniform(-1, 1, size=(10, 2)), np.zeros((10, 1))], axis=1)
     with pytest.raises(MomlocError, match="degenerate"):
-        baseline.calibrate_dlt(world, baseline.project(TILTED[0], world))
+        fit_dlt(world, baseline.project(TILTED[0], world))
     with pytest.raises(MomlocError, match=">= 6"):
-        baseline.calibrate_dlt(world[:5], baseline.project(TILTED[0], world[:5]))
+        fit_dlt(world[:5], baseline.project(TILTED[0], world[:5]))
 
 
 def test_chessboard_calibration_is_close_but_not_exact() -> None:

@@ -7,11 +7,11 @@ import json
 import numpy as np
 import pytest
 
+from models.dlt import fit_dlt
 from models.errors import MomlocError
 from models.floor_prior import FloorPrior
 from models.homography import (
     apply_homography,
-    dlt_homography,
     fit_homography,
     homography_jacobian,
 )
@@ -67,7 +67,7 @@ def test_homography_fit_recovers_a_known_map_from_exact_points():
     truth = np.array([[1.2, 0.1, -30.0], [0.05, 0.9, 12.0], [2e-4, 1e-3, 1.0]])
     src = np.random.default_rng(1).uniform([0, 0], [640, 480], (30, 2))
     dst = apply_homography(truth, src)
-    for h in (dlt_homography(src, dst), fit_homography(src, dst)):
+    for h in (fit_dlt(src, dst), fit_homography(src, dst)):
         h = h / h[2, 2]
         np.testing.assert_allclose(h, truth / truth[2, 2], rtol=1e-6, atol=1e-9)
         probe = np.array([[100.0, 400.0], [600.0, 50.0]])

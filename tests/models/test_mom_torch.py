@@ -3,7 +3,7 @@
 import numpy as np
 import torch
 
-from models.mom_torch import DrawAverage, MomDecoder, MomEncoder, fit_homography
+from models.mom_torch import DrawAverage, MomDecoder, MomEncoder, initial_decoder_matrix
 from tests.models.mom_scene import look_at_camera
 
 
@@ -38,11 +38,14 @@ def test_least_squares_init_recovers_the_homography():
     world = rng.uniform(-1, 1, (200, 2))
     homogeneous = np.c_[world, np.zeros(200), np.ones(200)] @ truth.T
     pixels = homogeneous[:, :2] / homogeneous[:, 2:]
-    fitted = fit_homography(world, pixels)
+    fitted = initial_decoder_matrix(world, pixels)
     projected = np.c_[world, np.zeros(200), np.ones(200)] @ fitted.T
     np.testing.assert_allclose(projected[:, :2] / projected[:, 2:], pixels, atol=1e-8)
     # too few pairs falls back to an affine fit that is still finite
-    assert np.isfinite(fit_homography(world[:4], pixels[:4])).all()
+    assert np.isfinite(initial_decoder_matrix(world[:4], pixels[:4])).all()
+    # collinear floor positions: no homography exists, the affine map is used
+    line = np.c_[world[:, 0], 0.5 * world[:, 0]]
+    assert np.isfinite(initial_decoder_matrix(line, pixels)).all()
 
 
 def test_draw_average_is_the_mean_of_per_draw_predictions_in_metres():

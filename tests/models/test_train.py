@@ -86,16 +86,23 @@ def test_each_model_file_is_written_once_complete_and_readable_by_others(tmp_pat
 
     writes: list[str] = []
     real = models.export.atomic_write_json
+    written = {}
 
     def counting(path, value, *args, **kwargs):
         writes.append(path.name)
         assert "floor_prior" in value  # complete on its first and only write
-        return real(path, value, *args, **kwargs)
+        out = real(path, value, *args, **kwargs)
+        written[path.name] = (path.stat().st_ino, path.stat().st_mtime_ns)
+        return out
 
     monkeypatch.setattr(models.export, "atomic_write_json", counting)
     data, _ = make_dataset(300, seed=5)
-    train_model(data, tmp_path / "m", epochs=2, seed=1, progress=False)
+    train_model(data, tmp_path / "m", epochs=2, seed=1, progress=False, extra_meta={"note": 1})
     assert writes == ["model.json"]
+    final = tmp_path / "m" / "model.json"
+    # no other route (a rename over it, a rewrite in place) touched it after that one write
+    assert (final.stat().st_ino, final.stat().st_mtime_ns) == written["model.json"]
+    assert json.loads(final.read_text())["note"] == 1  # extra entries ride in the one write
     for name in ("model.json", "encoder.onnx", "model.pt"):
         assert stat.S_IMODE((tmp_path / "m" / name).stat().st_mode) == 0o644
     assert sorted(p.name for p in (tmp_path / "m").iterdir()) == [

@@ -220,3 +220,17 @@ def test_real_model_associates_three_people(trained_runtime) -> None:
     # A tiny 20-epoch model: measured 52/60 (87 %); the bench's full model reaches > 99 %.
     assert correct / frames >= 0.8
     assert np.median(errors) < 0.35
+
+
+def test_one_association_gate_default_everywhere() -> None:
+    import inspect
+
+    from service.association import DEFAULT_MAX_ERROR_PX
+    from service.pipeline import Pipeline
+    from service.settings import TrackingSettings
+    from service.stream_eval import run_stream
+
+    assert TrackingSettings().max_error_px == DEFAULT_MAX_ERROR_PX
+    for function in (associate, Pipeline, run_stream):
+        default = inspect.signature(function).parameters["max_error_px"].default
+        assert default == DEFAULT_MAX_ERROR_PX, function

@@ -7,14 +7,15 @@ import dataclasses
 
 import pytest
 
-from capture.synthetic import SimulatedDetections, SyntheticRig, make_scene
+from capture.synthetic import SyntheticRig
 from models.mom_runtime import MomRuntime
-from models.simulate import Perturbation
+from models.simulate import Perturbation, make_scene
 from service.daemon import Daemon
 from service.demo import DEMO_PEOPLE, DEMO_PRESET, DEMO_SEED
 from service.hub import Hub
 from service.pipeline import Pipeline
 from service.settings import DEMO_MODEL_DIR
+from service.simulated_detections import SimulatedDetections
 
 FPS = 30.0
 STEP = 2  # process every other scene frame (a loaded machine drops frames the same way)
@@ -29,7 +30,7 @@ def _health_over_time(bump: Perturbation) -> list[tuple[int, dict]]:
     rig = SyntheticRig(scene, fps=FPS, render_every=6)  # previews at 5 Hz, like the demo
     pipeline = Pipeline(
         rig,
-        SimulatedDetections(rig),
+        SimulatedDetections(scene),
         Hub(),
         num_cameras=2,
         runtime=MomRuntime.load(DEMO_MODEL_DIR),

@@ -7,6 +7,7 @@ outcomes are the schedule's, not the machine's load.
 from __future__ import annotations
 
 import threading
+from collections.abc import Sequence
 from types import SimpleNamespace
 
 import numpy as np
@@ -36,7 +37,7 @@ def _scheduler(world: BoxWorld, cost: float, **options) -> tuple[DetectionSchedu
     detector = FakeDetector(world)
     runner = DeferredRunner(jobs(detector), clock, cost=lambda job: cost)
     options.setdefault("wall", clock)
-    return DetectionScheduler(detector, 0.0, runner=runner, clock=clock, **options), clock
+    return DetectionScheduler(detector, runner=runner, clock=clock, **options), clock
 
 
 def _run(scheduler: DetectionScheduler, clock: Clock, world: BoxWorld, frames: int) -> list:
@@ -165,7 +166,7 @@ def test_every_frame_mode_detects_inline() -> None:
     world = BoxWorld()
     clock = Clock()
     detector = FakeDetector(world)
-    scheduler = DetectionScheduler(detector, 0.5, mode="every_frame", clock=clock)
+    scheduler = DetectionScheduler(detector, mode="every_frame", clock=clock)
     published = _run(scheduler, clock, world, 5)
     assert [c[0][0] for c in detector.calls] == [0, 1, 2, 3, 4]
     for i, out in enumerate(published):
@@ -224,7 +225,7 @@ def test_detector_error_reaches_the_pipeline_thread() -> None:
 def test_pipeline_runs_the_scheduled_stage() -> None:
     world = BoxWorld()
     scheduler, clock = _scheduler(world, cost=0.05)
-    stage = DetectorStage(scheduler.detector, 0.0, scheduler)
+    stage = DetectorStage(scheduler.detector, scheduler)
     rig = SimpleNamespace(start=lambda: None, stop=lambda: None, states=lambda: [])
     pipeline = Pipeline(rig, stage, Hub(), num_cameras=2, shift_threaded=False)
     for i in range(6):
@@ -245,7 +246,7 @@ def test_real_detector_on_rendered_frames_produces_boxes() -> None:
     detector = create_detector("ssdlite", threads=1)
     clock = Clock()
     runner = DeferredRunner(jobs(detector), clock, cost=lambda job: 0.06)
-    scheduler = DetectionScheduler(detector, 0.4, runner=runner, clock=clock)
+    scheduler = DetectionScheduler(detector, runner=runner, clock=clock)
     found = []
     for i in range(8):
         clock.t = i / FPS
@@ -295,13 +296,13 @@ def test_a_job_looks_again_at_known_small_people_in_windows():
         or iou(truth, detector.detect([frame])[0].boxes).max() < 0.5
     )
     refiner = WindowRefiner(detector.resized((96, 160)))
-    scheduler = DetectionScheduler(detector, 0.4, refiner=refiner, runner=_NoRunner())
+    scheduler = DetectionScheduler(detector, refiner=refiner, runner=_NoRunner())
     carried = [SimpleNamespace(boxes=(truth + 3)[None].astype(np.float32))]
     job = scheduler._job([SimpleNamespace(timestamp=1.0, image=frame)], carried)
     assert job is not None and len(job.priors) == 1
     (found,) = scheduler.detect_job(job)
     assert iou(truth, found.boxes).max() > 0.7
-    without = DetectionScheduler(detector, 0.4, runner=_NoRunner())
+    without = DetectionScheduler(detector, runner=_NoRunner())
     assert without._job([SimpleNamespace(timestamp=1.0, image=frame)], carried).priors == ()
 
 
@@ -333,3 +334,18 @@ def test_windows_need_a_detector_of_any_input_size():
     )
     with pytest.raises(MomlocError, match=r"detection\.windows"):
         build_detect_stage(settings, None)
+
+
+def test_boxes_are_kept_as_the_detector_scored_them() -> None:
+    """The detector's own score_threshold is the one filter: the scheduler adds none."""
+
+    class LowScores(FakeDetector):
+        def detect(self, frames: Sequence[np.ndarray]) -> list[Detections]:
+            found = super().detect(frames)
+            return [Detections(d.boxes, np.full(len(d), 0.05, np.float32)) for d in found]
+
+    world = BoxWorld()
+    scheduler = DetectionScheduler(LowScores(world), mode="every_frame", clock=Clock())
+    out = scheduler.step(world.frame_set(0))
+    assert [len(d) for d in out] == [1, 1]
+    assert out[0].scores.tolist() == pytest.approx([0.05])

@@ -1,0 +1,58 @@
+"""The demo's ``simulated`` detections: the simulator's noisy boxes as the detection stage.
+
+Why here and not in ``capture``: capture gives frames; which boxes a detector would report is
+the simulator's knowledge (``models.simulate``), and feeding them in place of the detector is a
+choice of the service's demo wiring (``synthetic.detections: simulated``, see
+:mod:`service.demo`). The stage reads each frame's ``seq`` (the scene frame index the synthetic
+rig stamps) and ``camera`` (its position in the rig), so it works on any rig built from the same
+scene, live or replayed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from capture.rig import FrameSet
+from models.simulate import Scene, make_scene
+from service.settings import SyntheticSettings
+
+
+def scene_for(synthetic: SyntheticSettings) -> Scene:
+    """The scene ``synthetic`` settings describe (same settings, same scene: seeded)."""
+    return make_scene(
+        synthetic.preset,
+        seed=synthetic.seed,
+        people=synthetic.people,
+        fps=synthetic.fps,
+        detector_profile=synthetic.detector_profile,
+    )
+
+
+class SimulatedDetections:
+    """Detection stage: the simulator's noisy boxes for each frame's scene index, followed by
+    the profile's false positives for that camera (a real detector reports them too).
+
+    ``cameras[k]`` is the scene camera behind rig camera ``k``.
+    """
+
+    def __init__(self, scene: Scene, cameras: Sequence[int] | None = None) -> None:
+        self.scene = scene
+        self.cameras = list(range(scene.num_cameras)) if cameras is None else list(cameras)
+
+    def __call__(self, frame_set: FrameSet) -> list[np.ndarray]:
+        out = []
+        for frame in frame_set.frames:
+            if frame is None:
+                out.append(np.zeros((0, 4), np.float32))
+                continue
+            observation = self.scene.observe(frame.seq)
+            camera = self.cameras[frame.camera]
+            boxes = np.asarray(observation.boxes, np.float32)
+            per_camera = boxes[:, camera, :] if boxes.size else np.zeros((0, 4), np.float32)
+            false = np.asarray(observation.false_boxes, np.float32)
+            if false.size:
+                per_camera = np.concatenate([per_camera, false[camera]])
+            out.append(per_camera[np.all(np.isfinite(per_camera), axis=1)])
+        return out

@@ -1,0 +1,46 @@
+"""What the daemon's composition checks once, and how it opens cameras from typed settings."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from capture.rig import CameraRig
+from capture.sources import V4L2Source, VideoFileSource
+from models.errors import MomlocError
+from service.daemon import build_daemon, build_rig
+from service.settings import DEMO_MODEL_DIR, load_settings
+from tests.capture.fakes import write_mjpg
+
+
+def test_a_model_for_another_camera_count_is_refused_with_one_line() -> None:
+    settings = load_settings(
+        None,
+        cameras=[{"type": "synthetic", "index": k} for k in range(3)],
+        synthetic={"preset": "indoor-4cam", "detections": "simulated"},
+        model_dir=DEMO_MODEL_DIR,  # trained for 2 cameras
+    )
+    with pytest.raises(MomlocError, match=r"^model_dir: .*expects 2 cameras, 3 are configured$"):
+        build_daemon(settings)
+
+
+def test_cameras_are_opened_by_their_settings_type(tmp_path: Path) -> None:
+    video = write_mjpg(tmp_path / "a.avi", frames=4)
+    settings = load_settings(
+        None,
+        cameras=[
+            {"type": "v4l2", "device": "2", "width": 320, "height": 240},
+            {"type": "v4l2", "device": "/dev/v4l/by-id/usb-cam-index0"},
+            {"type": "file", "path": str(video), "loop": False},
+        ],
+    )
+    rig, player = build_rig(settings)
+    assert isinstance(rig, CameraRig) and player is None
+    first, by_id, played = (worker.source for worker in rig.workers)
+    assert isinstance(first, V4L2Source) and first.device == 2 and first.width == 320
+    assert isinstance(by_id, V4L2Source) and by_id.device == "/dev/v4l/by-id/usb-cam-index0"
+    assert isinstance(played, VideoFileSource) and played.path == video and not played.loop
+    missing = load_settings(None, cameras=[{"type": "file", "path": str(tmp_path / "no.avi")}])
+    with pytest.raises(MomlocError, match=r"no\.avi does not exist"):
+        build_rig(missing)
