@@ -262,6 +262,29 @@ class DatasetAppender:
         MomDataset(image_size=self.image_sizes, **new).save(self.path)
 
 
+def forget_mark(path: Path, mark: FloorMark) -> int:
+    """Remove ``mark``'s rows and its completed entry from a recording, so it can be recorded
+    again (the "record this mark again" of the set-up page); returns the rows removed."""
+    path = Path(path)
+    data = MomDataset.load(path)
+    key = _key(mark.x, mark.y)
+    at_mark = np.array([_key(float(x), float(y)) == key for x, y in data.world[:, :2]], bool)
+    progress = _read_progress(progress_path(path))
+    done, legacy = progress if progress is not None else ([], data.n)
+    done = [d for d in done if _key(d["x"], d["y"]) != key]
+    legacy -= int(at_mark[:legacy].sum())
+    if at_mark.all():
+        path.unlink()
+        progress_path(path).unlink(missing_ok=True)
+        return int(at_mark.sum())
+    arrays = data.arrays()
+    arrays["world"] = arrays["world"][:, :2]
+    kept = {k: v[~at_mark] for k, v in arrays.items() if k != "image_size" and v is not None}
+    MomDataset(image_size=data.image_size, **kept).save(path)
+    _write_progress(progress_path(path), done, legacy)
+    return int(at_mark.sum())
+
+
 def _key(x: float, y: float) -> tuple[int, int]:
     """A label rounded to the centimetre: marks are typed to the centimetre at best."""
     return round(x / MARK_TOLERANCE_M), round(y / MARK_TOLERANCE_M)
