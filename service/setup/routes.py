@@ -20,7 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from models.errors import MomlocError
 from service.api_errors import error_responses
 from service.setup.marks import MAX_MARKS, MarkIn, grid_marks, marks_from_entries
-from service.setup.session import _SAFE_NAME, SetupSession
+from service.setup.session import SAFE_RECORDING_NAME, SetupSession
 from service.setup.training import TrainingJob
 from service.setup.verify import Verifier
 
@@ -158,7 +158,7 @@ def create_setup_router(
         if session.status().get("state") == "running":
             raise HTTPException(409, "a collection is running; wait for it to finish")
         if body.recording is not None:
-            if not _SAFE_NAME.match(body.recording):
+            if not SAFE_RECORDING_NAME.match(body.recording):
                 raise HTTPException(422, f"recording '{body.recording}': a plain .npz file name")
             recording = session.data_dir / body.recording
         elif session.last_recording is not None:

@@ -32,7 +32,7 @@ from service.setup.collector import (
 from service.setup.marks import FloorMark
 from service.setup.quality import MarkQuality
 
-_SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,80}\.npz$")
+SAFE_RECORDING_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,80}\.npz$")
 
 
 class Cancelled(Exception):
@@ -102,7 +102,7 @@ class SetupSession:
         countdown_s: float = 3.0,
         move_s: float = 5.0,
     ) -> dict[str, Any]:
-        if not _SAFE_NAME.match(name):
+        if not SAFE_RECORDING_NAME.match(name):
             raise MomlocError(f"out '{name}': use a plain file name ending in .npz")
         with self._lock:
             if self._thread is not None and self._thread.is_alive():

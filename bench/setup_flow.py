@@ -1,0 +1,101 @@
+"""Machine time of the web set-up flow, Start to live positions, on the synthetic scene.
+
+The daemon runs as ``momloc serve`` would on a first run (no model: set-up mode), on the
+``indoor-2cam`` scene with one simulated person who follows the set-up instructions
+(``synthetic.follow_setup``), and is driven through the same HTTP calls the /setup page makes:
+Start (a R x C grid, S seconds per mark, the page's default move and countdown times), Train
+(the adaptive schedule unless ``--epochs``), then the check step on four of the marks. Reported:
+recording, training and Start-to-positions times, training epochs and validation error, and the
+check's median error.
+
+    .venv/bin/python -m bench.setup_flow [--grid 3x3] [--seconds 20] [--epochs N]
+
+Prints one JSON object; the README's "Set up your room" quotes it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import httpx
+
+from service.daemon import build_daemon, serve_in_thread
+from service.settings import load_settings
+
+
+def wait(read: Any, done: Any, timeout: float) -> Any:
+    deadline = time.time() + timeout
+    while not done(value := read()):
+        if time.time() > deadline:
+            raise TimeoutError(str(value))
+        time.sleep(0.5)
+    return value
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--grid", default="3x3")
+    parser.add_argument("--seconds", type=float, default=20.0)
+    parser.add_argument("--epochs", type=int, default=None)
+    parser.add_argument("--profile", default="nanodet", help="simulated detector profile")
+    args = parser.parse_args()
+    data_dir = Path(tempfile.mkdtemp(prefix="momloc-setup-bench-"))
+    settings = load_settings(
+        None,
+        cameras=[{"type": "synthetic", "index": k} for k in range(2)],
+        synthetic={"people": 1, "follow_setup": True, "detector_profile": args.profile},
+        data_dir=data_dir,
+    )
+    daemon = build_daemon(settings)
+    server = serve_in_thread(daemon)
+    base = f"http://127.0.0.1:{server.port}"
+
+    def status() -> dict[str, Any]:
+        return httpx.get(base + "/v1/setup/status", timeout=30).json()
+
+    try:
+        wait(lambda: daemon.pipeline.image_sizes, lambda s: None not in s, 60)
+        start = {"grid": args.grid, "room": "10x10", "seconds": args.seconds, "out": "room.npz"}
+        t0 = time.time()
+        httpx.post(base + "/v1/setup/start", json=start, timeout=30).raise_for_status()
+        recorded = wait(status, lambda s: s["state"] != "running", 3600)
+        t_recorded = time.time()
+        body = {} if args.epochs is None else {"epochs": args.epochs}
+        httpx.post(base + "/v1/setup/train", json=body, timeout=30).raise_for_status()
+        trained = wait(lambda: status()["training"], lambda t: t["state"] != "running", 3600)
+        t_trained = time.time()
+        wait(lambda: httpx.get(base + "/v1/positions").json()["people"], bool, 60)
+        t_positions = time.time()
+        httpx.post(base + "/v1/setup/verify", json={}, timeout=30).raise_for_status()
+        check = wait(lambda: status()["verify"], lambda v: v["state"] != "running", 600)
+        print(
+            json.dumps(
+                {
+                    "grid": args.grid,
+                    "seconds_per_mark": args.seconds,
+                    "profile": args.profile,
+                    "recording_state": recorded["state"],
+                    "rows": recorded.get("new_rows"),
+                    "recording_s": round(t_recorded - t0, 1),
+                    "training_state": trained["state"],
+                    "training_s": round(t_trained - t_recorded, 1),
+                    "epochs": trained["epoch"],
+                    "val_error_m": trained["val_error_m"],
+                    "start_to_positions_s": round(t_positions - t0, 1),
+                    "check": (check.get("summary") or {}).get("text"),
+                    "check_marks": check.get("marks"),
+                }
+            )
+        )
+    finally:
+        server.stop()
+        daemon.training.cancel()
+
+
+if __name__ == "__main__":
+    main()
