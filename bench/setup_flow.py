@@ -5,8 +5,9 @@ The daemon runs as ``momloc serve`` would on a first run (no model: set-up mode)
 (``synthetic.follow_setup``), and is driven through the same HTTP calls the /setup page makes:
 Start (a R x C grid, S seconds per mark, the page's default move and countdown times), Train
 (the adaptive schedule unless ``--epochs``), then the check step on four of the marks. Reported:
-recording, training and Start-to-positions times, training epochs and validation error, and the
-check's median error.
+recording, training and Start-to-positions times, training epochs and validation error, the
+check's median error, and for comparison ``momloc eval`` of the same model on a recording of the
+same person standing on the same marks (``momloc collect --source synthetic``, same scene).
 
     .venv/bin/python -m bench.setup_flow [--grid 3x3] [--seconds 20] [--epochs N]
 
@@ -17,6 +18,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -73,6 +76,7 @@ def main() -> None:
         t_positions = time.time()
         httpx.post(base + "/v1/setup/verify", json={}, timeout=30).raise_for_status()
         check = wait(lambda: status()["verify"], lambda v: v["state"] != "running", 600)
+        evaluated = eval_at(check.get("marks") or [], data_dir, settings.synthetic, args.profile)
         print(
             json.dumps(
                 {
@@ -89,12 +93,35 @@ def main() -> None:
                     "start_to_positions_s": round(t_positions - t0, 1),
                     "check": (check.get("summary") or {}).get("text"),
                     "check_marks": check.get("marks"),
+                    "eval_same_marks": evaluated,
                 }
             )
         )
     finally:
         server.stop()
         daemon.training.cancel()
+
+
+def eval_at(marks: list[dict], data_dir: Path, synthetic: Any, profile: str) -> dict | None:
+    """``momloc eval`` of the served model on a synthetic recording at the checked marks."""
+    if not marks:
+        return None
+    listed = "\n".join(f"  - {{name: {m['name']}, x: {m['x']}, y: {m['y']}}}" for m in marks)
+    (data_dir / "check-marks.yaml").write_text("marks:\n" + listed + "\n")
+    cli = [sys.executable, "-m", "service.cli"]
+    out = data_dir / "check.npz"
+    subprocess.run(
+        [*cli, "collect", "--source", "synthetic", "--preset", synthetic.preset,
+         "--seed", str(synthetic.seed), "--profile", profile,
+         "--marks", str(data_dir / "check-marks.yaml"), "--seconds", "5", "--out", str(out)],
+        check=True, capture_output=True,
+    )  # fmt: skip
+    result = subprocess.run(
+        [*cli, "eval", str(data_dir / "model"), str(out), "--json"],
+        check=True, capture_output=True, text=True,
+    )  # fmt: skip
+    metrics = json.loads(result.stdout)
+    return {k: metrics[k] for k in ("n", "mean", "median")}
 
 
 if __name__ == "__main__":
