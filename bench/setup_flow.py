@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 import httpx
+import numpy as np
 
 from service.daemon import build_daemon, serve_in_thread
 from service.settings import load_settings
@@ -121,7 +122,28 @@ def eval_at(marks: list[dict], data_dir: Path, synthetic: Any, profile: str) -> 
         check=True, capture_output=True, text=True,
     )  # fmt: skip
     metrics = json.loads(result.stdout)
-    return {k: metrics[k] for k in ("n", "mean", "median")}
+    return {**{k: metrics[k] for k in ("n", "mean", "median")}, **per_mark(data_dir, out)}
+
+
+def per_mark(data_dir: Path, recording: Path) -> dict[str, Any]:
+    """The check's statistic on the offline recording: median error per mark, then the median
+    over marks (``momloc eval`` pools the rows, so marks with more kept rows weigh more)."""
+    from models.dataset import MomDataset
+    from models.evaluate import predict
+    from models.mom_runtime import MomRuntime
+
+    data = MomDataset.load(recording)
+    runtime = MomRuntime.load(data_dir / "model")
+    errors = np.linalg.norm(predict(runtime, data) - data.world[:, :2], axis=1)
+    labels = np.round(data.world[:, :2], 3)
+    medians = {
+        f"{x:.2f},{y:.2f}": round(float(np.nanmedian(errors[(labels == (x, y)).all(axis=1)])), 3)
+        for x, y in np.unique(labels, axis=0)
+    }
+    return {
+        "per_mark_median": medians,
+        "median_over_marks": float(np.median(list(medians.values()))),
+    }
 
 
 if __name__ == "__main__":
