@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from service.setup.collector import DatasetAppender, Step, _key
+from service.setup.collector import DatasetAppender, Step, mark_key
 from service.setup.marks import FloorMark
 
 MIN_SHARE = 0.3
@@ -25,7 +25,7 @@ class MarkQuality:
 
     def __init__(self, marks: list[FloorMark], num_cameras: int) -> None:
         self._marks = {m.name: m for m in marks}
-        self._by_key = {_key(m.x, m.y): m.name for m in marks}
+        self._by_key = {mark_key(m.x, m.y): m.name for m in marks}
         self._offered = dict.fromkeys(self._marks, 0)
         self._kept = {name: np.zeros(num_cameras, int) for name in self._marks}
         self._rows = dict.fromkeys(self._marks, 0)
@@ -52,7 +52,7 @@ class MarkQuality:
         self._recording = None
 
     def _row(self, world: Any, boxes: np.ndarray) -> None:
-        name = self._by_key.get(_key(float(world[0]), float(world[1])))
+        name = self._by_key.get(mark_key(float(world[0]), float(world[1])))
         if name is not None:
             self._rows[name] += 1
             self._kept[name] += np.isfinite(np.asarray(boxes)).all(axis=1)
