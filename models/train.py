@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, NoReturn
@@ -250,11 +251,13 @@ def train_model(
     progress: bool = True,
     tuning: dict | None = None,
     extra_meta: dict[str, Any] | None = None,
+    on_epoch: Callable[[int, int, float], None] | None = None,
 ) -> dict:
     """Train on ``dataset``, write ``out_dir`` (encoder.onnx, model.pt, model.json); metrics.
 
     ``tuning`` overrides TrainSettings / SamplerConfig fields (for measurements and sweeps);
-    ``extra_meta`` adds top-level entries to ``model.json`` in its one write.
+    ``extra_meta`` adds top-level entries to ``model.json`` in its one write;
+    ``on_epoch(epoch, max_epochs, val_error_m)`` after each epoch (the web set-up's progress).
     """
     tuning = dict(tuning or {})
     sampler_keys = set(SamplerConfig.__dataclass_fields__) - {"observation"}
@@ -273,7 +276,16 @@ def train_model(
     torch.set_num_threads(1)
     try:
         return _train(
-            dataset, Path(out_dir), sampler, decoder, epochs, seed, progress, tuning, extra_meta
+            dataset,
+            Path(out_dir),
+            sampler,
+            decoder,
+            epochs,
+            seed,
+            progress,
+            tuning,
+            extra_meta,
+            on_epoch,
         )
     finally:
         torch.set_num_threads(threads)
@@ -289,6 +301,7 @@ def _train(
     progress: bool,
     tuning: dict[str, Any],
     extra_meta: dict[str, Any] | None,
+    on_epoch: Callable[[int, int, float], None] | None,
 ) -> dict:
     torch.manual_seed(seed)
     started = time.monotonic()
@@ -312,6 +325,8 @@ def _train(
             best, best_epoch, best_state = error, index, trainer.state()
         bar.set_postfix_str(f"val {error:.3f} m (best {best:.3f} m @ {best_epoch + 1})")
         bar.update(1)
+        if on_epoch is not None:
+            on_epoch(index + 1, settings.max_epochs, error)
         if index - best_epoch >= settings.patience:
             stop = "early_stopping"
             break

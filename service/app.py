@@ -115,6 +115,10 @@ def create_app(daemon: Daemon, *, manage_pipeline: bool = True) -> FastAPI:
                 daemon.watcher.stop()
             if daemon.setup is not None:
                 await asyncio.to_thread(daemon.setup.stop)
+            if daemon.training is not None:
+                await asyncio.to_thread(daemon.training.cancel)  # no orphan child process
+            if daemon.verifier is not None:
+                await asyncio.to_thread(daemon.verifier.stop)
             if manage_pipeline:
                 await asyncio.to_thread(daemon.pipeline.stop)
             daemon.hub.bind(None)
@@ -151,7 +155,13 @@ def create_app(daemon: Daemon, *, manage_pipeline: bool = True) -> FastAPI:
         return FileResponse(WEB_DIR / "setup.html", headers={"Cache-Control": "no-cache"})
 
     if daemon.setup is not None:
-        app.include_router(create_setup_router(daemon.setup), dependencies=secured, responses=auth)
+        router = create_setup_router(
+            daemon.setup,
+            daemon.training,
+            daemon.verifier,
+            lambda: [len(daemon.pipeline.view(k).boxes) for k in range(len(daemon.camera_names))],
+        )
+        app.include_router(router, dependencies=secured, responses=auth)
     # zones, events, MQTT (own auth, lifespan); the guard covers its WebSocket and POST too
     app.include_router(
         create_zones_router(daemon), responses=error_responses(401, 403, 409, 413, 415, 422, 503)

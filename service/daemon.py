@@ -13,6 +13,7 @@ import socket
 import threading
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from models.detector.windows import WindowRefiner
@@ -23,9 +24,12 @@ from service.pipeline import DetectorStage, Pipeline
 from service.settings import FileCamera, Settings, SyntheticCamera, V4l2Camera
 from service.setup.camera_monitor import CameraMoved
 from service.setup.session import SetupSession
+from service.setup.training import TrainingJob, model_path
+from service.setup.verify import Verifier, stored_verification
 
 log = logging.getLogger("momloc")
 GRACEFUL_SHUTDOWN_S = 3
+NO_MODEL = "no model yet: record floor marks at /setup"
 
 
 @dataclass
@@ -48,6 +52,13 @@ class Daemon:
     allowed_hosts: list[str] = field(default_factory=list)
     allowed_origins: list[str] = field(default_factory=list)
     outputs: Any = None  # service.outputs.Outputs: zones, MQTT
+    training: TrainingJob | None = None  # the /setup page's Train button
+    verifier: Verifier | None = None  # the /setup page's check step
+
+    @property
+    def setup_mode(self) -> bool:
+        """No model is served: cameras, previews and /setup work, no positions are published."""
+        return self.pipeline.runtime is None
 
     def camera_states(self) -> list[dict[str, Any]]:
         states = self.pipeline.rig.states()
@@ -72,6 +83,9 @@ class Daemon:
         cameras = self.camera_states()
         model = self.pipeline.model_info()
         pipeline = self.pipeline.stats()
+        model["verification"] = stored_verification(self.pipeline.model_dir)
+        if self.setup_mode:
+            model["message"] = NO_MODEL
         ok = (
             all(c["connected"] and not (c["alignment"] or {}).get("moved") for c in cameras)
             and model["loaded"]
@@ -80,7 +94,8 @@ class Daemon:
             and pipeline["error"] is None
         )
         return {
-            "status": "ok" if ok else "degraded",
+            "status": "setup" if self.setup_mode else "ok" if ok else "degraded",
+            "setup_mode": self.setup_mode,
             "uptime_s": round(time.time() - self.started, 1),
             "cameras": cameras,
             "model": model,
@@ -98,6 +113,7 @@ class Daemon:
             "floor": self.floor,
             "stream_rate": self.stream_rate,
             "auth": self.token is not None,
+            "setup_mode": self.setup_mode,
             "zones": []
             if self.outputs is None
             else [z.as_dict() for z in self.outputs.zones.zones],
@@ -243,18 +259,31 @@ def floor_extent(settings: Settings, runtime: Any, player: Any) -> dict[str, flo
     return None
 
 
+def resolve_model_dir(settings: Settings) -> Path | None:
+    """The model to serve: ``model_dir``, else the one the /setup page trained, else None
+    (set-up mode). Never the shipped demo model: on real cameras its positions mean nothing."""
+    if settings.model_dir is not None:
+        return settings.model_dir
+    trained = model_path(settings.data_dir)
+    return trained if (trained / "model.json").is_file() else None
+
+
 def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
     """Open cameras, load the detector and model, wire the pipeline (not started yet)."""
     from models.mom_runtime import MomRuntime
     from service.tracking import Tracker
 
     runtime = None
-    try:
-        runtime = MomRuntime.load(settings.model_dir)
-    except MomlocError:
-        if require_model:
-            raise
-        log.warning("no usable model in %s; serving without positions", settings.model_dir)
+    model_dir = resolve_model_dir(settings)
+    if model_dir is None:
+        log.warning("%s (set-up mode: no positions until a model is trained)", NO_MODEL)
+    else:
+        try:
+            runtime = MomRuntime.load(model_dir)
+        except MomlocError:
+            if require_model:
+                raise
+            log.warning("no usable model in %s; serving without positions", model_dir)
     rig, player = build_rig(settings)
     detect = build_detect_stage(settings, player)
     hub = Hub()
@@ -264,7 +293,7 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
         hub,
         num_cameras=len(settings.cameras),
         runtime=runtime,
-        model_dir=settings.model_dir,
+        model_dir=model_dir,
         tracker=Tracker(fps_hint=30.0, max_missing_s=settings.tracking.max_missing_s),
         max_error_px=settings.tracking.max_error_px,
     )
@@ -292,6 +321,12 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
             detach=pipeline.remove_detection_listener,
         ),
     )
+    session = daemon.setup
+    daemon.training = TrainingJob(lambda: session.data_dir, pipeline.reload_model)
+    daemon.verifier = Verifier(hub.latest, lambda: pipeline.model_dir if pipeline.runtime else None)
+    walker = getattr(getattr(player, "scene", None), "walkers", None)
+    if hasattr(walker, "target"):  # synthetic.follow_setup: the simulated person obeys /setup
+        walker.target = lambda: session.target() or daemon.verifier.target()
     from service.outputs import build_outputs
 
     daemon.outputs = build_outputs(settings, daemon)

@@ -253,7 +253,8 @@ class Pipeline:
         t3 = time.perf_counter()
         people = [_person(tr) for tr in tracks]
         snapshot = Snapshot.build(self._seq, t_capture, people)
-        self.hub.publish(snapshot)
+        if runtime is not None:  # set-up mode (no model) publishes no positions at all
+            self.hub.publish(snapshot)
         now = time.time()
         self._record(frames, detections, associations, tracks, t_capture, now)
         self._stage_ms = {

@@ -199,6 +199,13 @@ class SyntheticSettings(BaseModel):
             "(nanodet, ssdlite, ideal) or a profile JSON path; see models/simulate/profile.py."
         ),
     )
+    follow_setup: bool = Field(
+        False,
+        description=(
+            "One simulated person who follows the /setup page's instructions (goes to each "
+            "mark, stands on it) instead of random walkers: the set-up flow without a human."
+        ),
+    )
     preview_fps: float = Field(
         5.0,
         ge=0,
@@ -277,8 +284,12 @@ class Settings(BaseSettings):
     cameras: list[CameraSettings] = Field(
         min_length=1, max_length=9, description="Cameras in model order (1 to 9)."
     )
-    model_dir: Path = Field(
-        DEMO_MODEL_DIR, description="Directory with encoder.onnx and model.json (momloc train)."
+    model_dir: Path | None = Field(
+        None,
+        description=(
+            "Directory with encoder.onnx and model.json (momloc train). Absent: the model the "
+            "/setup page trained (data_dir/model), else set-up mode (no positions until one is)."
+        ),
     )
 
     detector: DetectorSettings = Field(
@@ -345,8 +356,10 @@ class Settings(BaseSettings):
 
     @field_validator("model_dir")
     @classmethod
-    def _path_fits_the_os(cls, value: Path) -> Path:
+    def _path_fits_the_os(cls, value: Path | None) -> Path | None:
         """A path the OS cannot hold is a settings error, not an OSError deep in loading."""
+        if value is None:
+            return None
         if len(str(value)) > 4096 or any(len(part.encode()) > 255 for part in value.parts):
             raise ValueError("path too long (at most 255 bytes per name, 4096 in all)")
         return value

@@ -20,14 +20,22 @@ from service.settings import SyntheticSettings
 
 
 def scene_for(synthetic: SyntheticSettings) -> Scene:
-    """The scene ``synthetic`` settings describe (same settings, same scene: seeded)."""
-    return make_scene(
+    """The scene ``synthetic`` settings describe (same settings, same scene: seeded).
+
+    ``follow_setup``: one person who walks to wherever ``/setup`` tells them to stand.
+    """
+    scene = make_scene(
         synthetic.preset,
         seed=synthetic.seed,
-        people=synthetic.people,
+        people=1 if synthetic.follow_setup else synthetic.people,
         fps=synthetic.fps,
         detector_profile=synthetic.detector_profile,
     )
+    if synthetic.follow_setup:
+        from models.simulate.following import install_follower
+
+        install_follower(scene)
+    return scene
 
 
 class SimulatedDetections:

@@ -44,7 +44,11 @@ def serve_settings(settings: Any, banner: str) -> int:
         shown = "127.0.0.1" if host in ("0.0.0.0", "::") else host
         shown = f"[{shown}]" if ":" in shown else shown
         query = "?token=…" if settings.token else ""
-        print(f"momloc: {banner}; model {settings.model_dir}", flush=True)
+        model = daemon.pipeline.model_dir
+        print(f"momloc: {banner}; model {model or 'none (set-up mode)'}", flush=True)
+        if daemon.setup_mode:
+            print(f"  set up:    http://{shown}:{port}/setup{query}  <- open this first: "
+                  "no model yet, record floor marks and train there", flush=True)  # fmt: skip
         print(f"  live map:  http://{shown}:{port}/{query}", flush=True)
         print(f"  stream:    ws://{shown}:{port}/v1/stream{query}", flush=True)
         print(f"  API docs:  http://{shown}:{port}/docs", flush=True)

@@ -36,6 +36,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--progress-json",
+        action="store_true",
+        help='one JSON line per epoch on stdout: {"epoch", "max_epochs", "val_error_m"} '
+        "(for programs following the training, e.g. the /setup page)",
+    )
     parser.set_defaults(func=run)
 
 
@@ -54,6 +60,7 @@ def run(args: argparse.Namespace) -> int:
         epochs=args.epochs,
         seed=args.seed,
         progress=not args.quiet,
+        on_epoch=_print_epoch if args.progress_json else None,
     )
     summary = {k: v for k, v in metrics.items() if k != "val_history"}
     print(json.dumps(summary))
@@ -66,3 +73,8 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     return 0
+
+
+def _print_epoch(epoch: int, max_epochs: int, val_error_m: float) -> None:
+    line = {"epoch": epoch, "max_epochs": max_epochs, "val_error_m": round(val_error_m, 4)}
+    print(json.dumps(line), flush=True)

@@ -184,14 +184,14 @@ class DatasetAppender:
             self.next_frame = int(self._existing.frame.max()) + 1
             self.next_track = int(self._existing.track.max()) + 1
             labels = self._existing.world[:, :2].tolist()
-            self._row_keys = {_key(x, y) for x, y in labels}
+            self._row_keys = {mark_key(x, y) for x, y in labels}
             progress = _read_progress(progress_path(self.path))
             if progress is None:  # a file from before progress files: all its rows are legacy
                 self._legacy_rows, self._progress_dirty = len(labels), True
             else:
                 self._done, self._legacy_rows = progress
-            self._legacy_keys = {_key(x, y) for x, y in labels[: self._legacy_rows]}
-            self._done_keys = {_key(d["x"], d["y"]) for d in self._done}
+            self._legacy_keys = {mark_key(x, y) for x, y in labels[: self._legacy_rows]}
+            self._done_keys = {mark_key(d["x"], d["y"]) for d in self._done}
 
     @property
     def existing_rows(self) -> int:
@@ -203,18 +203,18 @@ class DatasetAppender:
 
     def has_rows_at(self, mark: FloorMark) -> bool:
         """Whether the file holds rows labelled at this mark (complete or not)."""
-        return _key(mark.x, mark.y) in self._row_keys
+        return mark_key(mark.x, mark.y) in self._row_keys
 
     def has_mark(self, mark: FloorMark) -> bool:
         """Whether this mark's recording completed in an earlier run (see the module doc)."""
-        key = _key(mark.x, mark.y)
+        key = mark_key(mark.x, mark.y)
         return key in self._legacy_keys or key in self._done_keys
 
     def mark_done(self, mark: FloorMark) -> None:
         """Record that ``mark`` completed; written with the next :meth:`flush`."""
         if not self.has_mark(mark):
             self._done.append({"name": mark.name, "x": mark.x, "y": mark.y})
-            self._done_keys.add(_key(mark.x, mark.y))
+            self._done_keys.add(mark_key(mark.x, mark.y))
         self._progress_dirty = True
 
     def new_track(self) -> int:
@@ -223,7 +223,7 @@ class DatasetAppender:
 
     def add(self, world, boxes: np.ndarray, keypoints: np.ndarray | None, track: int) -> None:
         world = np.asarray(world, np.float32)[:2]
-        self._row_keys.add(_key(float(world[0]), float(world[1])))
+        self._row_keys.add(mark_key(float(world[0]), float(world[1])))
         self._rows["world"].append(world)
         self._rows["boxes"].append(boxes)
         self._rows["keypoints"].append(keypoints)
@@ -261,7 +261,30 @@ class DatasetAppender:
         MomDataset(image_size=self.image_sizes, **new).save(self.path)
 
 
-def _key(x: float, y: float) -> tuple[int, int]:
+def forget_mark(path: Path, mark: FloorMark) -> int:
+    """Remove ``mark``'s rows and its completed entry from a recording, so it can be recorded
+    again (the "record this mark again" of the set-up page); returns the rows removed."""
+    path = Path(path)
+    data = MomDataset.load(path)
+    key = mark_key(mark.x, mark.y)
+    at_mark = np.array([mark_key(float(x), float(y)) == key for x, y in data.world[:, :2]], bool)
+    progress = _read_progress(progress_path(path))
+    done, legacy = progress if progress is not None else ([], data.n)
+    done = [d for d in done if mark_key(d["x"], d["y"]) != key]
+    legacy -= int(at_mark[:legacy].sum())
+    if at_mark.all():
+        path.unlink()
+        progress_path(path).unlink(missing_ok=True)
+        return int(at_mark.sum())
+    arrays = data.arrays()
+    arrays["world"] = arrays["world"][:, :2]
+    kept = {k: v[~at_mark] for k, v in arrays.items() if k != "image_size" and v is not None}
+    MomDataset(image_size=data.image_size, **kept).save(path)
+    _write_progress(progress_path(path), done, legacy)
+    return int(at_mark.sum())
+
+
+def mark_key(x: float, y: float) -> tuple[int, int]:
     """A label rounded to the centimetre: marks are typed to the centimetre at best."""
     return round(x / MARK_TOLERANCE_M), round(y / MARK_TOLERANCE_M)
 

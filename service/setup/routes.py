@@ -1,16 +1,28 @@
-"""REST endpoints of the web set-up flow (``/setup`` page): start, follow and stop a collection."""
+"""REST endpoints of the web set-up flow (``/setup`` page): record, train, verify.
+
+- ``POST /v1/setup/start`` / ``stop``: a guided collection at floor marks;
+  ``POST /v1/setup/record-again`` ``{"mark": "B2"}``: forget one mark's rows and record it alone.
+- ``POST /v1/setup/train`` (202) / ``train/cancel``: ``momloc train`` in a child process.
+- ``POST /v1/setup/verify`` / ``verify/stop``: the check step (live error at a few marks).
+- ``GET /v1/setup/status``: all of it, plus what each camera's detector sees now.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from pathlib import Path
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, HTTPException
+from fastapi.responses import JSONResponse
 from pydantic import BaseModel, ConfigDict, Field
 
 from models.errors import MomlocError
 from service.api_errors import error_responses
 from service.setup.marks import MAX_MARKS, MarkIn, grid_marks, marks_from_entries
-from service.setup.session import SetupSession
+from service.setup.session import SAFE_RECORDING_NAME, SetupSession
+from service.setup.training import TrainingJob
+from service.setup.verify import Verifier
 
 _GRID = r"^\s*[0-9]{1,6}\s*[xX×]\s*[0-9]{1,6}\s*$"
 _ROOM = r"^\s*[0-9]{1,6}(\.[0-9]{1,6})?\s*[xX×]\s*[0-9]{1,6}(\.[0-9]{1,6})?\s*$"
@@ -48,7 +60,47 @@ class StopRequest(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
 
-def create_setup_router(session: SetupSession) -> APIRouter:
+class TrainRequest(BaseModel):
+    """Everything optional: the last recording, the adaptive schedule."""
+
+    model_config = ConfigDict(extra="forbid")
+    recording: str | None = Field(
+        None,
+        max_length=90,
+        description="Recording file name in the daemon's data directory; default: the last one.",
+    )
+    epochs: int | None = Field(
+        None, ge=1, le=2000, description="Maximum epochs (default: adaptive, a few minutes)."
+    )
+
+
+class RecordAgainRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    mark: str = Field(min_length=1, max_length=40, description="Name of the mark, e.g. B2.")
+
+
+class VerifyRequest(BaseModel):
+    """Marks to check (default: up to four of the last recording's), and the timing."""
+
+    model_config = ConfigDict(extra="forbid")
+    marks: list[MarkIn] | None = Field(
+        None, max_length=MAX_MARKS, description="Marks to stand on; new ones are the best test."
+    )
+    seconds: float = Field(5.0, gt=0, le=120, description="Seconds measured on each mark.")
+    move_seconds: float = Field(5.0, ge=0, le=120, description="Time to reach each mark.")
+    countdown: float = Field(2.0, ge=0, le=30, description="Seconds before measuring starts.")
+
+
+VERIFY_DEFAULT_MARKS = 4
+
+
+def create_setup_router(
+    session: SetupSession,
+    training: TrainingJob,
+    verifier: Verifier,
+    cameras_now: Callable[[], list[int]],
+) -> APIRouter:
+    """``cameras_now()``: how many people each camera's detector sees in the newest frames."""
     router = APIRouter(prefix="/v1/setup", tags=["setup"])
 
     @router.post(
@@ -75,9 +127,75 @@ def create_setup_router(session: SetupSession) -> APIRouter:
         except MomlocError as error:
             raise HTTPException(409 if "already" in str(error) else 422, str(error)) from None
 
-    @router.get("/status", summary="Progress of the current or last collection")
+    @router.get("/status", summary="Collection, training and check; what each camera sees")
     def status() -> dict[str, Any]:
-        return session.status()
+        return {
+            **session.status(),
+            "cameras_now": cameras_now(),
+            "training": training.status(),
+            "verify": verifier.status(),
+        }
+
+    @router.post(
+        "/record-again",
+        summary="Forget one mark's frames in the last recording and record that mark again",
+        responses=error_responses(409, 413, 415, 422),
+    )
+    def record_again(request: Annotated[RecordAgainRequest, Body()]) -> dict[str, Any]:
+        try:
+            return session.record_again(request.mark)
+        except MomlocError as error:
+            raise HTTPException(409 if "running" in str(error) else 422, str(error)) from None
+
+    @router.post(
+        "/train",
+        status_code=202,
+        summary="Train a model on a recording (background process; follow it in /status)",
+        responses=error_responses(409, 413, 415, 422),
+    )
+    def train(body: Annotated[TrainRequest | None, Body()] = None) -> JSONResponse:
+        body = body or TrainRequest()
+        if session.status().get("state") == "running":
+            raise HTTPException(409, "a collection is running; wait for it to finish")
+        if body.recording is not None:
+            if not SAFE_RECORDING_NAME.match(body.recording):
+                raise HTTPException(422, f"recording '{body.recording}': a plain .npz file name")
+            recording = session.data_dir / body.recording
+        elif session.last_recording is not None:
+            recording = session.last_recording
+        else:
+            recording = session.data_dir / "setup.npz"
+        try:
+            return JSONResponse(training.start(Path(recording), body.epochs), status_code=202)
+        except MomlocError as error:
+            raise HTTPException(409 if "already" in str(error) else 422, str(error)) from None
+
+    @router.post(
+        "/train/cancel",
+        summary="Stop the running training (the served model stays)",
+        responses=error_responses(413, 415, 422),
+    )
+    def cancel_training(body: Annotated[StopRequest, Body()]) -> dict[str, Any]:
+        return training.cancel()
+
+    @router.post(
+        "/verify",
+        summary="Check the served model: stand on marks, see the error at each",
+        responses=error_responses(409, 413, 415, 422),
+    )
+    def verify(request: Annotated[VerifyRequest, Body()]) -> dict[str, Any]:
+        try:
+            if request.marks:
+                marks = marks_from_entries(request.marks, "marks")
+            else:
+                marks = spread(session.marks(), VERIFY_DEFAULT_MARKS)
+            return verifier.start(marks, request.seconds, request.move_seconds, request.countdown)
+        except MomlocError as error:
+            raise HTTPException(409 if "already" in str(error) else 422, str(error)) from None
+
+    @router.post("/verify/stop", summary="Stop the check", responses=error_responses(413, 415, 422))
+    def stop_verify(body: Annotated[StopRequest, Body()]) -> dict[str, Any]:
+        return verifier.stop()
 
     @router.post(
         "/stop",
@@ -88,3 +206,11 @@ def create_setup_router(session: SetupSession) -> APIRouter:
         return session.stop()
 
     return router
+
+
+def spread(marks: list[Any], count: int) -> list[Any]:
+    """Up to ``count`` marks evenly spread along the recording order (which covers the room)."""
+    if len(marks) <= count:
+        return list(marks)
+    step = (len(marks) - 1) / (count - 1)
+    return [marks[round(i * step)] for i in range(count)]

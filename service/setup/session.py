@@ -26,11 +26,13 @@ from service.setup.collector import (
     Progress,
     Step,
     collect,
+    forget_mark,
     plan_steps,
 )
 from service.setup.marks import FloorMark
+from service.setup.quality import MarkQuality
 
-_SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,80}\.npz$")
+SAFE_RECORDING_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,80}\.npz$")
 
 
 class Cancelled(Exception):
@@ -83,6 +85,12 @@ class SetupSession:
         self._thread: threading.Thread | None = None
         self._tap: DetectionTap | None = None
         self._state: dict[str, Any] = {"state": "idle"}
+        self._marks: list[FloorMark] = []
+        self._done: set[str] = set()  # names of the marks recorded (this run or before)
+        self._options: dict[str, Any] = {}
+        self._quality: MarkQuality | None = None
+        self._earlier_quality: list[dict[str, Any]] = []  # marks not in a record-again run
+        self.last_recording: Path | None = None
 
     def start(
         self,
@@ -94,7 +102,7 @@ class SetupSession:
         countdown_s: float = 3.0,
         move_s: float = 5.0,
     ) -> dict[str, Any]:
-        if not _SAFE_NAME.match(name):
+        if not SAFE_RECORDING_NAME.match(name):
             raise MomlocError(f"out '{name}': use a plain file name ending in .npz")
         with self._lock:
             if self._thread is not None and self._thread.is_alive():
@@ -118,6 +126,13 @@ class SetupSession:
             )
             tap = DetectionTap(writer.image_sizes)
             self._tap = tap
+            self._marks = list(marks)
+            self._done = {m.name for m, d in zip(marks, done, strict=True) if d}
+            self._options = {"seconds": seconds, "name": name, "walk": walk,
+                             "countdown_s": countdown_s, "move_s": move_s}  # fmt: skip
+            self._quality = MarkQuality(todo, writer.image_sizes.shape[0])
+            self._earlier_quality = []
+            self.last_recording = writer.path
             self._state = {
                 "state": "running",
                 "out": str(writer.path.resolve()),
@@ -137,7 +152,7 @@ class SetupSession:
 
     def _run(self, tap: DetectionTap, steps: list[Step], writer: DatasetAppender) -> None:
         try:
-            collect(tap, steps, writer, on_progress=self._on_progress)
+            collect(tap, steps, self._quality.counting(writer), on_progress=self._on_progress)
             final = "done"
         except Cancelled:
             final = "stopped"
@@ -145,6 +160,8 @@ class SetupSession:
             final = f"failed: {error}"
         finally:
             self._detach(tap.push)
+            if self._quality is not None:
+                self._quality.finish()
         self._state.update(
             state=final.split(":")[0],
             error=final if final.startswith("failed") else None,
@@ -155,10 +172,14 @@ class SetupSession:
 
     def _on_progress(self, progress: Progress) -> None:
         step = progress.step
+        if self._quality is not None:
+            self._quality.frame(step, progress.cameras_seeing)
+
         self._state.update(
             step_index=progress.step_index,
             kind=step.kind,
             instruction=step.instruction,
+            target=None if step.mark is None else [step.end[0], step.end[1]],
             mark=None if step.mark is None else step.mark.name,
             fraction=round(progress.fraction, 3),
             remaining_s=round(max(0.0, (1 - progress.fraction) * step.seconds), 1),
@@ -175,4 +196,54 @@ class SetupSession:
         return self.status()
 
     def status(self) -> dict[str, Any]:
-        return dict(self._state)
+        """The state, plus every mark of the plan (done / current / todo) and per-mark quality."""
+        out = dict(self._state)
+        quality = self._quality
+        finished = set() if quality is None else set(quality.finished)
+        current = out.get("mark") if out.get("state") == "running" else None
+        out["marks"] = [
+            {
+                "name": m.name,
+                "x": m.x,
+                "y": m.y,
+                "state": "done"
+                if m.name in self._done or m.name in finished
+                else "current"
+                if m.name == current
+                else "todo",
+            }
+            for m in self._marks
+        ]
+        out["quality"] = self._earlier_quality + ([] if quality is None else quality.report())
+        return out
+
+    def marks(self) -> list[FloorMark]:
+        """The marks of the last collection plan (for the check step's default)."""
+        return list(self._marks)
+
+    def target(self) -> tuple[float, float] | None:
+        """Where the instructions send the person now (the synthetic follower goes there)."""
+        state = self._state
+        if state.get("state") != "running" or state.get("mark") is None:
+            return None
+        target = state.get("target")
+        return None if target is None else (float(target[0]), float(target[1]))
+
+    def record_again(self, mark_name: str) -> dict[str, Any]:
+        """Forget ``mark_name``'s rows in the last recording and record it alone again."""
+        with self._lock:
+            if self._thread is not None and self._thread.is_alive():
+                raise MomlocError("a collection is running; wait for it or stop it first")
+        mark = next((m for m in self._marks if m.name == mark_name), None)
+        if mark is None or self.last_recording is None:
+            known = ", ".join(m.name for m in self._marks) or "none: record marks first"
+            raise MomlocError(f"mark: '{mark_name}' is not a mark of the last recording ({known})")
+        if self.last_recording.exists():
+            forget_mark(self.last_recording, mark)
+        marks, options = list(self._marks), dict(self._options)
+        earlier = [q for q in self.status()["quality"] if q["mark"] != mark.name]
+        finished = {q["mark"] for q in earlier}
+        done = (self._done | finished) - {mark.name}
+        self.start([mark], options.pop("seconds"), options.pop("name"), **options)
+        self._marks, self._done, self._earlier_quality = marks, done, earlier
+        return self.status()

@@ -195,7 +195,8 @@ async function refreshHealth() {
     document.getElementById("pipeline-fps").textContent = p.fps.toFixed(1);
     document.getElementById("latency").textContent = p.latency_ms.p95 == null ? "–" : p.latency_ms.p95.toFixed(0);
     const rows = [row("status", h.status, h.status === "ok"),
-      row("model", h.model.loaded ? (h.model.compatible ? "loaded" : h.model.problem) : "not loaded", h.model.loaded && h.model.compatible),
+      row("model", h.model.loaded ? (h.model.compatible ? "loaded" : h.model.problem) : (h.model.message || "not loaded"), h.model.loaded && h.model.compatible),
+      ...(h.model.verification ? [row("checked", h.model.verification.text, true)] : []),
       row("pipeline", `${p.fps.toFixed(1)} fps, p50 ${p.latency_ms.p50 ?? "–"} ms`, p.running && !p.error),
       row("dropped frames", String(p.frames_dropped)), row("clients", String(h.clients))];
     for (const c of h.cameras) {
@@ -205,6 +206,7 @@ async function refreshHealth() {
     if (p.error) rows.push(row("error", p.error, false));
     document.querySelector("#health tbody").replaceChildren(...rows);
     showMoved(h.cameras);
+    document.getElementById("setup-banner").hidden = !h.setup_mode;
   } catch (e) { /* server restarting: the WebSocket pill already says so */ }
 }
 
@@ -244,6 +246,7 @@ function refreshPreviews() {
 }
 
 async function init() {
+  document.getElementById("setup-link").href = withToken("/setup");
   try {
     const cfg = await getJSON("/v1/config");
     state.floor = cfg.floor;

@@ -13,7 +13,7 @@ import websockets
 from models.simulate import make_scene
 from service.daemon import build_daemon, serve_in_thread
 from service.demo import DEMO_PRESET, DEMO_SEED
-from service.settings import load_settings
+from service.settings import DEMO_MODEL_DIR, load_settings
 
 pytestmark = pytest.mark.timeout(240)
 FRAMES = 45
@@ -39,6 +39,7 @@ def test_serve_on_video_files_with_the_real_detector(tmp_path):
     config.write_text(
         f"cameras:\n  - {{type: file, path: {cam0}}}\n  - {{type: file, path: {cam1}}}\n"
         "detector: {score_threshold: 0.4}\n"
+        f"model_dir: {DEMO_MODEL_DIR}\n"  # the clips are drawn from the demo model's room
     )
     settings = load_settings(config)
     background = serve_in_thread(build_daemon(settings))

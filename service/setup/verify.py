@@ -1,0 +1,197 @@
+"""Verification: "stand on mark B2", then the live error there, for a few marks.
+
+After training, the user stands on some marks (the recording's, or new ones typed now and never
+used in training, the honest test) and the page shows how far the served position is from each
+mark, live, and a summary ("median 0.09 m over 4 marks"). The summary is stored in the model's
+``model.json`` (key ``verification``, written atomically) and shown in ``/v1/health``, so the
+number stays with the model it describes.
+
+How a mark is measured: after the move and countdown, the published snapshots of ``seconds`` are
+read (the hub's newest, polled at 10 Hz: the verifier must never slow the pipeline); in each, the
+person nearest to the mark counts (someone else in the room is further away). The mark's error is
+the median of those distances (a median, so a moment of a wrong association does not dominate);
+with nobody seen, the mark has no error and the summary says how many marks had none.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from models.atomic import atomic_write_json
+from models.errors import MomlocError
+from service.setup.marks import FloorMark
+
+POLL_S = 0.1
+
+
+class Cancelled(Exception):
+    """The user stopped the check."""
+
+
+class Verifier:
+    """At most one check at a time, on the daemon's published positions."""
+
+    def __init__(self, latest: Callable[[], Any], model_dir: Callable[[], Path | None]) -> None:
+        self._latest = latest  # the hub's newest snapshot
+        self._model_dir = model_dir  # the model being served (None: no model)
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._lock = threading.Lock()
+        self._state: dict[str, Any] = {"state": "idle"}
+
+    def start(
+        self, marks: list[FloorMark], seconds: float, move_s: float, countdown_s: float
+    ) -> dict[str, Any]:
+        with self._lock:
+            if self._thread is not None and self._thread.is_alive():
+                raise MomlocError("a check is already running; stop it first")
+            if self._model_dir() is None:
+                raise MomlocError("no model yet: record floor marks and train first")
+            if not marks:
+                raise MomlocError("marks: give at least one mark (or record marks first)")
+            self._stop.clear()
+            self._state = {
+                "state": "running",
+                "marks": [
+                    {"name": m.name, "x": m.x, "y": m.y, "error_m": None, "samples": 0}
+                    for m in marks
+                ],
+                "summary": None,
+            }
+            self._thread = threading.Thread(
+                target=self._run,
+                args=(marks, seconds, move_s, countdown_s),
+                name="momloc-verify",
+                daemon=True,
+            )
+            self._thread.start()
+        return self.status()
+
+    def _run(
+        self, marks: list[FloorMark], seconds: float, move_s: float, countdown_s: float
+    ) -> None:
+        try:
+            for i, mark in enumerate(marks):
+                self._state.update(mark=mark.name, target=[mark.x, mark.y], live_error_m=None)
+                self._wait(f"stand on mark {mark.name}", "move", move_s + countdown_s)
+                errors = self._measure(mark, seconds)
+                entry = self._state["marks"][i]
+                entry["samples"] = len(errors)
+                entry["error_m"] = round(float(np.median(errors)), 3) if errors else None
+            summary = summarise(self._state["marks"])
+            self._state["summary"] = summary
+            self._state["stored_in"] = self._store(summary)
+            self._state.update(state="done", instruction=summary["text"], mark=None, target=None)
+        except Cancelled:
+            self._state.update(state="stopped", instruction="check stopped", target=None)
+        except (MomlocError, OSError) as error:
+            self._state.update(state="failed", error=str(error), target=None)
+
+    def _wait(self, instruction: str, kind: str, seconds: float) -> None:
+        end = time.monotonic() + seconds
+        self._state.update(instruction=instruction, kind=kind)
+        while (left := end - time.monotonic()) > 0:
+            self._state["remaining_s"] = round(left, 1)
+            if self._stop.wait(min(POLL_S, left)):
+                raise Cancelled
+
+    def _measure(self, mark: FloorMark, seconds: float) -> list[float]:
+        self._state.update(instruction=f"stay on {mark.name}: measuring", kind="measure")
+        end, seen, errors = time.monotonic() + seconds, None, []
+        while (left := end - time.monotonic()) > 0:
+            self._state["remaining_s"] = round(left, 1)
+            snapshot = self._latest()
+            if snapshot.seq != seen and snapshot.people:
+                seen = snapshot.seq
+                error = min(math.dist((p["x"], p["y"]), (mark.x, mark.y)) for p in snapshot.people)
+                errors.append(error)
+                self._state["live_error_m"] = round(error, 3)
+            if self._stop.wait(min(POLL_S, left)):
+                raise Cancelled
+        return errors
+
+    def _store(self, summary: dict[str, Any]) -> str | None:
+        """Add the summary to the served model's ``model.json`` (atomic rewrite)."""
+        model_dir = self._model_dir()
+        if model_dir is None:
+            return None
+        path = Path(model_dir) / "model.json"
+        meta = json.loads(path.read_text())
+        meta["verification"] = summary
+        atomic_write_json(path, meta)
+        return str(path)
+
+    def stop(self) -> dict[str, Any]:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+        return self.status()
+
+    def target(self) -> tuple[float, float] | None:
+        """The mark the check sends the person to now (the synthetic follower goes there)."""
+        target = self._state.get("target") if self._state.get("state") == "running" else None
+        return None if target is None else (float(target[0]), float(target[1]))
+
+    def status(self) -> dict[str, Any]:
+        return json.loads(json.dumps(self._state))  # a deep copy: the thread keeps writing
+
+
+def summarise(marks: list[dict[str, Any]]) -> dict[str, Any]:
+    """Median and mean error over the marks that were measured, and the line the page shows."""
+    errors = [m["error_m"] for m in marks if m["error_m"] is not None]
+    missing = len(marks) - len(errors)
+    if not errors:
+        return {
+            "median_m": None,
+            "mean_m": None,
+            "marks": 0,
+            "unmeasured": missing,
+            "time": time.time(),
+            "per_mark": marks,
+            "text": f"nobody was seen on any of the {len(marks)} marks",
+        }
+    median = float(np.median(errors))
+    text = f"median {median:.2f} m over {len(errors)} mark{'s' if len(errors) > 1 else ''}"
+    if missing:
+        text += f" ({missing} not measured: nobody seen)"
+    return {
+        "median_m": round(median, 3),
+        "mean_m": round(float(np.mean(errors)), 3),
+        "marks": len(errors),
+        "unmeasured": missing,
+        "time": time.time(),
+        "per_mark": marks,
+        "text": text,
+    }
+
+
+_read_cache: dict[Path, tuple[int, dict[str, Any] | None]] = {}
+
+
+def stored_verification(model_dir: Path | None) -> dict[str, Any] | None:
+    """The verification summary stored in ``model_dir/model.json``, if any (the file is read
+    again only when it changed: ``/v1/health`` asks every second and model.json is tens of kB)."""
+    if model_dir is None:
+        return None
+    path = Path(model_dir) / "model.json"
+    try:
+        stamp = path.stat().st_mtime_ns
+        cached = _read_cache.get(path)
+        if cached is not None and cached[0] == stamp:
+            return cached[1]
+        meta = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    value = meta.get("verification") if isinstance(meta, dict) else None
+    value = value if isinstance(value, dict) else None
+    _read_cache.clear()  # one model is served at a time
+    _read_cache[path] = (stamp, value)
+    return value

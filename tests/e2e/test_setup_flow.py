@@ -1,0 +1,267 @@
+"""First run to live positions, as a new user goes: ``momloc serve`` with no model starts in
+set-up mode (no demo model on real cameras), then record -> train -> hot reload -> verify ->
+positions, all over the daemon's HTTP API on loopback, on the synthetic scene whose simulated
+person follows the set-up instructions (``synthetic.follow_setup``)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import httpx
+import numpy as np
+import pytest
+
+from models.dataset import MomDataset
+from service.daemon import build_daemon, serve_in_thread
+from service.settings import load_settings
+
+pytestmark = pytest.mark.timeout(600)
+CAMERAS = "[{type: synthetic, index: 0}, {type: synthetic, index: 1}]"
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def wait_for(read: Any, done: Any, timeout: float, what: str) -> Any:
+    deadline = time.time() + timeout
+    while True:
+        value = read()
+        if done(value):
+            return value
+        assert time.time() < deadline, f"{what}: {value}"
+        time.sleep(0.25)
+
+
+def test_serve_without_a_model_starts_in_setup_mode(tmp_path: Path) -> None:
+    config = tmp_path / "momloc.yaml"
+    config.write_text(f"cameras: {CAMERAS}\ndata_dir: {tmp_path / 'data'}\n")
+    port = free_port()
+    env = {k: v for k, v in os.environ.items() if not k.startswith("MOMLOC_")}
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "service.cli",
+            "serve",
+            "--config",
+            str(config),
+            "--port",
+            str(port),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+    base = f"http://127.0.0.1:{port}"
+    try:
+        lines = [proc.stdout.readline() for _ in range(3)]
+        assert "model none (set-up mode)" in lines[0], lines
+        assert f"set up:    {base}/setup" in lines[1] and "no model yet" in lines[1], lines
+        health = wait_for(
+            lambda: httpx.get(base + "/v1/health", timeout=30).json(),
+            lambda h: h["pipeline"]["frames_processed"] > 10,
+            60,
+            "pipeline",
+        )
+        assert health["status"] == "setup" and health["setup_mode"] is True
+        assert health["model"]["loaded"] is False and health["model"]["path"] is None
+        assert health["model"]["message"] == "no model yet: record floor marks at /setup"
+        assert all(c["connected"] for c in health["cameras"])
+        # no positions: the demo model is not served, nothing is published
+        assert httpx.get(base + "/v1/positions").json() == {
+            "v": 1,
+            "seq": 0,
+            "t": 0.0,
+            "people": [],
+        }
+        # cameras and previews work, and so does /setup with its status
+        jpeg = wait_for(
+            lambda: httpx.get(base + "/v1/cameras/0/snapshot.jpg"),
+            lambda r: r.status_code != 503,  # until the first drawn frame
+            30,
+            "preview",
+        )
+        assert jpeg.status_code == 200 and jpeg.content[:2] == b"\xff\xd8"
+        assert "Set up your room" in httpx.get(base + "/setup").text
+        status = httpx.get(base + "/v1/setup/status").json()
+        assert status["training"]["state"] == "idle" and len(status["cameras_now"]) == 2
+        assert "record floor marks at /setup" in httpx.get(base + "/").text  # the map links there
+        assert httpx.get(base + "/v1/config").json()["setup_mode"] is True
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+
+
+def setup_settings(tmp_path: Path, **synthetic: Any) -> Any:
+    """Two synthetic cameras, one person who follows /setup, no model: a first run."""
+    return load_settings(
+        None,
+        cameras=[{"type": "synthetic", "index": k} for k in range(2)],
+        synthetic={"people": 1, "follow_setup": True, "detector_profile": "ideal", **synthetic},
+        data_dir=tmp_path / "data",
+        host="127.0.0.1",
+    )
+
+
+def post(base: str, path: str, body: Any = None, status: int = 200) -> dict[str, Any]:
+    response = httpx.post(base + path, json={} if body is None else body, timeout=30)
+    assert response.status_code == status, response.text
+    return response.json()
+
+
+def test_first_run_to_live_positions_through_the_api(tmp_path: Path) -> None:
+    daemon = build_daemon(setup_settings(tmp_path))
+    server = serve_in_thread(daemon)
+    base = f"http://127.0.0.1:{server.port}"
+    get = lambda path: httpx.get(base + path, timeout=30).json()  # noqa: E731
+    try:
+        wait_for(lambda: daemon.pipeline.image_sizes, lambda s: None not in s, 30, "frames")
+        assert get("/v1/health")["status"] == "setup"
+        # bad input: 4xx naming the field, nothing started
+        bad = httpx.post(base + "/v1/setup/train", json={"epochs": 0})
+        assert bad.status_code == 422 and "epochs" in bad.json()["detail"]
+        missing = httpx.post(base + "/v1/setup/train", json={"recording": "none.npz"})
+        assert missing.status_code == 422 and "none.npz" in missing.json()["detail"]
+        assert httpx.post(base + "/v1/setup/record-again", json={"mark": "Z9"}).status_code == 422
+
+        # Record: 2 x 2 marks in the 10 m room, the simulated person walks to each
+        post(base, "/v1/setup/start", {
+            "grid": "2x2", "room": "10x10", "seconds": 4, "countdown": 1, "move_seconds": 5,
+            "out": "room.npz",
+        })  # fmt: skip
+        status = wait_for(
+            lambda: get("/v1/setup/status"), lambda s: s["state"] != "running", 120, "recording"
+        )
+        assert status["state"] == "done", status
+        assert [m["state"] for m in status["marks"]] == ["done"] * 4
+        quality = {q["mark"]: q for q in status["quality"]}
+        assert set(quality) == {"A1", "A2", "B2", "B1"}
+        for q in quality.values():  # frames offered and kept per camera at every mark
+            assert q["frames"] > 30 and q["kept"] > 0.5 * q["frames"], q
+            assert all(n <= q["kept"] for n in q["per_camera"]) and len(q["per_camera"]) == 2
+            for warning in q["warnings"]:
+                assert q["mark"] in warning and "camera" in warning
+        data = MomDataset.load(tmp_path / "data" / "room.npz")
+        marks = {(m["x"], m["y"]) for m in status["marks"]}
+        assert {tuple(w) for w in np.round(data.world[:, :2], 2).tolist()} <= marks
+
+        # Record this mark again: its rows are replaced, the others stay
+        before = data.n
+        post(base, "/v1/setup/record-again", {"mark": "A1"})
+        again = wait_for(
+            lambda: get("/v1/setup/status"), lambda s: s["state"] != "running", 60, "again"
+        )
+        assert again["state"] == "done" and [m["state"] for m in again["marks"]] == ["done"] * 4
+        assert {q["mark"] for q in again["quality"]} == {"A1", "A2", "B2", "B1"}
+        assert abs(MomDataset.load(tmp_path / "data" / "room.npz").n - before) < 0.5 * before
+
+        # Train in a child process; follow the epochs; the model is hot-loaded when done
+        started = post(base, "/v1/setup/train", {"epochs": 12}, status=202)
+        assert started["state"] == "running"
+        assert httpx.post(base + "/v1/setup/train", json={}).status_code == 409  # one at a time
+        seen_epochs: set[int] = set()
+
+        def training() -> dict[str, Any]:
+            state = get("/v1/setup/status")["training"]
+            if state["epoch"] is not None:
+                seen_epochs.add(state["epoch"])
+            return state
+
+        trained = wait_for(training, lambda t: t["state"] != "running", 300, "training")
+        assert trained["state"] == "done", trained
+        assert trained["epoch"] == 12 and trained["val_error_m"] > 0 and len(seen_epochs) >= 2
+        model_dir = Path(trained["model_dir"])
+        assert model_dir == (tmp_path / "data" / "model").resolve()
+        health = get("/v1/health")
+        assert health["setup_mode"] is False and health["model"]["loaded"]
+        assert Path(health["model"]["path"]).resolve() == model_dir
+        assert health["model"]["compatible"]
+
+        # Positions appear on the map's REST and stream
+        positions = wait_for(
+            lambda: get("/v1/positions"), lambda p: len(p["people"]) == 1, 30, "positions"
+        )
+        assert positions["seq"] > 0
+
+        # Verify on two marks: live error at each, a summary stored in model.json and health
+        post(base, "/v1/setup/verify", {
+            "marks": [{"name": "A2", "x": 7.5, "y": 2.5}, {"name": "M", "x": 5.0, "y": 5.0}],
+            "seconds": 3, "move_seconds": 4, "countdown": 1,
+        })  # fmt: skip
+        check = wait_for(
+            lambda: get("/v1/setup/status")["verify"],
+            lambda v: v["state"] != "running",
+            60,
+            "check",
+        )
+        assert check["state"] == "done", check
+        summary = check["summary"]
+        assert summary["marks"] == 2 and all(m["samples"] > 5 for m in check["marks"])
+        assert summary["text"] == f"median {summary['median_m']:.2f} m over 2 marks"
+        # ideal detector profile, 4 marks x 4 s, 12 epochs: well within a metre of the marks
+        assert summary["median_m"] < 1.0, check
+        stored = json.loads((model_dir / "model.json").read_text())["verification"]
+        assert stored["median_m"] == summary["median_m"]
+        shown = wait_for(
+            lambda: get("/v1/health")["model"]["verification"], bool, 10, "verification in health"
+        )
+        assert shown["text"] == summary["text"]
+    finally:
+        server.stop()
+        daemon.training.cancel()
+
+
+def test_training_failure_and_cancel_through_the_api(tmp_path: Path) -> None:
+    daemon = build_daemon(setup_settings(tmp_path))
+    server = serve_in_thread(daemon)
+    base = f"http://127.0.0.1:{server.port}"
+    get = lambda path: httpx.get(base + path, timeout=30).json()  # noqa: E731
+    try:
+        data = tmp_path / "data"
+        data.mkdir()
+        (data / "broken.npz").write_bytes(b"not a zip file")
+        post(base, "/v1/setup/train", {"recording": "broken.npz"}, status=202)
+        failed = wait_for(
+            lambda: get("/v1/setup/status")["training"], lambda t: t["state"] != "running", 120, "x"
+        )
+        assert failed["state"] == "failed" and "broken.npz" in failed["error"], failed
+        assert "\n" not in failed["error"] and "Traceback" not in failed["error"]
+        assert get("/v1/health")["setup_mode"] is True  # nothing was loaded
+
+        # a real recording, a long schedule, then cancel: the process stops, no model appears
+        post(base, "/v1/setup/start", {
+            "grid": "1x2", "room": "10x10", "seconds": 2, "countdown": 0.5, "move_seconds": 3,
+        })  # fmt: skip
+        wait_for(lambda: get("/v1/setup/status"), lambda s: s["state"] == "done", 60, "record")
+        post(base, "/v1/setup/train", {"epochs": 2000}, status=202)
+        wait_for(
+            lambda: get("/v1/setup/status")["training"],
+            lambda t: (t["epoch"] or 0) >= 1,
+            120,
+            "first epoch",
+        )
+        cancelled = post(base, "/v1/setup/train/cancel")
+        assert cancelled["state"] in ("running", "failed")
+        done = wait_for(
+            lambda: get("/v1/setup/status")["training"], lambda t: t["state"] != "running", 30, "c"
+        )
+        assert done["state"] == "failed" and done["error"] == "training cancelled"
+        assert not (data / "model").exists() and get("/v1/health")["setup_mode"] is True
+    finally:
+        server.stop()
+        daemon.training.cancel()
