@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -65,6 +66,24 @@ def atomic_write_json(
     path: str | os.PathLike[str], value: Any, mode: int = DEFAULT_MODE, indent: int | None = 1
 ) -> Path:
     return atomic_write_text(path, json.dumps(value, indent=indent), mode)
+
+
+def replace_folder(staging: str | os.PathLike[str], final: str | os.PathLike[str]) -> Path:
+    """Put a completely written folder (a new model) at ``final``; the old one becomes
+    ``<final>.previous``.
+
+    Two renames, not one: POSIX cannot swap a non-empty folder atomically. Between them there
+    is briefly no ``final``; the model watcher then keeps serving the model it has loaded, so a
+    reader sees the old model or the new one, never a mixture of their files.
+    """
+    staging, final = Path(staging), Path(final)
+    previous = final.with_name(final.name + ".previous")
+    if final.exists():
+        shutil.rmtree(previous, ignore_errors=True)
+        os.replace(final, previous)
+    os.replace(staging, final)
+    _fsync_folder(final.parent)
+    return final
 
 
 def _fsync_folder(folder: Path) -> None:

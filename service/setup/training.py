@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import shutil
 import subprocess
 import sys
@@ -32,6 +31,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
 
+from models.atomic import replace_folder
 from models.errors import MomlocError, shorten
 
 log = logging.getLogger("momloc.setup.training")
@@ -193,8 +193,4 @@ def _install(staging: Path, final: Path) -> None:
     """Put the new model in place: two directory renames, the old model kept as .previous."""
     if not (staging / "encoder.onnx").is_file() or not (staging / "model.json").is_file():
         raise MomlocError(f"{staging}: momloc train wrote no model")
-    previous = final.with_name(final.name + ".previous")
-    if final.exists():
-        shutil.rmtree(previous, ignore_errors=True)
-        os.replace(final, previous)
-    os.replace(staging, final)
+    replace_folder(staging, final)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from models.atomic import atomic_write, atomic_write_json, atomic_write_text
+from models.atomic import atomic_write, atomic_write_json, atomic_write_text, replace_folder
 
 
 def test_replaces_the_file_whole_with_mode_0644(tmp_path: Path) -> None:
@@ -38,3 +38,16 @@ def test_a_failing_writer_leaves_the_old_file_and_no_temporary(tmp_path: Path) -
 def test_mode_can_be_private(tmp_path: Path) -> None:
     target = atomic_write_text(tmp_path / "secret", "x", mode=0o600)
     assert stat.S_IMODE(target.stat().st_mode) == 0o600
+
+
+def test_replace_folder_installs_the_new_model_and_keeps_one_previous(tmp_path: Path) -> None:
+    final = tmp_path / "model"
+    for version in ("1", "2", "3"):
+        staging = tmp_path / "model.training"
+        staging.mkdir()
+        (staging / "model.json").write_text(version)
+        replace_folder(staging, final)
+        assert not staging.exists()
+        assert (final / "model.json").read_text() == version
+    assert (tmp_path / "model.previous" / "model.json").read_text() == "2"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["model", "model.previous"]
