@@ -324,7 +324,7 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
     session = daemon.setup
     daemon.training = TrainingJob(lambda: session.data_dir, pipeline.reload_model)
     daemon.verifier = Verifier(hub.latest, lambda: pipeline.model_dir if pipeline.runtime else None)
-    walker = getattr(getattr(player, "scene", None), "walkers", None)
+    walker = getattr(player, "walkers", None)
     if hasattr(walker, "target"):  # synthetic.follow_setup: the simulated person obeys /setup
         walker.target = lambda: session.target() or daemon.verifier.target()
     from service.outputs import build_outputs
