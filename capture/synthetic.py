@@ -29,6 +29,7 @@ import numpy as np
 
 from capture.rig import FrameSet
 from capture.worker import CameraState, Frame
+from models.detector.base import Detections
 
 
 def make_scene(
@@ -246,24 +247,41 @@ class SyntheticSource:
 
 
 class SimulatedDetections:
-    """Detection stage: the simulator's noisy boxes for each frame's scene index, followed by
-    the profile's false positives for that camera (a real detector reports them too)."""
+    """Detection stage: the simulator's noisy boxes and keypoints for each frame's scene index,
+    followed by the profile's false positives for that camera (a real detector reports them
+    too; they carry NaN keypoints, as a pose estimator finding no body in a box)."""
+
+    keypoints = True  # the simulator gives every box its COCO-17 keypoints
 
     def __init__(self, rig: SyntheticRig) -> None:
         self.rig = rig
 
-    def __call__(self, frame_set: FrameSet) -> list[np.ndarray]:
+    def __call__(self, frame_set: FrameSet) -> list[Detections]:
         out = []
         for frame in frame_set.frames:
             if frame is None:
-                out.append(np.zeros((0, 4), np.float32))
+                out.append(Detections.empty())
                 continue
             observation = self.rig.observation(frame.seq)
-            boxes = np.asarray(observation.boxes, np.float32)
             camera = self.rig.cameras[frame.camera]
-            per_camera = boxes[:, camera, :] if boxes.size else np.zeros((0, 4), np.float32)
+            boxes = np.asarray(observation.boxes, np.float32).reshape(
+                -1, len(self.rig.scene.cameras), 4
+            )
+            points = np.asarray(observation.keypoints, np.float32)
+            joints = points.shape[2] if points.ndim == 4 else 17
+            per_camera = boxes[:, camera, :]
+            keypoints = points[:, camera] if points.ndim == 4 else np.zeros((0, joints, 3))
             false = np.asarray(getattr(observation, "false_boxes", np.zeros((0, 0, 4))))
             if false.size:
-                per_camera = np.concatenate([per_camera, false[camera].astype(np.float32)])
-            out.append(per_camera[np.all(np.isfinite(per_camera), axis=1)])
+                extra = false[camera].astype(np.float32).reshape(-1, 4)
+                per_camera = np.concatenate([per_camera, extra])
+                keypoints = np.concatenate([keypoints, np.full((len(extra), joints, 3), np.nan)])
+            seen = np.all(np.isfinite(per_camera), axis=1)
+            out.append(
+                Detections(
+                    per_camera[seen],
+                    np.ones(int(seen.sum()), np.float32),
+                    keypoints[seen].astype(np.float32),
+                )
+            )
         return out

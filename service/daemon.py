@@ -170,7 +170,7 @@ def build_rig(settings: Settings) -> tuple[Any, Any]:
     from capture.worker import CameraWorker
 
     workers = [CameraWorker(_open_source(c), camera=k) for k, c in enumerate(settings.cameras)]
-    return CameraRig(workers), None
+    return CameraRig(workers, max_skew=settings.tracking.max_skew_s), None
 
 
 def _open_source(camera: Any) -> Any:
@@ -205,6 +205,7 @@ def build_detect_stage(settings: Settings, player: Any) -> Any:
         settings.detector.kind,
         score_threshold=settings.detector.score_threshold,
         threads=threads,
+        keypoints=settings.detector.keypoints,
         **{key: value for key, value in options.items() if value is not None},
     )
     schedule = None
@@ -275,11 +276,8 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
         tracker=Tracker(fps_hint=30.0, max_missing_s=settings.tracking.max_missing_s),
         max_error_px=settings.tracking.max_error_px,
     )
-    if runtime is not None and int(runtime.num_cameras) != len(settings.cameras):
-        raise MomlocError(
-            f"model_dir: {settings.model_dir} expects {runtime.num_cameras} cameras, "
-            f"{len(settings.cameras)} are configured"
-        )
+    if runtime is not None:
+        pipeline.check_model(runtime, f"model_dir: {settings.model_dir}")
     extras = {}
     if player is not None:
         extras["source"] = {"synthetic": settings.synthetic.model_dump()}

@@ -34,11 +34,16 @@ def test_rig_frames_are_lock_step_and_ground_truth_is_exact():
 def test_simulated_detections_are_the_scene_boxes_per_camera():
     rig = SyntheticRig(scene(), cameras=[1, 0], render_every=0)
     frame_set = rig.produce(40)
-    boxes = SimulatedDetections(rig)(frame_set)
+    found = SimulatedDetections(rig)(frame_set)
     truth = rig.scene.observe(40)
     for k, camera in enumerate([1, 0]):  # rig camera k is scene camera `camera`
         seen = np.concatenate([truth.boxes[:, camera], truth.false_boxes[camera]])
-        np.testing.assert_allclose(boxes[k], seen[np.isfinite(seen).all(axis=1)])
+        np.testing.assert_allclose(found[k].boxes, seen[np.isfinite(seen).all(axis=1)])
+        # each person's own keypoints ride with their box; false positives have none (NaN)
+        people = np.isfinite(truth.boxes[:, camera]).all(axis=1)
+        count = int(people.sum())
+        np.testing.assert_allclose(found[k].keypoints[:count], truth.keypoints[people, camera])
+        assert np.isnan(found[k].keypoints[count:]).all()
 
 
 def test_simulated_detections_include_the_profiles_false_positives():
@@ -52,7 +57,7 @@ def test_simulated_detections_include_the_profiles_false_positives():
     for i in range(0, 640, 4):
         truth = rig.observation(i)
         people = np.isfinite(truth.boxes).all(axis=2).sum(axis=0)  # per camera
-        extra += sum(len(b) - n for b, n in zip(stage(rig.produce(i)), people, strict=True))
+        extra += sum(len(d) - n for d, n in zip(stage(rig.produce(i)), people, strict=True))
     assert extra > 0  # boxes where nobody is, as from the real detector
     ideal = SyntheticRig(make_scene("indoor-2cam", seed=3, people=2, detector_profile="ideal"))
     assert ideal.scene.profile.name == "ideal"
