@@ -28,7 +28,7 @@ import torch
 
 from models.dataset import MomDataset
 from models.errors import MomlocError
-from models.export import write_model_dir
+from models.export import world_bounds, write_model_dir
 from models.mom_torch import MomDecoder, MomEncoder, fit_homography
 from models.prior_policy import choose_policy, summary
 from models.sampling import (
@@ -325,6 +325,7 @@ def _train(dataset, out_dir, sampler, decoder, epochs, seed, progress, tuning) -
         metrics=metrics,
         settings={**asdict(settings), "decoder": decoder, "seed": seed},
         floor_prior=floor_prior,
+        world_bounds=world_bounds(dataset.world),
     )
     metrics["floor_prior"] = summary(floor_prior)
     return metrics

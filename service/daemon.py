@@ -244,10 +244,11 @@ def floor_extent(settings: Settings, runtime: Any, player: Any) -> dict[str, flo
         return settings.floor.model_dump()
     if player is not None:
         return player.floor_extent()
-    bounds = getattr(runtime, "world_bounds", None)
+    bounds = getattr(runtime, "world_bounds", None)  # None: a model from before it was stored
     if bounds is not None:
         (xmin, ymin), (xmax, ymax) = bounds
-        return {"xmin": float(xmin), "xmax": float(xmax), "ymin": float(ymin), "ymax": float(ymax)}
+        if xmax > xmin and ymax > ymin:  # marks on one line span no area to draw
+            return {"xmin": xmin, "xmax": xmax, "ymin": ymin, "ymax": ymax}
     return None
 
 
