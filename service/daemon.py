@@ -1,4 +1,5 @@
-"""Assembles the daemon from settings: cameras, detector, MoM model, pipeline, hub; runs uvicorn.
+"""The composition root: builds the daemon from settings (cameras, detector, MoM model,
+pipeline and its listeners, hub, outputs); ``service.server`` serves it.
 
 ``momloc serve`` and ``momloc demo`` differ only in the settings they pass here, so the demo
 exercises exactly the code users run on real cameras.
@@ -6,13 +7,7 @@ exercises exactly the code users run on real cameras.
 
 from __future__ import annotations
 
-import dataclasses
 import logging
-import os
-import socket
-import threading
-import time
-from dataclasses import dataclass, field
 from typing import Any
 
 from models.detector.windows import WindowRefiner
@@ -21,108 +16,10 @@ from service.hub import Hub
 from service.model_watch import ModelWatcher
 from service.pipeline import DetectorStage, Pipeline
 from service.settings import FileCamera, Settings, SyntheticCamera, V4l2Camera
-from service.setup.camera_monitor import CameraMoved
 from service.setup.session import SetupSession
+from service.state import Daemon
 
 log = logging.getLogger("momloc")
-GRACEFUL_SHUTDOWN_S = 3
-
-
-@dataclass
-class Daemon:
-    """Everything the API reads: hub, pipeline and the static facts about the setup."""
-
-    hub: Hub
-    pipeline: Pipeline
-    camera_names: list[str]
-    token: str | None = None
-    stream_rate: float = 30.0
-    ping_interval: float = 20.0
-    ping_timeout: float = 20.0
-    floor: dict[str, float] | None = None
-    extras: dict[str, Any] = field(default_factory=dict)
-    started: float = field(default_factory=time.time)
-    watcher: ModelWatcher | None = None
-    setup: SetupSession | None = None
-    bind_host: str = "127.0.0.1"  # with the two lists below: see service.request_guard
-    allowed_hosts: list[str] = field(default_factory=list)
-    allowed_origins: list[str] = field(default_factory=list)
-    outputs: Any = None  # service.outputs.Outputs: zones, MQTT
-
-    def camera_states(self) -> list[dict[str, Any]]:
-        states = self.pipeline.rig.states()
-        alignment = self.pipeline.alignment_status(self.camera_names)
-        out = []
-        for k, state in enumerate(states):
-            d = dataclasses.asdict(state) if dataclasses.is_dataclass(state) else dict(vars(state))
-            d = {
-                "index": k,
-                "name": self.camera_names[k] if k < len(self.camera_names) else f"camera-{k}",
-                "connected": bool(d.get("connected", False)),
-                "fps": _round(d.get("fps")),
-                "last_frame_age": _round(d.get("last_frame_age"), 3),
-                "reconnects": int(d.get("reconnects") or 0),
-                "error": d.get("error"),
-                "alignment": _alignment(alignment[k]) if k < len(alignment) else None,
-            }
-            out.append(d)
-        return out
-
-    def health(self) -> dict[str, Any]:
-        cameras = self.camera_states()
-        model = self.pipeline.model_info()
-        pipeline = self.pipeline.stats()
-        ok = (
-            all(c["connected"] and not (c["alignment"] or {}).get("moved") for c in cameras)
-            and model["loaded"]
-            and model.get("compatible", False)
-            and pipeline["running"]
-            and pipeline["error"] is None
-        )
-        return {
-            "status": "ok" if ok else "degraded",
-            "uptime_s": round(time.time() - self.started, 1),
-            "cameras": cameras,
-            "model": model,
-            "pipeline": pipeline,
-            "clients": self.hub.subscriber_count,
-            "stream": self.hub.stream_stats(),
-            "model_reload": None if self.watcher is None else self.watcher.last_reload,
-            **({} if self.outputs is None else self.outputs.health()),
-            **self.extras,
-        }
-
-    def public_config(self) -> dict[str, Any]:
-        return {
-            "cameras": [{"index": k, "name": n} for k, n in enumerate(self.camera_names)],
-            "floor": self.floor,
-            "stream_rate": self.stream_rate,
-            "auth": self.token is not None,
-            "zones": []
-            if self.outputs is None
-            else [z.as_dict() for z in self.outputs.zones.zones],
-            **self.extras,
-        }
-
-
-def _alignment(state: CameraMoved) -> dict[str, Any]:
-    """The camera-moved check as health JSON: image shift and reprojection error, what to do."""
-    shift, error = state.shift, state.reprojection
-    return {
-        "moved": state.moved,
-        "shift_px": _round(shift.shift_px, 1),
-        "shift_confidence": _round(shift.confidence),
-        "reference": shift.reference,
-        "shift_moved": shift.moved,
-        "reprojection_px": _round(error.error_px, 1),
-        "usual_px": _round(error.baseline_px, 1),
-        "reprojection_moved": error.moved,
-        "message": state.message,
-    }
-
-
-def _round(value: Any, digits: int = 2) -> float | None:
-    return None if value is None else round(float(value), digits)
 
 
 def camera_name(camera: Any) -> str:
@@ -313,97 +210,3 @@ def _known_sizes(pipeline: Pipeline) -> list[tuple[int, int]] | None:
     """Every camera's frame size once each has delivered a frame, else None."""
     sizes = list(pipeline.image_sizes)
     return None if any(size is None for size in sizes) else sizes
-
-
-def bind_socket(host: str, port: int) -> socket.socket:
-    """Listen on host:port now, so a taken port is a one-line user error, not a traceback."""
-    family = socket.AF_INET6 if ":" in host else socket.AF_INET
-    sock = socket.socket(family, socket.SOCK_STREAM)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    try:
-        sock.bind((host, port))
-        sock.listen(2048)  # connections made right after the banner wait in the backlog
-    except OSError as error:
-        sock.close()
-        raise MomlocError(f"cannot listen on {host}:{port} ({error.strerror})") from None
-    sock.set_inheritable(True)
-    return sock
-
-
-def make_server(daemon: Daemon, host: str, port: int) -> Any:
-    """A uvicorn server for ``daemon`` (run it with ``server.run(sockets=[sock])``)."""
-    import uvicorn
-
-    from service.app import create_app
-
-    config = uvicorn.Config(
-        create_app(daemon),
-        host=host,
-        port=port,
-        log_level="warning",
-        ws="websockets-sansio",
-        ws_ping_interval=daemon.ping_interval,
-        ws_ping_timeout=daemon.ping_timeout,
-        # snapshots are a few hundred bytes: per-client zlib costs more CPU than it saves
-        ws_per_message_deflate=False,
-        # SIGTERM must stop the daemon within seconds, whatever a client is doing (a slow body,
-        # a long request): open connections get this long, then they are cut
-        timeout_graceful_shutdown=GRACEFUL_SHUTDOWN_S,
-    )
-    return uvicorn.Server(config)
-
-
-def run_server(daemon: Daemon, host: str, port: int, on_ready: Any = None) -> None:
-    """Bind, announce, and serve until interrupted (uvicorn owns signals and the loop)."""
-    sock = bind_socket(host, port)
-    server = make_server(daemon, host, port)
-    if on_ready is not None:
-        on_ready(sock.getsockname()[1])
-    server.run(sockets=[sock])
-    _exit_soon_if_stuck(GRACEFUL_SHUTDOWN_S + 5)
-
-
-def _exit_soon_if_stuck(seconds: float) -> None:
-    """After serving, make sure the process ends: a request still running in a worker thread
-    (those threads are not daemons) would otherwise keep it alive after SIGTERM."""
-
-    def deadline() -> None:
-        time.sleep(seconds)
-        log.warning("momloc: a request was still running %.0f s after stopping; exiting", seconds)
-        logging.shutdown()
-        os._exit(0)
-
-    threading.Thread(target=deadline, name="momloc-exit-deadline", daemon=True).start()
-
-
-@dataclass
-class BackgroundServer:
-    """A daemon served by uvicorn in a thread (tests and benchmarks)."""
-
-    daemon: Daemon
-    port: int
-    server: Any
-    thread: threading.Thread
-    sock: socket.socket
-
-    def stop(self) -> None:
-        self.server.should_exit = True
-        self.thread.join(timeout=15)
-        self.sock.close()
-
-
-def serve_in_thread(daemon: Daemon, host: str = "127.0.0.1", port: int = 0) -> BackgroundServer:
-    """Start serving ``daemon`` on host:port (0: any free port); returns once it accepts."""
-    sock = bind_socket(host, port)
-    server = make_server(daemon, host, sock.getsockname()[1])
-    thread = threading.Thread(
-        target=server.run, kwargs={"sockets": [sock]}, name="uvicorn", daemon=True
-    )
-    thread.start()
-    deadline = time.time() + 60
-    while not server.started:
-        if time.time() > deadline or not thread.is_alive():
-            sock.close()
-            raise MomlocError("the HTTP server did not start")
-        time.sleep(0.02)
-    return BackgroundServer(daemon, sock.getsockname()[1], server, thread, sock)
