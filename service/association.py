@@ -49,6 +49,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -178,7 +179,7 @@ def _merge_greedy(
     single = _single_view_positions(detections, runtime)
     clusters: dict[int, dict[int, int]] = {}
     positions: dict[int, np.ndarray] = {}
-    for k, boxes in enumerate(detections):
+    for k, boxes in enumerate(detections.boxes):
         for j in range(len(boxes)):
             positions[len(clusters)] = single[k][j]
             clusters[len(clusters)] = {k: j}
@@ -231,23 +232,32 @@ def _single_view_positions(detections: _Views, runtime: LocalizationModel) -> li
     """Per camera [M_k, 2]: each box localized alone (NaN if the model cannot), one call."""
     rows = [{k: j} for k in range(len(detections)) for j in range(len(detections[k]))]
     if not rows:
-        return [np.zeros((0, 2)) for _ in detections]
+        return [np.zeros((0, 2)) for _ in detections.boxes]
     world = _localize(detections.stack(rows), runtime)
     out, start = [], 0
-    for boxes in detections:
+    for boxes in detections.boxes:
         out.append(world[start : start + len(boxes)])
         start += len(boxes)
     return out
 
 
-def covering_cameras(runtime, world: np.ndarray, margin: float = 0.05) -> np.ndarray:
+class Decoder(Protocol):
+    """What :func:`covering_cameras` needs: the decoder's reprojection and the image sizes."""
+
+    @property
+    def image_sizes(self) -> np.ndarray: ...
+
+    def reproject(self, world: np.ndarray) -> np.ndarray: ...
+
+
+def covering_cameras(runtime: Decoder, world: np.ndarray, margin: float = 0.05) -> np.ndarray:
     """[N, K] bool: camera k should see a person at floor position ``world`` [N, 2], i.e. the
     decoder puts their body's mean point inside its image, ``margin`` (fraction of the image
     size) away from the border. For the tracker's ghost check (``Tracker(ghost_s=...)``)."""
     pixels = np.asarray(runtime.reproject(np.asarray(world, dtype=np.float64)), np.float64)
     size = np.asarray(runtime.image_sizes, dtype=np.float64)[None]
     inside = (pixels >= margin * size) & (pixels <= (1.0 - margin) * size)
-    return inside.all(axis=-1)
+    return np.asarray(inside.all(axis=-1))
 
 
 def _covariance(tuples: _Tuples, runtime: LocalizationModel) -> np.ndarray | None:

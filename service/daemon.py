@@ -48,7 +48,7 @@ def build_rig(settings: Settings) -> tuple[Any, Any]:
             fps=syn.fps,
             detector_profile=syn.detector_profile,
         )
-        indices = [c.index for c in settings.cameras]
+        indices = [c.index for c in settings.cameras if isinstance(c, SyntheticCamera)]
         available = len(scene.cameras)
         for position, index in enumerate(indices):
             if index >= available:
@@ -208,5 +208,5 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
 
 def _known_sizes(pipeline: Pipeline) -> list[tuple[int, int]] | None:
     """Every camera's frame size once each has delivered a frame, else None."""
-    sizes = list(pipeline.image_sizes)
-    return None if any(size is None for size in sizes) else sizes
+    known = [size for size in pipeline.image_sizes if size is not None]
+    return known if len(known) == len(pipeline.image_sizes) else None

@@ -178,7 +178,9 @@ class Pipeline:
 
             tracker = Tracker(fps_hint=30.0)
         if associate is None:
-            from service.association import associate
+            from service.association import associate as associate_people
+
+            associate = associate_people
         self.rig, self.detect, self.hub = rig, detect, hub
         self.num_cameras = num_cameras
         self.tracker, self.associate, self.max_error_px = tracker, associate, max_error_px

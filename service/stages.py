@@ -107,6 +107,7 @@ class AssociateStage(Protocol):
         self,
         detections: Sequence[Detections],
         runtime: LocalizationModel,
+        /,
         *,
         max_error_px: float,
     ) -> list[Association]: ...
