@@ -305,3 +305,40 @@ def test_skew_rule_leaves_stale_frames_out_of_fusion():
     assert pipeline.view(0).image is None and pipeline.view(1).image is not None
     synced = FrameSet(frames=frames, skew=0.12, stale=[False, False])  # within the bound
     assert pipeline.process(synced).t == pytest.approx(10.0) and calls[-1] == [True, True]
+
+
+def test_scheduled_detection_carries_keypoints_between_detections():
+    """With ``detection.schedule: auto`` the detector runs every few frame sets; the boxes
+    carried in between keep their keypoints (moved with the box), so a keypoint model gets
+    keypoints on every frame set, not only on the detected ones."""
+    from service.detection_schedule import DeferredRunner, DetectionScheduler
+
+    class Walker:
+        keypoints = True
+
+        def detect(self, frames):
+            box = np.array([[100, 50, 160, 250]], np.float32)
+            points = np.zeros((1, 17, 3), np.float32)
+            points[0, :, 0], points[0, :, 1], points[0, :, 2] = 130.0, np.linspace(60, 240, 17), 1
+            return [Detections(box, np.ones(1, np.float32), points) for _ in frames]
+
+    clock = SimpleNamespace(t=0.0)
+    detector = Walker()
+    runner = DeferredRunner(
+        lambda job: detector.detect(job.images), lambda: clock.t, cost=lambda job: 0.1
+    )
+    schedule = DetectionScheduler(
+        detector, 0.4, runner=runner, clock=lambda: clock.t, wall=lambda: clock.t
+    )
+    stage = DetectorStage(detector, 0.4, schedule)
+    assert stage.keypoints
+    image = np.zeros((480, 640, 3), np.uint8)
+    outputs = []
+    for i in range(12):
+        clock.t = i / 30
+        frames = [Frame(camera=k, image=image, timestamp=clock.t, seq=i) for k in range(2)]
+        outputs.append(stage(FrameSet(frames=frames, skew=0.0)))
+    later = [d for out in outputs[4:] for d in out]  # after the first detection arrived
+    assert later and all(len(d) == 1 and d.keypoints.shape == (1, 17, 3) for d in later)
+    assert all(np.isfinite(d.keypoints).all() for d in later)
+    assert schedule.jobs < 12  # most frame sets were carried, not detected
