@@ -229,7 +229,7 @@ def summary(runs: list[dict]) -> dict:
 
 def scheduled(detector: Any, **options: Any) -> Any:
     from service.detection_schedule import DetectionScheduler
-    from service.pipeline import DetectorStage
+    from service.detector_stage import DetectorStage
 
     carrier = {k: options.pop(k) for k in ("flow",) if k in options}
     return DetectorStage(
@@ -253,7 +253,7 @@ def live_table(
 ) -> list:
     """Every configuration in ``rounds`` interleaved slices, so changing load on the shared
     machine falls on all of them alike."""
-    from service.pipeline import DetectorStage
+    from service.detector_stage import DetectorStage
 
     detectors = {1: make_detector(1), 2: make_detector(2)}
     stages = [(baseline_name, baseline)]

@@ -12,9 +12,10 @@ from typing import Any
 
 from models.detector.windows import WindowRefiner
 from models.errors import MomlocError
+from service.detector_stage import DetectorStage
 from service.hub import Hub
 from service.model_watch import ModelWatcher
-from service.pipeline import DetectorStage, Pipeline
+from service.pipeline import Pipeline
 from service.settings import FileCamera, Settings, SyntheticCamera, V4l2Camera
 from service.setup.session import SetupSession
 from service.state import Daemon

@@ -17,8 +17,9 @@ from capture.rig import FrameSet
 from capture.worker import Frame
 from models.detector.base import Detections
 from models.errors import MomlocError
+from service.detector_stage import DetectorStage
 from service.hub import Hub
-from service.pipeline import DetectorStage, Pipeline
+from service.pipeline import Pipeline
 from service.tracking import Tracker
 
 
