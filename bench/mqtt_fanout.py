@@ -183,8 +183,9 @@ def run_subscribers(port: int, topic: str, n: int, seconds: float) -> None:
 
 
 def start_daemon(port: int, room: str, scene_fps: float) -> Any:
-    from service.daemon import build_daemon, serve_in_thread
+    from service.daemon import build_daemon
     from service.demo import DEMO_ZONES
+    from service.server import serve_in_thread
     from service.settings import DEMO_MODEL_DIR, load_settings
 
     settings = load_settings(

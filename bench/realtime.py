@@ -36,6 +36,8 @@ from typing import Any
 
 import numpy as np
 
+from models.detector.base import Detections
+
 RESULTS = Path(__file__).resolve().parent / "results" / "realtime.md"
 VTEST = Path("/usr/share/doc/opencv-doc/examples/data/vtest.avi")
 
@@ -108,11 +110,18 @@ class ClipRig:
 class ReplayedBoxes:
     """Baseline detection stage: boxes known per clip frame, at no cost."""
 
+    keypoints = False
+
     def __init__(self, boxes: list[list[np.ndarray]]) -> None:
         self.boxes = boxes
 
-    def __call__(self, frame_set: Any) -> list[np.ndarray]:
-        return [self.boxes[k][f.seq % len(self.boxes[k])] for k, f in enumerate(frame_set.frames)]
+    def __call__(self, frame_set: Any) -> list[Detections]:
+        return [
+            Detections.empty()
+            if f is None
+            else Detections(b := self.boxes[k][f.seq % len(self.boxes[k])], np.ones(len(b)))
+            for k, f in enumerate(frame_set.frames)
+        ]
 
 
 def drawn_clips(frames: int) -> tuple[list[list[np.ndarray]], Any]:
@@ -185,12 +194,12 @@ def run_pipeline(rig: ClipRig, detect: Any, seconds: float, warmup: float = 2.0)
     pipeline.add_detection_listener(lambda t, b: boxes.append(sum(len(x) for x in b)))
     pipeline.start()
     time.sleep(warmup)
-    pipeline._latency.clear()  # measure after warm-up only
+    pipeline.throughput.latency.clear()  # measure after warm-up only
     cpu0, wall0, done0 = os.times(), time.time(), pipeline.frames_processed
     n0 = len(boxes)
     time.sleep(seconds)
     cpu1, wall1, done1 = os.times(), time.time(), pipeline.frames_processed
-    latency = list(np.array(pipeline._latency, float) * 1e3)
+    latency = list(np.array(pipeline.throughput.latency, float) * 1e3)
     stats = pipeline.stats()
     pipeline.stop()
     return {
@@ -220,7 +229,7 @@ def summary(runs: list[dict]) -> dict:
 
 def scheduled(detector: Any, **options: Any) -> Any:
     from service.detection_schedule import DetectionScheduler
-    from service.pipeline import DetectorStage
+    from service.detector_stage import DetectorStage
 
     carrier = {k: options.pop(k) for k in ("flow",) if k in options}
     return DetectorStage(detector, DetectionScheduler(detector, carrier=carrier, **options))
@@ -242,7 +251,7 @@ def live_table(
 ) -> list:
     """Every configuration in ``rounds`` interleaved slices, so changing load on the shared
     machine falls on all of them alike."""
-    from service.pipeline import DetectorStage
+    from service.detector_stage import DetectorStage
 
     detectors = {1: make_detector(1), 2: make_detector(2)}
     stages = [(baseline_name, baseline)]

@@ -46,8 +46,9 @@ def rss_mb() -> float:
 
 def start_daemon(detections: str, clip_frames: int, model_dir: Path | None) -> Any:
     from capture.synthetic import SyntheticRig
-    from service.daemon import build_daemon, serve_in_thread
+    from service.daemon import build_daemon
     from service.demo import demo_settings
+    from service.server import serve_in_thread
 
     class LoopedScene:
         """Loops a pre-drawn clip of a scene: camera-like timing without the drawing cost."""

@@ -8,7 +8,9 @@ The ONNX graph takes the runtime's deterministic estimators and does the rest in
 
 ``model.json`` carries everything serving needs without torch: cameras, image sizes, observation
 mode, sampler settings and its fixed draws, world normalisation, the decoder matrices P̄_k in
-*pixel* units (acting on ``(x, y, 0, 1)`` with x, y in metres), training metrics and a version.
+*pixel* units (acting on ``(x, y, 0, 1)`` with x, y in metres), training metrics, a version and
+``world_bounds`` (:func:`world_bounds`: the floor area the training positions cover, which the
+daemon's map shows by default).
 """
 
 from __future__ import annotations
@@ -72,6 +74,17 @@ def pixel_decoder(
     return np.stack(out)
 
 
+def world_bounds(world: np.ndarray) -> dict[str, float] | None:
+    """Extent (metres) of the training positions ``world`` [N, 2+]: for a floor-mark recording
+    the marks' extent, for dense labels the area walked. None without a finite position."""
+    xy = np.asarray(world, np.float64)[:, :2]
+    xy = xy[np.isfinite(xy).all(axis=1)]
+    if not len(xy):
+        return None
+    (xmin, ymin), (xmax, ymax) = xy.min(axis=0), xy.max(axis=0)
+    return {"xmin": float(xmin), "xmax": float(xmax), "ymin": float(ymin), "ymax": float(ymax)}
+
+
 def write_model_dir(
     out_dir: Path,
     *,
@@ -86,6 +99,7 @@ def write_model_dir(
     settings: dict,
     floor_prior: dict | None = None,
     extra: dict[str, Any] | None = None,
+    world_bounds: dict[str, float] | None = None,
 ) -> None:
     """Write all three files, each atomically (:mod:`models.atomic`), ``model.json`` last and
     once, complete with the ``floor_prior`` entry and any ``extra`` top-level entries (e.g. the
@@ -123,6 +137,8 @@ def write_model_dir(
     }
     if floor_prior is not None:
         meta["floor_prior"] = floor_prior
+    if world_bounds is not None:
+        meta["world_bounds"] = world_bounds
     clashes = set(extra or {}) & set(meta)
     if clashes:
         raise ValueError(f"extra model.json entries would replace {sorted(clashes)}")

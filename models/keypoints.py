@@ -113,6 +113,8 @@ class KeypointEstimator:
 class KeypointDetector(PersonDetector):
     """Wraps any person detector and adds COCO-17 keypoints to its detections."""
 
+    keypoints = True
+
     def __init__(self, detector: PersonDetector, estimator: KeypointEstimator | None = None):
         self.detector = detector
         self.estimator = estimator or KeypointEstimator()

@@ -63,6 +63,22 @@ class FloorPriorSchema(BaseModel):
     prior: dict[str, Any] | None = None
 
 
+class WorldBoundsSchema(BaseModel):
+    """The floor area the training positions cover (metres): the map's default extent."""
+
+    model_config = _STRICT
+    xmin: Number
+    xmax: Number
+    ymin: Number
+    ymax: Number
+
+    @model_validator(mode="after")
+    def _ordered(self) -> WorldBoundsSchema:
+        if self.xmin > self.xmax or self.ymin > self.ymax:
+            raise ValueError("world_bounds: min above max")
+        return self
+
+
 class ModelSchema(BaseModel):
     """The keys of ``model.json`` the serving runtime reads."""
 
@@ -79,6 +95,7 @@ class ModelSchema(BaseModel):
     encoder: EncoderSchema = Field(default_factory=EncoderSchema)
     decoder: DecoderSchema
     floor_prior: FloorPriorSchema | None = None
+    world_bounds: WorldBoundsSchema | None = None  # absent in models trained before 2026-12
 
     @model_validator(mode="after")
     def _one_per_camera(self) -> ModelSchema:

@@ -58,6 +58,17 @@ class MomRuntime:
         self.floor_prior = FloorPrior.from_json(prior["prior"]) if prior.get("prior") else None
         if max(self.prior_weights) > 0 and self.floor_prior is None:
             raise ValueError(f"floor_prior: policy {self.policy!r} without a fitted prior")
+        bounds = meta.get("world_bounds")
+        # the floor area the training positions cover ((xmin, ymin), (xmax, ymax)) metres, for
+        # the map's default extent; None for models written before export stored it
+        self.world_bounds: tuple[tuple[float, float], tuple[float, float]] | None = (
+            None
+            if bounds is None
+            else (
+                (float(bounds["xmin"]), float(bounds["ymin"])),
+                (float(bounds["xmax"]), float(bounds["ymax"])),
+            )
+        )
 
     @classmethod
     def load(cls, model_dir: str | os.PathLike[str], threads: int = 1) -> MomRuntime:

@@ -31,7 +31,7 @@ from tqdm import tqdm
 
 from models.dataset import MomDataset
 from models.errors import MomlocError
-from models.export import write_model_dir
+from models.export import world_bounds, write_model_dir
 from models.mom_torch import MomDecoder, MomEncoder, initial_decoder_matrix
 from models.prior_policy import choose_policy, summary
 from models.sampling import (
@@ -366,6 +366,7 @@ def _train(
         settings={**asdict(settings), "decoder": decoder, "seed": seed},
         floor_prior=floor_prior,
         extra=extra_meta,
+        world_bounds=world_bounds(dataset.world),
     )
     metrics["floor_prior"] = summary(floor_prior)
     return metrics

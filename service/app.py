@@ -52,12 +52,12 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from models.errors import MomlocError
 from service.api_errors import error_response, error_responses, install_error_handlers
-from service.daemon import Daemon
 from service.metrics import metrics_text
 from service.request_guard import BodyTooLarge, RequestGuard
 from service.routes_zones import create_zones_router
 from service.setup.routes import create_setup_router
 from service.snapshot_image import render_camera_jpeg
+from service.state import Daemon
 
 WEB_DIR = Path(__file__).resolve().parent / "web"
 WS_AUTH_CLOSE = 4401

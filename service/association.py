@@ -47,43 +47,22 @@ measurement's noise (long along a lone camera's line of sight).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from models.detector.base import Detections
 from models.errors import MomlocError
+from service.stages import Association, LocalizationModel
 
 DEFAULT_MAX_ERROR_PX = 100.0  # normalised px (half the reference height): see bench/association.py
 REFERENCE_HEIGHT_PX = 200.0  # errors are judged as if every box were this tall
 MIN_HEIGHT_PX = 20.0
 DEFAULT_MAX_VIEW_GAP_M = 2.0
 _BLOCKED = 1e9
-
-
-class LocalizationModel(Protocol):
-    """What association needs from ``models.mom_runtime.MomRuntime``."""
-
-    @property
-    def num_cameras(self) -> int: ...
-
-    def localize(self, boxes: np.ndarray) -> np.ndarray: ...
-
-    def reprojection_error(self, boxes: np.ndarray, world: np.ndarray) -> np.ndarray: ...
-
-
-@dataclass
-class Association:
-    """One person: a box (or NaN) per camera and the model's floor position for that tuple."""
-
-    boxes: np.ndarray  # [K, 4] pixels, NaN where camera k does not see the person
-    cameras: list[int]  # cameras that see the person
-    world: np.ndarray  # [2] metres
-    cost: float  # RMS normalised reprojection error over the seen cameras (see module doc)
-    detection_index: list[int | None]  # per camera: index into that camera's detections
-    errors: np.ndarray = field(default_factory=lambda: np.zeros(0))  # [K] px, NaN where unseen
-    covariance: np.ndarray | None = None  # [2, 2] m² of ``world`` when the model gives one
 
 
 @dataclass(frozen=True)
@@ -98,7 +77,7 @@ class _Gate:
 
 
 def associate(
-    detections_per_camera: list[np.ndarray],
+    detections_per_camera: Sequence[Detections | np.ndarray],
     runtime: LocalizationModel,
     max_error_px: float = DEFAULT_MAX_ERROR_PX,
     max_view_gap_m: float = DEFAULT_MAX_VIEW_GAP_M,
@@ -110,7 +89,7 @@ def associate(
             f"association: got detections for {len(detections_per_camera)} cameras, "
             f"the model was trained for {num_cameras}"
         )
-    detections = [_as_boxes(d, k) for k, d in enumerate(detections_per_camera)]
+    detections = _Views.of(detections_per_camera, _observation(runtime) == "keypoints")
     seen_cameras = [k for k in range(num_cameras) if len(detections[k])]
     gate = _Gate(max_error_px, max_view_gap_m)
     if len(seen_cameras) == 2:
@@ -120,12 +99,7 @@ def associate(
 
     if not clusters:
         return []
-    tuples = np.stack(
-        [
-            _tuple_boxes({k: j for k, j in enumerate(c) if j is not None}, detections)
-            for c in clusters
-        ]
-    )
+    tuples = detections.stack([{k: j for k, j in enumerate(c) if j is not None} for c in clusters])
     world, errors, cost, _ = _evaluate(tuples, runtime)
     covariance = _covariance(tuples, runtime)
     out = []
@@ -135,26 +109,27 @@ def associate(
         seen = [k for k in range(num_cameras) if cluster[k] is not None]
         out.append(
             Association(
-                boxes=tuples[i].astype(np.float32),
+                boxes=tuples.boxes[i].astype(np.float32),
                 cameras=seen,
                 world=world[i],
                 cost=float(cost[i]),
                 detection_index=list(cluster),
                 errors=errors[i],
                 covariance=None if covariance is None else covariance[i],
+                keypoints=None if tuples.keypoints is None else tuples.keypoints[i],
             )
         )
     return out
 
 
 def _match_two(
-    detections: list[np.ndarray], cameras: list[int], runtime: LocalizationModel, limits: _Gate
+    detections: _Views, cameras: list[int], runtime: LocalizationModel, limits: _Gate
 ) -> list[list[int | None]]:
     """Optimal gated bipartite assignment between the only two cameras with detections."""
     a, b = cameras
     num_cameras = len(detections)
     pairs = [(i, j) for i in range(len(detections[a])) for j in range(len(detections[b]))]
-    tuples = np.stack([_tuple_boxes({a: i, b: j}, detections) for i, j in pairs])
+    tuples = detections.stack([{a: i, b: j} for i, j in pairs])
     _, _, cost, worst = _evaluate(tuples, runtime)
     shape = (len(detections[a]), len(detections[b]))
     single = _single_view_positions(detections, runtime)
@@ -193,7 +168,7 @@ def _match_two(
 
 
 def _merge_greedy(
-    detections: list[np.ndarray], runtime: LocalizationModel, limits: _Gate
+    detections: _Views, runtime: LocalizationModel, limits: _Gate
 ) -> list[list[int | None]]:
     """Agglomerative merging, cheapest admissible merge first, re-scoring each merged cluster.
 
@@ -204,7 +179,7 @@ def _merge_greedy(
     single = _single_view_positions(detections, runtime)
     clusters: dict[int, dict[int, int]] = {}
     positions: dict[int, np.ndarray] = {}
-    for k, boxes in enumerate(detections):
+    for k, boxes in enumerate(detections.boxes):
         for j in range(len(boxes)):
             positions[len(clusters)] = single[k][j]
             clusters[len(clusters)] = {k: j}
@@ -235,7 +210,7 @@ def _score_pairs(
     pairs: list[tuple[int, int]],
     clusters: dict[int, dict[int, int]],
     positions: dict[int, np.ndarray],
-    detections: list[np.ndarray],
+    detections: _Views,
     runtime: LocalizationModel,
     limits: _Gate,
     costs: dict[tuple[int, int], tuple[float, np.ndarray]],
@@ -244,7 +219,7 @@ def _score_pairs(
     pairs = [(p, q) for p, q in pairs if not clusters[p].keys() & clusters[q].keys()]
     if not pairs:
         return
-    tuples = np.stack([_tuple_boxes({**clusters[p], **clusters[q]}, detections) for p, q in pairs])
+    tuples = detections.stack([{**clusters[p], **clusters[q]} for p, q in pairs])
     world, _, cost, worst = _evaluate(tuples, runtime)
     gap = np.array([np.linalg.norm(positions[p] - positions[q]) for p, q in pairs])
     ok = limits.admits(worst, gap)
@@ -253,17 +228,14 @@ def _score_pairs(
             costs[pair] = (float(cost[i]), world[i])
 
 
-def _single_view_positions(
-    detections: list[np.ndarray], runtime: LocalizationModel
-) -> list[np.ndarray]:
+def _single_view_positions(detections: _Views, runtime: LocalizationModel) -> list[np.ndarray]:
     """Per camera [M_k, 2]: each box localized alone (NaN if the model cannot), one call."""
     rows = [{k: j} for k in range(len(detections)) for j in range(len(detections[k]))]
     if not rows:
-        return [np.zeros((0, 2)) for _ in detections]
-    tuples = np.stack([_tuple_boxes(r, detections) for r in rows])
-    world = np.asarray(runtime.localize(tuples), dtype=np.float64).reshape(len(rows), 2)
+        return [np.zeros((0, 2)) for _ in detections.boxes]
+    world = _localize(detections.stack(rows), runtime)
     out, start = [], 0
-    for boxes in detections:
+    for boxes in detections.boxes:
         out.append(world[start : start + len(boxes)])
         start += len(boxes)
     return out
@@ -290,11 +262,87 @@ def covering_cameras(
     return np.all(inside, axis=-1)
 
 
-def _covariance(tuples: np.ndarray, runtime: LocalizationModel) -> np.ndarray | None:
+def _covariance(tuples: _Tuples, runtime: LocalizationModel) -> np.ndarray | None:
     """The model's covariance [B, 2, 2] of each tuple's position, if it has one (optional:
     ``MomRuntime.covariance``); rows it cannot tell are NaN."""
     method = getattr(runtime, "covariance", None)
-    return None if method is None else np.asarray(method(tuples), dtype=np.float64)
+    if method is None:
+        return None
+    if tuples.keypoints is None:
+        return np.asarray(method(tuples.boxes), dtype=np.float64)
+    return np.asarray(method(tuples.boxes, tuples.keypoints), dtype=np.float64)
+
+
+def _observation(runtime: LocalizationModel) -> str:
+    """``"bbox"`` or ``"keypoints"``; doubles and older runtimes without the field read boxes."""
+    return str(getattr(runtime, "observation", "bbox"))
+
+
+@dataclass(frozen=True)
+class _Tuples:
+    """Candidate tuples as the model reads them: boxes [B, K, 4] and, for a keypoint model,
+    keypoints [B, K, J, 3] (NaN where a camera has no detection in the tuple)."""
+
+    boxes: np.ndarray
+    keypoints: np.ndarray | None
+
+    def __len__(self) -> int:
+        return len(self.boxes)
+
+
+class _Views:
+    """Per camera detections: ``views[k]`` are camera k's boxes [M_k, 4] (and, for keypoint
+    models, ``keypoints[k]`` [M_k, J, 3])."""
+
+    def __init__(self, boxes: list[np.ndarray], keypoints: list[np.ndarray] | None) -> None:
+        self.boxes, self.keypoints = boxes, keypoints
+
+    @classmethod
+    def of(cls, detections: Sequence[Detections | np.ndarray], with_keypoints: bool) -> _Views:
+        boxes, keypoints = [], []
+        for camera, found in enumerate(detections):
+            raw = found.boxes if isinstance(found, Detections) else found
+            boxes.append(_as_boxes(raw, camera))
+            points = found.keypoints if isinstance(found, Detections) else None
+            if with_keypoints and points is None and len(boxes[-1]):
+                raise MomlocError(
+                    f"association: the model reads keypoints, camera {camera}'s detections "
+                    "carry none (a keypoint model needs a detector with keypoints)"
+                )
+            keypoints.append(points)
+        if not with_keypoints:
+            return cls(boxes, None)
+        joints = next((p.shape[1] for p in keypoints if p is not None and p.ndim == 3), 17)
+        return cls(
+            boxes,
+            [
+                np.zeros((0, joints, 3), np.float32)
+                if p is None
+                else np.asarray(p, np.float32).reshape(len(b), joints, 3)
+                for b, p in zip(boxes, keypoints, strict=True)
+            ],
+        )
+
+    def __len__(self) -> int:
+        return len(self.boxes)
+
+    def __getitem__(self, camera: int) -> np.ndarray:
+        return self.boxes[camera]
+
+    def stack(self, clusters: Sequence[dict[int, int]]) -> _Tuples:
+        """The tuples of ``clusters`` (``{camera: detection index}`` each), NaN elsewhere."""
+        boxes = np.full((len(clusters), len(self.boxes), 4), np.nan, dtype=np.float32)
+        keypoints = None
+        if self.keypoints is not None:
+            joints = self.keypoints[0].shape[1]
+            shape = (len(clusters), len(self.boxes), joints, 3)
+            keypoints = np.full(shape, np.nan, dtype=np.float32)
+        for row, cluster in enumerate(clusters):
+            for k, j in cluster.items():
+                boxes[row, k] = self.boxes[k][j]
+                if keypoints is not None and self.keypoints is not None:
+                    keypoints[row, k] = self.keypoints[k][j]
+        return _Tuples(boxes, keypoints)
 
 
 def _as_boxes(detections: np.ndarray, camera: int) -> np.ndarray:
@@ -306,16 +354,17 @@ def _as_boxes(detections: np.ndarray, camera: int) -> np.ndarray:
     return boxes
 
 
-def _tuple_boxes(cluster: dict[int, int], detections: list[np.ndarray]) -> np.ndarray:
-    """Boxes [K, 4] of one candidate tuple ``{camera: detection index}``, NaN elsewhere."""
-    out = np.full((len(detections), 4), np.nan, dtype=np.float32)
-    for k, j in cluster.items():
-        out[k] = detections[k][j]
-    return out
+def _localize(tuples: _Tuples, runtime: LocalizationModel) -> np.ndarray:
+    """World [B, 2] (float64) of each tuple; keypoints only go to a keypoint model."""
+    if tuples.keypoints is None:
+        world = runtime.localize(tuples.boxes)
+    else:
+        world = runtime.localize(tuples.boxes, tuples.keypoints)
+    return np.asarray(world, dtype=np.float64).reshape(len(tuples), 2)
 
 
 def _evaluate(
-    tuples: np.ndarray, runtime: LocalizationModel
+    tuples: _Tuples, runtime: LocalizationModel
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """World [B, 2], raw errors [B, K] px, and the RMS and worst *normalised* error per tuple.
 
@@ -323,10 +372,15 @@ def _evaluate(
     (small box, small pixel errors) and a near one (large box, large errors from the same box
     noise) are judged alike. Non-computable tuples get ``inf``.
     """
-    world = np.asarray(runtime.localize(tuples), dtype=np.float64).reshape(len(tuples), 2)
-    errors = np.asarray(runtime.reprojection_error(tuples, world), dtype=np.float64)
-    seen = np.isfinite(tuples).all(axis=2)
-    height = np.maximum(np.nan_to_num(tuples[..., 3] - tuples[..., 1]), MIN_HEIGHT_PX)
+    world = _localize(tuples, runtime)
+    if tuples.keypoints is None:
+        errors = runtime.reprojection_error(tuples.boxes, world)
+    else:
+        errors = runtime.reprojection_error(tuples.boxes, world, tuples.keypoints)
+    errors = np.asarray(errors, dtype=np.float64)
+    boxes = tuples.boxes
+    seen = np.isfinite(boxes).all(axis=2)
+    height = np.maximum(np.nan_to_num(boxes[..., 3] - boxes[..., 1]), MIN_HEIGHT_PX)
     scaled = np.where(seen, errors * (REFERENCE_HEIGHT_PX / height), 0.0)
     bad = ~np.isfinite(scaled).all(axis=1) | ~np.isfinite(world).all(axis=1) | ~seen.any(axis=1)
     scaled = np.where(np.isfinite(scaled), scaled, 0.0)

@@ -1,4 +1,5 @@
-"""Assembles the daemon from settings: cameras, detector, MoM model, pipeline, hub; runs uvicorn.
+"""The composition root: builds the daemon from settings (cameras, detector, MoM model,
+pipeline and its listeners, hub, outputs); ``service.server`` serves it.
 
 ``momloc serve`` and ``momloc demo`` differ only in the settings they pass here, so the demo
 exercises exactly the code users run on real cameras.
@@ -6,139 +7,23 @@ exercises exactly the code users run on real cameras.
 
 from __future__ import annotations
 
-import dataclasses
 import logging
-import os
-import socket
-import threading
-import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from models.detector.windows import WindowRefiner
 from models.errors import MomlocError
+from service.detector_stage import DetectorStage
 from service.hub import Hub
 from service.model_watch import ModelWatcher
-from service.pipeline import DetectorStage, Pipeline
+from service.pipeline import Pipeline
 from service.settings import FileCamera, Settings, SyntheticCamera, V4l2Camera
-from service.setup.camera_monitor import CameraMoved
 from service.setup.session import SetupSession
 from service.setup.training import TrainingJob, model_path
-from service.setup.verify import Verifier, stored_verification
+from service.setup.verify import Verifier
+from service.state import NO_MODEL, Daemon
 
 log = logging.getLogger("momloc")
-GRACEFUL_SHUTDOWN_S = 3
-NO_MODEL = "no model yet: record floor marks at /setup"
-
-
-@dataclass
-class Daemon:
-    """Everything the API reads: hub, pipeline and the static facts about the setup."""
-
-    hub: Hub
-    pipeline: Pipeline
-    camera_names: list[str]
-    token: str | None = None
-    stream_rate: float = 30.0
-    ping_interval: float = 20.0
-    ping_timeout: float = 20.0
-    floor: dict[str, float] | None = None
-    extras: dict[str, Any] = field(default_factory=dict)
-    started: float = field(default_factory=time.time)
-    watcher: ModelWatcher | None = None
-    setup: SetupSession | None = None
-    bind_host: str = "127.0.0.1"  # with the two lists below: see service.request_guard
-    allowed_hosts: list[str] = field(default_factory=list)
-    allowed_origins: list[str] = field(default_factory=list)
-    outputs: Any = None  # service.outputs.Outputs: zones, MQTT
-    training: TrainingJob | None = None  # the /setup page's Train button
-    verifier: Verifier | None = None  # the /setup page's check step
-
-    @property
-    def setup_mode(self) -> bool:
-        """No model is served: cameras, previews and /setup work, no positions are published."""
-        return self.pipeline.runtime is None
-
-    def camera_states(self) -> list[dict[str, Any]]:
-        states = self.pipeline.rig.states()
-        alignment = self.pipeline.alignment_status(self.camera_names)
-        out = []
-        for k, state in enumerate(states):
-            d = dataclasses.asdict(state) if dataclasses.is_dataclass(state) else dict(vars(state))
-            d = {
-                "index": k,
-                "name": self.camera_names[k] if k < len(self.camera_names) else f"camera-{k}",
-                "connected": bool(d.get("connected", False)),
-                "fps": _round(d.get("fps")),
-                "last_frame_age": _round(d.get("last_frame_age"), 3),
-                "reconnects": int(d.get("reconnects") or 0),
-                "error": d.get("error"),
-                "alignment": _alignment(alignment[k]) if k < len(alignment) else None,
-            }
-            out.append(d)
-        return out
-
-    def health(self) -> dict[str, Any]:
-        cameras = self.camera_states()
-        model = self.pipeline.model_info()
-        pipeline = self.pipeline.stats()
-        model["verification"] = stored_verification(self.pipeline.model_dir)
-        if self.setup_mode:
-            model["message"] = NO_MODEL
-        ok = (
-            all(c["connected"] and not (c["alignment"] or {}).get("moved") for c in cameras)
-            and model["loaded"]
-            and model.get("compatible", False)
-            and pipeline["running"]
-            and pipeline["error"] is None
-        )
-        return {
-            "status": "setup" if self.setup_mode else "ok" if ok else "degraded",
-            "setup_mode": self.setup_mode,
-            "uptime_s": round(time.time() - self.started, 1),
-            "cameras": cameras,
-            "model": model,
-            "pipeline": pipeline,
-            "clients": self.hub.subscriber_count,
-            "stream": self.hub.stream_stats(),
-            "model_reload": None if self.watcher is None else self.watcher.last_reload,
-            **({} if self.outputs is None else self.outputs.health()),
-            **self.extras,
-        }
-
-    def public_config(self) -> dict[str, Any]:
-        return {
-            "cameras": [{"index": k, "name": n} for k, n in enumerate(self.camera_names)],
-            "floor": self.floor,
-            "stream_rate": self.stream_rate,
-            "auth": self.token is not None,
-            "setup_mode": self.setup_mode,
-            "zones": []
-            if self.outputs is None
-            else [z.as_dict() for z in self.outputs.zones.zones],
-            **self.extras,
-        }
-
-
-def _alignment(state: CameraMoved) -> dict[str, Any]:
-    """The camera-moved check as health JSON: image shift and reprojection error, what to do."""
-    shift, error = state.shift, state.reprojection
-    return {
-        "moved": state.moved,
-        "shift_px": _round(shift.shift_px, 1),
-        "shift_confidence": _round(shift.confidence),
-        "reference": shift.reference,
-        "shift_moved": shift.moved,
-        "reprojection_px": _round(error.error_px, 1),
-        "usual_px": _round(error.baseline_px, 1),
-        "reprojection_moved": error.moved,
-        "message": state.message,
-    }
-
-
-def _round(value: Any, digits: int = 2) -> float | None:
-    return None if value is None else round(float(value), digits)
 
 
 def camera_name(camera: Any) -> str:
@@ -162,7 +47,7 @@ def build_rig(settings: Settings) -> tuple[Any, Any]:
 
         syn = settings.synthetic
         scene = scene_for(syn)
-        indices = [c.index for c in settings.cameras]
+        indices = [c.index for c in settings.cameras if isinstance(c, SyntheticCamera)]
         available = len(scene.cameras)
         for position, index in enumerate(indices):
             if index >= available:
@@ -181,7 +66,7 @@ def build_rig(settings: Settings) -> tuple[Any, Any]:
     from capture.worker import CameraWorker
 
     workers = [CameraWorker(_open_source(c), camera=k) for k, c in enumerate(settings.cameras)]
-    return CameraRig(workers), None
+    return CameraRig(workers, max_skew=settings.tracking.max_skew_s), None
 
 
 def _open_source(camera: Any) -> Any:
@@ -215,6 +100,7 @@ def build_detect_stage(settings: Settings, player: Any) -> Any:
         settings.detector.kind,
         score_threshold=settings.detector.score_threshold,
         threads=threads,
+        keypoints=settings.detector.keypoints,
         **{key: value for key, value in options.items() if value is not None},
     )
     schedule = None
@@ -252,10 +138,11 @@ def floor_extent(settings: Settings, runtime: Any, player: Any) -> dict[str, flo
         return settings.floor.model_dump()
     if player is not None:
         return player.floor_extent()
-    bounds = getattr(runtime, "world_bounds", None)
+    bounds = getattr(runtime, "world_bounds", None)  # None: a model from before it was stored
     if bounds is not None:
         (xmin, ymin), (xmax, ymax) = bounds
-        return {"xmin": float(xmin), "xmax": float(xmax), "ymin": float(ymin), "ymax": float(ymax)}
+        if xmax > xmin and ymax > ymin:  # marks on one line span no area to draw
+            return {"xmin": xmin, "xmax": xmax, "ymin": ymin, "ymax": ymax}
     return None
 
 
@@ -335,99 +222,5 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
 
 def _known_sizes(pipeline: Pipeline) -> list[tuple[int, int]] | None:
     """Every camera's frame size once each has delivered a frame, else None."""
-    sizes = list(pipeline.image_sizes)
-    return None if any(size is None for size in sizes) else sizes
-
-
-def bind_socket(host: str, port: int) -> socket.socket:
-    """Listen on host:port now, so a taken port is a one-line user error, not a traceback."""
-    family = socket.AF_INET6 if ":" in host else socket.AF_INET
-    sock = socket.socket(family, socket.SOCK_STREAM)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    try:
-        sock.bind((host, port))
-        sock.listen(2048)  # connections made right after the banner wait in the backlog
-    except OSError as error:
-        sock.close()
-        raise MomlocError(f"cannot listen on {host}:{port} ({error.strerror})") from None
-    sock.set_inheritable(True)
-    return sock
-
-
-def make_server(daemon: Daemon, host: str, port: int) -> Any:
-    """A uvicorn server for ``daemon`` (run it with ``server.run(sockets=[sock])``)."""
-    import uvicorn
-
-    from service.app import create_app
-
-    config = uvicorn.Config(
-        create_app(daemon),
-        host=host,
-        port=port,
-        log_level="warning",
-        ws="websockets-sansio",
-        ws_ping_interval=daemon.ping_interval,
-        ws_ping_timeout=daemon.ping_timeout,
-        # snapshots are a few hundred bytes: per-client zlib costs more CPU than it saves
-        ws_per_message_deflate=False,
-        # SIGTERM must stop the daemon within seconds, whatever a client is doing (a slow body,
-        # a long request): open connections get this long, then they are cut
-        timeout_graceful_shutdown=GRACEFUL_SHUTDOWN_S,
-    )
-    return uvicorn.Server(config)
-
-
-def run_server(daemon: Daemon, host: str, port: int, on_ready: Any = None) -> None:
-    """Bind, announce, and serve until interrupted (uvicorn owns signals and the loop)."""
-    sock = bind_socket(host, port)
-    server = make_server(daemon, host, port)
-    if on_ready is not None:
-        on_ready(sock.getsockname()[1])
-    server.run(sockets=[sock])
-    _exit_soon_if_stuck(GRACEFUL_SHUTDOWN_S + 5)
-
-
-def _exit_soon_if_stuck(seconds: float) -> None:
-    """After serving, make sure the process ends: a request still running in a worker thread
-    (those threads are not daemons) would otherwise keep it alive after SIGTERM."""
-
-    def deadline() -> None:
-        time.sleep(seconds)
-        log.warning("momloc: a request was still running %.0f s after stopping; exiting", seconds)
-        logging.shutdown()
-        os._exit(0)
-
-    threading.Thread(target=deadline, name="momloc-exit-deadline", daemon=True).start()
-
-
-@dataclass
-class BackgroundServer:
-    """A daemon served by uvicorn in a thread (tests and benchmarks)."""
-
-    daemon: Daemon
-    port: int
-    server: Any
-    thread: threading.Thread
-    sock: socket.socket
-
-    def stop(self) -> None:
-        self.server.should_exit = True
-        self.thread.join(timeout=15)
-        self.sock.close()
-
-
-def serve_in_thread(daemon: Daemon, host: str = "127.0.0.1", port: int = 0) -> BackgroundServer:
-    """Start serving ``daemon`` on host:port (0: any free port); returns once it accepts."""
-    sock = bind_socket(host, port)
-    server = make_server(daemon, host, sock.getsockname()[1])
-    thread = threading.Thread(
-        target=server.run, kwargs={"sockets": [sock]}, name="uvicorn", daemon=True
-    )
-    thread.start()
-    deadline = time.time() + 60
-    while not server.started:
-        if time.time() > deadline or not thread.is_alive():
-            sock.close()
-            raise MomlocError("the HTTP server did not start")
-        time.sleep(0.02)
-    return BackgroundServer(daemon, sock.getsockname()[1], server, thread, sock)
+    known = [size for size in pipeline.image_sizes if size is not None]
+    return known if len(known) == len(pipeline.image_sizes) else None

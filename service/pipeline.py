@@ -8,13 +8,27 @@ rig; frames that arrived while the previous set was being processed are skipped 
 dropped (camera workers keep one frame each), so a slow machine loses frame rate, never latency
 or memory.
 
-The MoM runtime is held by reference and swapped whole by :meth:`Pipeline.reload_model`; the next
-iteration picks up the new one. A model whose camera count or image sizes disagree with the
-cameras is refused with a :class:`MomlocError` and the running model stays.
+The pipeline runs the chain only. The values passed between stages are the typed contracts of
+``service.stages``; after publishing, the whole :class:`~service.stages.FrameResult` goes to the
+listeners (``service.frame_listeners``: camera-moved checks, previews, throughput, the set-up
+recorder), which cannot change what was published. :meth:`Pipeline.process` is the one entry
+for a frame set, used by the thread live and callable directly (offline replays, tests).
 
-Detection is a pluggable stage: ``detect(frame_set) -> [boxes [M_k, 4] per camera]``. The real
-detector stage wraps ``models.detector``; the demo can feed the simulator's boxes through the very
-same entry (see ``service.demo``).
+Skew rule: USB webcams are not synchronised, so the newest frames of two cameras can be tens of
+milliseconds apart, and a walking person (1.4 m/s) moves 7 cm in 50 ms. The rig marks a frame
+``stale`` when it is more than ``max_skew`` older than the newest frame of the set
+(``capture.rig``, setting ``tracking.max_skew_s``, default 0.05 s). Stale frames are *left out*
+of detection and fusion: the set is localized as one instant from the newest consistent subset,
+and a person seen only by the late camera is localized from the others (the MoM model supports
+missing views) or not at all this time. Rejected: skipping the whole set (a camera that runs
+slower or lags would stall every update, where leaving it out costs only that view for one
+step; the next set normally has it fresh again) and fusing anyway (association then compares a
+person at two different places and may split them into two).
+
+The MoM runtime is held by reference and swapped whole by :meth:`Pipeline.reload_model`; the next
+iteration picks up the new one. A model that cannot serve these cameras (camera count, image
+sizes, or keypoints from a detector that has none) is refused with a :class:`MomlocError` and the
+running model stays.
 """
 
 from __future__ import annotations
@@ -22,23 +36,31 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections import deque
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
 
+from capture.rig import FrameSet
+from capture.worker import CameraState, Frame
 from models.errors import MomlocError
 from service.association import DEFAULT_MAX_ERROR_PX
-from service.camera_shift import CameraShiftMonitor, ShiftWorker
+from service.frame_listeners import CameraView, CameraWatch, DetectionTap, Previews, Throughput
 from service.hub import Hub, Snapshot
-from service.setup.camera_monitor import CameraMotionMonitor, CameraMoved, combine
+from service.setup.camera_monitor import CameraMoved
+from service.stages import (
+    AssociateStage,
+    Association,
+    DetectStage,
+    FrameListener,
+    FrameResult,
+    LocalizationModel,
+    Track,
+    TrackStage,
+)
 
 log = logging.getLogger("momloc.pipeline")
-
-DetectStage = Callable[[Any], list[np.ndarray]]
 
 
 class Rig(Protocol):
@@ -46,56 +68,29 @@ class Rig(Protocol):
 
     def start(self) -> None: ...
     def stop(self) -> None: ...
-    def frame_set(self, after: Any = None, timeout: float = 0.0) -> Any: ...
-    def states(self) -> list[Any]: ...
+    def frame_set(self, after: FrameSet | None = None, timeout: float = 0.0) -> FrameSet | None: ...
+    def states(self) -> list[CameraState]: ...
 
 
-class DetectorStage:
-    """Real detector: one batched call for all cameras.
-
-    Boxes are kept as the detector returns them: its own ``score_threshold`` is the one filter.
-    With ``schedule`` (a ``service.detection_schedule.DetectionScheduler``) the scheduler runs
-    the detector beside the pipeline and carries boxes between detections instead.
-    """
-
-    def __init__(self, detector: Any, schedule: Any = None) -> None:
-        self.detector = detector
-        self.schedule = schedule
-
-    def stats(self) -> dict[str, Any] | None:
-        return None if self.schedule is None else self.schedule.stats()
-
-    def close(self) -> None:
-        if self.schedule is not None:
-            self.schedule.close()
-
-    def __call__(self, frame_set: Any) -> list[np.ndarray]:
-        if self.schedule is not None:
-            return self.schedule(frame_set)
-        frames = list(frame_set.frames)
-        present = [k for k, f in enumerate(frames) if f is not None]
-        out = [np.zeros((0, 4), np.float32) for _ in frames]
-        if not present:
-            return out
-        results = self.detector.detect([frames[k].image for k in present])
-        for k, det in zip(present, results, strict=True):
-            out[k] = np.asarray(det.boxes, np.float32).reshape(-1, 4)
-        return out
-
-
-@dataclass
-class CameraView:
-    """What the snapshot endpoint draws for one camera."""
-
-    image: np.ndarray | None
-    boxes: list[tuple[np.ndarray, int | None]] = field(default_factory=list)
-
-
-def _image_size(frame: Any) -> tuple[int, int] | None:
+def _image_size(frame: Frame | None) -> tuple[int, int] | None:
     if frame is None or frame.image is None:
         return None
     h, w = frame.image.shape[:2]
     return int(w), int(h)
+
+
+def fusable(frame_set: FrameSet) -> tuple[FrameSet, list[bool]]:
+    """The skew rule (module docstring): the frame set without its stale frames, and per camera
+    whether its frame takes part."""
+    frames = list(frame_set.frames)
+    stale = list(getattr(frame_set, "stale", None) or [False] * len(frames))
+    fused = [f is not None and not s for f, s in zip(frames, stale, strict=True)]
+    if all(f is None or keep for f, keep in zip(frames, fused, strict=True)):
+        return frame_set, fused
+    kept = [f if keep else None for f, keep in zip(frames, fused, strict=True)]
+    times = [f.timestamp for f in kept if f is not None]
+    skew = max(times) - min(times) if times else 0.0
+    return FrameSet(frames=kept, skew=skew, stale=[False] * len(kept)), fused
 
 
 class Pipeline:
@@ -108,12 +103,12 @@ class Pipeline:
         hub: Hub,
         *,
         num_cameras: int,
-        runtime: Any = None,
+        runtime: LocalizationModel | None = None,
         model_dir: Path | None = None,
-        tracker: Any = None,
-        associate: Callable[..., list[Any]] | None = None,
+        tracker: TrackStage | None = None,
+        associate: AssociateStage | None = None,
         max_error_px: float = DEFAULT_MAX_ERROR_PX,
-        load_runtime: Callable[[Path], Any] | None = None,
+        load_runtime: Callable[[Path], LocalizationModel] | None = None,
         shift_threaded: bool = True,
     ) -> None:
         if tracker is None:
@@ -121,7 +116,9 @@ class Pipeline:
 
             tracker = Tracker(fps_hint=30.0)
         if associate is None:
-            from service.association import associate
+            from service.association import associate as associate_people
+
+            associate = associate_people
         self.rig, self.detect, self.hub = rig, detect, hub
         self.num_cameras = num_cameras
         self.tracker, self.associate, self.max_error_px = tracker, associate, max_error_px
@@ -131,31 +128,38 @@ class Pipeline:
         self.error: str | None = None
         self._seq = 0
         self._last_frame_seqs: tuple[int, ...] | None = None
-        self._views = [CameraView(None) for _ in range(num_cameras)]
-        self._view_lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self._done: deque[float] = deque(maxlen=120)  # publish times, for fps
-        self._latency: deque[float] = deque(maxlen=600)  # capture -> publish, seconds
-        self._stage_ms: dict[str, float] = {}
         self.frames_processed = 0
         self.frames_dropped = 0
+        self.views_left_out = 0  # frames left out of fusion by the skew rule
         self.failures = 0
         self.last_failure: str | None = None
-        self.alignment = CameraMotionMonitor(num_cameras)
-        # image-based camera-moved check, ~1/s on its own thread (service.camera_shift)
-        self.camera_shift = CameraShiftMonitor(num_cameras)
-        self._shift_worker = ShiftWorker(self.camera_shift, threaded=shift_threaded)
-        self._detection_listeners: list[Callable[[float, list[np.ndarray]], None]] = []
-        if runtime is not None and (problem := self._sizes_match(runtime)) is not None:
-            raise MomlocError(f"model_dir: {model_dir}: {problem}")  # the one camera-count check
+        # the standard listeners (service.frame_listeners); more via add_listener
+        self.camera_watch = CameraWatch(num_cameras, shift_threaded=shift_threaded)
+        self.previews = Previews(num_cameras)
+        self.throughput = Throughput()
+        self._listeners: list[FrameListener] = [self.camera_watch, self.previews, self.throughput]
+        self._taps: dict[Callable[..., None], DetectionTap] = {}
+        if runtime is not None:
+            self.check_model(runtime, f"model_dir: {model_dir}")  # the one load-time check
+
+    def add_listener(self, listener: FrameListener) -> None:
+        """Call ``listener(result)`` after every published frame set (must not block)."""
+        self._listeners = [*self._listeners, listener]
+
+    def remove_listener(self, listener: FrameListener) -> None:
+        self._listeners = [f for f in self._listeners if f is not listener]
 
     def add_detection_listener(self, listener: Callable[[float, list[np.ndarray]], None]) -> None:
         """Call ``listener(t_capture, boxes per camera)`` for every frame set (must not block)."""
-        self._detection_listeners = [*self._detection_listeners, listener]
+        self._taps[listener] = tap = DetectionTap(listener)
+        self.add_listener(tap)
 
     def remove_detection_listener(self, listener: Callable[..., None]) -> None:
-        self._detection_listeners = [f for f in self._detection_listeners if f != listener]
+        tap = self._taps.pop(listener, None)
+        if tap is not None:
+            self.remove_listener(tap)
 
     # -- lifecycle -------------------------------------------------------------------------------
 
@@ -169,7 +173,7 @@ class Pipeline:
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=5)
-        self._shift_worker.stop()
+        self.camera_watch.close()
         close = getattr(self.detect, "close", None)
         if close is not None:
             close()  # the detection scheduler's worker thread, if any
@@ -180,7 +184,7 @@ class Pipeline:
         return self._thread is not None and self._thread.is_alive()
 
     def _run(self) -> None:
-        previous = None
+        previous: FrameSet | None = None
         while not self._stop.is_set():
             try:
                 previous = self._step(previous)
@@ -190,12 +194,12 @@ class Pipeline:
                 log.exception("pipeline iteration failed")
                 self._stop.wait(0.1)
 
-    def _step(self, previous: Any) -> Any:
+    def _step(self, previous: FrameSet | None) -> FrameSet | None:
         """Process the newest frame set if it is new; returns the set to wait after."""
         # waits (briefly) for frames newer than the last set instead of spinning
         frame_set = self.rig.frame_set(after=previous, timeout=0.1)
         seqs = self._frame_seqs(frame_set)
-        if seqs is None or seqs == self._last_frame_seqs:
+        if frame_set is None or seqs is None or seqs == self._last_frame_seqs:
             self._stop.wait(0.002)
             return previous
         if self._last_frame_seqs is not None:
@@ -209,7 +213,7 @@ class Pipeline:
         return frame_set
 
     @staticmethod
-    def _frame_seqs(frame_set: Any) -> tuple[int, ...] | None:
+    def _frame_seqs(frame_set: FrameSet | None) -> tuple[int, ...] | None:
         if frame_set is None:
             return None
         seqs = tuple(-1 if f is None else int(f.seq) for f in frame_set.frames)
@@ -217,94 +221,79 @@ class Pipeline:
 
     # -- one frame set ---------------------------------------------------------------------------
 
-    def process(self, frame_set: Any) -> Snapshot:
-        """Run the chain on one frame set and publish the result (callable without the thread)."""
+    def process(self, frame_set: FrameSet) -> Snapshot:
+        """Run the chain on one frame set, publish the snapshot, then tell the listeners."""
         frames = list(frame_set.frames)
         stamps = [f.timestamp for f in frames if f is not None]
         t_capture = float(min(stamps)) if stamps else time.time()
-        t0 = time.perf_counter()
-        detections = self.detect(frame_set)
-        for listener in self._detection_listeners:
-            listener(t_capture, detections)
-        t1 = time.perf_counter()
         for k, f in enumerate(frames):
             size = _image_size(f)
             if size is not None:
                 self.image_sizes[k] = size
-        self._shift_worker.submit(t_capture, [None if f is None else f.image for f in frames])
+        t0 = time.perf_counter()
+        used, fused = fusable(frame_set)
+        self.views_left_out += sum(
+            f is not None and not keep for f, keep in zip(frames, fused, strict=True)
+        )
+        used_stamps = [f.timestamp for f in used.frames if f is not None]
+        t_used = float(min(used_stamps)) if used_stamps else t_capture  # the snapshot's ``t``
+        detections = list(self.detect(used))
+        t1 = time.perf_counter()
         runtime = self.runtime
-        associations: list[Any] = []
+        associations: list[Association] = []
         self.error = None  # this iteration's state only; failures are counted separately
         if runtime is not None:
-            problem = self._sizes_match(runtime)
+            problem = self._incompatibility(runtime)
             if problem is None:
                 associations = self.associate(detections, runtime, max_error_px=self.max_error_px)
-                self._watch_alignment(runtime, associations, t_capture)
             else:
                 self.error = f"model: {problem}"
         t2 = time.perf_counter()
         self._seq += 1
+        tracks = self._track(t_used, associations)
+        t3 = time.perf_counter()
+        snapshot = Snapshot.build(self._seq, t_used, [_person(tr) for tr in tracks])
+        if runtime is not None:  # set-up mode (no model) publishes no positions at all
+            self.hub.publish(snapshot)
+        self.frames_processed += 1
+        result = FrameResult(
+            frame_set=frame_set,
+            t_capture=t_used,
+            fused=fused,
+            detections=detections,
+            associations=associations,
+            tracks=tracks,
+            snapshot=snapshot,
+            runtime=runtime,
+            timings_ms={
+                "detect": (t1 - t0) * 1e3,
+                "associate": (t2 - t1) * 1e3,
+                "track": (t3 - t2) * 1e3,
+            },
+        )
+        for listener in self._listeners:
+            listener(result)
+        return snapshot
+
+    def _track(self, t: float, associations: Sequence[Association]) -> list[Track]:
+        """The tracker's one call per frame set (meta links each track back to its association)."""
         meta = [
             {"cameras": [int(c) for c in a.cameras], "frame": self._seq, "association": i}
             for i, a in enumerate(associations)
         ]
         positions = np.array([np.asarray(a.world, float)[:2] for a in associations]).reshape(-1, 2)
-        tracks = self.tracker.update(t_capture, positions, meta)
-        t3 = time.perf_counter()
-        people = [_person(tr) for tr in tracks]
-        snapshot = Snapshot.build(self._seq, t_capture, people)
-        if runtime is not None:  # set-up mode (no model) publishes no positions at all
-            self.hub.publish(snapshot)
-        now = time.time()
-        self._record(frames, detections, associations, tracks, t_capture, now)
-        self._stage_ms = {
-            "detect": (t1 - t0) * 1e3,
-            "associate": (t2 - t1) * 1e3,
-            "track": (t3 - t2) * 1e3,
-        }
-        return snapshot
+        return self.tracker.update(t, positions, meta)
 
-    def _watch_alignment(self, runtime: Any, associations: Sequence[Any], t: float) -> None:
-        """Feed the camera-moved monitor with the decoder's reprojection error of people seen by
-        two or more cameras (a lone view always agrees with its own prediction)."""
-        multi = [a for a in associations if len(a.cameras) >= 2]
-        if not multi:
-            return
-        boxes = np.stack([np.asarray(a.boxes, np.float32) for a in multi])
-        world = np.stack([np.asarray(a.world, np.float64)[:2] for a in multi])
-        self.alignment.update(t, runtime.reprojection_error(boxes, world))
-
-    def _record(
-        self,
-        frames: Sequence[Any],
-        detections: Sequence[np.ndarray],
-        associations: Sequence[Any],
-        tracks: Sequence[Any],
-        t_capture: float,
-        now: float,
-    ) -> None:
-        ids: dict[tuple[int, int], int] = {}
-        for tr in tracks:
-            meta = getattr(tr, "meta", None) or {}
-            if meta.get("frame") != self._seq:
-                continue
-            a = associations[meta["association"]]
-            for k, j in enumerate(a.detection_index):
-                if j is not None:
-                    ids[(k, int(j))] = int(tr.id)
-        with self._view_lock:
-            for k, f in enumerate(frames):
-                if f is not None and f.image is not None:  # frames without pixels keep the last
-                    boxes = [(box, ids.get((k, j))) for j, box in enumerate(detections[k])]
-                    self._views[k] = CameraView(f.image, boxes)
-        self.frames_processed += 1
-        self._done.append(now)
-        self._latency.append(now - t_capture)
-
-    def _sizes_match(self, runtime: Any) -> str | None:
-        """Why ``runtime`` cannot serve these cameras, or None when it can."""
+    def _incompatibility(self, runtime: LocalizationModel) -> str | None:
+        """Why ``runtime`` cannot serve these cameras and this detector, or None when it can."""
         if int(runtime.num_cameras) != self.num_cameras:
             return f"model expects {runtime.num_cameras} cameras, {self.num_cameras} are configured"
+        observation = str(getattr(runtime, "observation", "bbox"))
+        if observation == "keypoints" and not getattr(self.detect, "keypoints", False):
+            return (
+                "model reads keypoints (trained with --observation keypoints) but the detector "
+                "gives boxes only (set detector.keypoints: true, needs momloc[keypoints])"
+            )
         for k, size in enumerate(self.image_sizes):
             expected = tuple(int(v) for v in np.asarray(runtime.image_sizes)[k])
             if size is not None and size != expected:
@@ -314,19 +303,28 @@ class Pipeline:
                 )
         return None
 
+    def check_model(self, runtime: LocalizationModel, path: Path | str | None) -> None:
+        """Raise :class:`MomlocError` (one line) when ``runtime`` cannot serve this pipeline."""
+        problem = self._incompatibility(runtime)
+        if problem is not None:
+            raise MomlocError(f"{path}: {problem}")
+
     # -- model hot swap --------------------------------------------------------------------------
 
     def reload_model(self, model_dir: str | Path | None = None) -> dict[str, Any]:
-        """Load ``model_dir`` (default: the current one) and swap it in if it fits the cameras."""
+        """Load ``model_dir`` (default: the current one) and swap it in if it fits the cameras.
+
+        The camera-moved checks start afresh with the next frame set (``CameraWatch`` sees a
+        new runtime): a new model comes with new floor marks.
+        """
         path = Path(model_dir) if model_dir is not None else self.model_dir
         if path is None:
             raise MomlocError("no model directory configured")
         runtime = self._load_runtime(path)
-        problem = self._sizes_match(runtime)
+        problem = self._incompatibility(runtime)
         if problem is not None:
             raise MomlocError(f"{path}: {problem}; keeping the current model")
         self.runtime, self.model_dir = runtime, path
-        self.reset_alignment()  # a new model (new floor marks): new baseline and references
         if self.error and self.error.startswith("model"):
             self.error = None
         log.info("model loaded from %s", path)
@@ -334,24 +332,23 @@ class Pipeline:
 
     def reset_alignment(self) -> None:
         """Accept the cameras where they are now: new error baseline and image references."""
-        self.alignment = CameraMotionMonitor(self.num_cameras)
-        self.camera_shift.reset()
+        self.camera_watch.reset()
 
     def alignment_status(self, names: Sequence[str] | None = None) -> list[CameraMoved]:
         """Per camera: image shift and reprojection error combined into one moved verdict."""
-        return combine(self.alignment.status(), self.camera_shift.status(), names)
+        return self.camera_watch.status(names)
 
     def model_info(self) -> dict[str, Any]:
         runtime = self.runtime
         if runtime is None:
             return {"loaded": False, "path": str(self.model_dir) if self.model_dir else None}
-        problem = self._sizes_match(runtime)
+        problem = self._incompatibility(runtime)
         return {
             "loaded": True,
             "path": str(self.model_dir) if self.model_dir else None,
             "num_cameras": int(runtime.num_cameras),
             "image_sizes": np.asarray(runtime.image_sizes).astype(int).tolist(),
-            "observation": getattr(runtime, "observation", "bbox"),
+            "observation": str(getattr(runtime, "observation", "bbox")),
             "compatible": problem is None,
             "problem": problem,
         }
@@ -359,36 +356,26 @@ class Pipeline:
     # -- introspection ---------------------------------------------------------------------------
 
     def view(self, camera: int) -> CameraView:
-        with self._view_lock:
-            return self._views[camera]
+        return self.previews.view(camera)
 
     def stats(self) -> dict[str, Any]:
         """Frame rate over the last ~4 s, latency percentiles, stage timings, counters."""
-        now = time.time()
-        recent = [t for t in self._done if now - t <= 4.0]
-        fps = 0.0
-        if len(recent) >= 2 and recent[-1] > recent[0]:
-            fps = (len(recent) - 1) / (recent[-1] - recent[0])
-        lat = np.array(self._latency, float) * 1e3
+        stats_fn = getattr(self.detect, "stats", None)
         return {
             "running": self.running,
-            "fps": round(fps, 2),
-            "latency_ms": {
-                "p50": round(float(np.percentile(lat, 50)), 2) if lat.size else None,
-                "p95": round(float(np.percentile(lat, 95)), 2) if lat.size else None,
-            },
-            "stage_ms": {k: round(v, 2) for k, v in self._stage_ms.items()},
-            "detection": getattr(self.detect, "stats", lambda: None)(),
+            **self.throughput.stats(),
+            "detection": None if stats_fn is None else stats_fn(),
             "seq": self._seq,
             "frames_processed": self.frames_processed,
             "frames_dropped": self.frames_dropped,
+            "views_left_out": self.views_left_out,
             "error": self.error,
             "failures": self.failures,
             "last_failure": self.last_failure,
         }
 
 
-def _person(track: Any) -> dict[str, Any]:
+def _person(track: Track) -> dict[str, Any]:
     return {
         "id": int(track.id),
         "x": round(float(track.x), 4),
@@ -400,7 +387,7 @@ def _person(track: Any) -> dict[str, Any]:
     }
 
 
-def _load_mom_runtime(path: Path) -> Any:
+def _load_mom_runtime(path: Path) -> LocalizationModel:
     from models.mom_runtime import MomRuntime
 
     return MomRuntime.load(path)

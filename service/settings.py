@@ -120,6 +120,11 @@ class DetectorSettings(BaseModel):
     letterbox: bool | None = Field(
         None, description="Pad to the model's square input instead of stretching (default: kind's)."
     )
+    keypoints: bool = Field(
+        False,
+        description="Add COCO-17 keypoints to every box (MediaPipe Pose on each person's crop, "
+        "needs momloc[keypoints]); required by a model trained with --observation keypoints.",
+    )
 
 
 class DetectionSettings(BaseModel):
@@ -236,6 +241,15 @@ class TrackingSettings(BaseModel):
     model_config = _STRICT
     max_missing_s: float = Field(
         1.5, gt=0, le=60, description="Keep an unseen person's id this many seconds."
+    )
+    max_skew_s: float = Field(
+        0.05,
+        gt=0,
+        le=5,
+        description="A camera's frame more than this older than the newest frame of its set is "
+        "left out of fusion (the set is localized as one instant from the others). 0.05 s: a "
+        "walking person moves 7 cm in it, less than the localizer's error, and unsynchronised "
+        "30 fps webcams are at most 33 ms apart, so their sets are fused whole.",
     )
     max_error_px: float = Field(
         DEFAULT_MAX_ERROR_PX,

@@ -58,6 +58,7 @@ class PersonDetector(ABC):
     """Finds people in a batch of BGR frames with one batched inference call."""
 
     kind: str = ""
+    keypoints: bool = False  # whether :class:`Detections` carry keypoints (KeypointDetector)
 
     @abstractmethod
     def detect(self, frames: Sequence[np.ndarray]) -> list[Detections]:

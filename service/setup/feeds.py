@@ -111,7 +111,9 @@ class LiveFeed:
                 time.sleep(0.005)
                 continue
             last = stamp
-            yield FeedFrame(stamp, self.detect(frame_set))
+            found = self.detect(frame_set)  # service.stages.DetectStage: Detections per camera
+            keypoints = [d.keypoints for d in found] if self.detect.keypoints else None
+            yield FeedFrame(stamp, [d.boxes for d in found], keypoints)
 
     def close(self) -> None:
         self.rig.stop()

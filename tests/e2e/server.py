@@ -16,15 +16,10 @@ import httpx
 from capture.rig import FrameSet
 from capture.synthetic import SyntheticRig
 from capture.worker import Frame
-from service.daemon import (
-    BackgroundServer,
-    Daemon,
-    bind_socket,
-    build_daemon,
-    make_server,
-    serve_in_thread,
-)
+from service.daemon import build_daemon
 from service.demo import demo_settings
+from service.server import BackgroundServer, bind_socket, make_server, serve_in_thread
+from service.state import Daemon
 
 
 @dataclass
@@ -96,7 +91,7 @@ class LockstepRig(SyntheticRig):
 def serve_with_static(
     daemon: Daemon, port: int = 0, static: dict[str, Path] | None = None
 ) -> BackgroundServer:
-    """``service.daemon.serve_in_thread`` plus test-only static mounts on the daemon's own app.
+    """``service.server.serve_in_thread`` plus test-only static mounts on the daemon's own app.
 
     Client example pages (``examples/web``) are mounted here so a browser loads them from the
     daemon's origin: a page on another origin would be refused by the Origin checks.

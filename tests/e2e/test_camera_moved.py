@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-import service.pipeline
+import service.frame_listeners
 import service.simulated_detections
 from models.simulate import Perturbation
 from tests.e2e.server import running_server
@@ -30,9 +30,9 @@ def _bumped_scene(monkeypatch: pytest.MonkeyPatch, camera: int) -> None:
 
     monkeypatch.setattr(service.simulated_detections, "make_scene", make_scene)
     monkeypatch.setattr(
-        service.pipeline,
+        service.frame_listeners,
         "CameraShiftMonitor",
-        functools.partial(service.pipeline.CameraShiftMonitor, reference_spacing_s=0.5),
+        functools.partial(service.frame_listeners.CameraShiftMonitor, reference_spacing_s=0.5),
     )
 
 

@@ -24,7 +24,8 @@ import httpx
 import pytest
 import websockets
 
-from service.daemon import build_daemon, serve_in_thread
+from service.daemon import build_daemon
+from service.server import serve_in_thread
 from service.settings import DEMO_MODEL_DIR, load_settings
 from tests.e2e.mqtt_broker import Broker, StallingProxy, Subscriber, ensure_mosquitto, free_port
 from tests.e2e.server import RunningServer

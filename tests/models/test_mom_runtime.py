@@ -113,6 +113,8 @@ def _model_copy(tmp_path, **changes):
         ({"decoder": {"matrices": [[1, 2]]}}, "decoder.matrices"),
         ({"floor_prior": {"policy": 3}}, "floor_prior.policy"),
         ({"encoder": {"file": "../../etc/passwd"}}, "encoder.file"),
+        ({"world_bounds": {"xmin": 0, "xmax": 1, "ymin": 0}}, "world_bounds.ymax"),
+        ({"world_bounds": {"xmin": 2.0, "xmax": 1.0, "ymin": 0.0, "ymax": 1.0}}, "world_bounds"),
     ],
 )
 def test_model_json_with_wrong_types_names_the_key(tmp_path, changes, key):
@@ -140,3 +142,30 @@ def test_covariance_follows_the_floor_prior_and_the_view_count():
     single = runtime.covariance(one)
     assert (np.trace(single, axis1=1, axis2=2) > np.trace(cov, axis1=1, axis2=2)).all()
     assert np.isnan(runtime.covariance(np.full((1, 2, 4), np.nan))).all()
+
+
+def test_world_bounds_are_the_training_positions_extent_and_absent_in_older_models(tmp_path):
+    from service.daemon import floor_extent
+    from service.settings import DEMO_MODEL_DIR, Settings
+
+    out, data, _ = trained_model()
+    meta = json.loads((out / "model.json").read_text())
+    xy = data.world[:, :2]
+    expected = {
+        "xmin": float(xy[:, 0].min()),
+        "xmax": float(xy[:, 0].max()),
+        "ymin": float(xy[:, 1].min()),
+        "ymax": float(xy[:, 1].max()),
+    }
+    assert meta["world_bounds"] == pytest.approx(expected)
+    runtime = MomRuntime.load(out)
+    (xmin, ymin), (xmax, ymax) = runtime.world_bounds
+    assert [xmin, ymin, xmax, ymax] == pytest.approx(
+        [expected["xmin"], expected["ymin"], expected["xmax"], expected["ymax"]]
+    )
+    # the daemon's map extent: settings first, else the model's training area
+    settings = Settings(cameras=[{"type": "v4l2", "device": "0"}] * 2)
+    assert floor_extent(settings, runtime, None) == pytest.approx(expected)
+    # a model written before world_bounds was stored loads, and the map falls back as before
+    older = MomRuntime.load(DEMO_MODEL_DIR)
+    assert older.world_bounds is None and floor_extent(settings, older, None) is None

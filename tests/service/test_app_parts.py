@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from service.app import _parse_rate
+from service.frame_listeners import CameraView
 from service.hub import Hub, Snapshot
 from service.metrics import metrics_text
-from service.pipeline import CameraView
 from service.snapshot_image import id_colour, render_camera_jpeg
 
 

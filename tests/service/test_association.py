@@ -234,3 +234,51 @@ def test_one_association_gate_default_everywhere() -> None:
     for function in (associate, Pipeline, run_stream):
         default = inspect.signature(function).parameters["max_error_px"].default
         assert default == DEFAULT_MAX_ERROR_PX, function
+
+
+class KeypointOracle(OracleRuntime):
+    """The oracle reading keypoints instead of boxes: one keypoint per view at the body's
+    mid-height point (what the box centre is for the box oracle)."""
+
+    observation = "keypoints"
+
+    def localize(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
+        assert keypoints is not None, "a keypoint model must be given keypoints"
+        return super().localize(_point_boxes(keypoints))
+
+    def reprojection_error(self, boxes, world, keypoints=None) -> np.ndarray:
+        assert keypoints is not None, "a keypoint model must be given keypoints"
+        return super().reprojection_error(_point_boxes(keypoints), world)
+
+
+def _point_boxes(keypoints: np.ndarray) -> np.ndarray:
+    """Zero-size boxes at each view's (single) keypoint, NaN where unseen."""
+    xy = np.asarray(keypoints, np.float64)[..., 0, :2]
+    return np.concatenate([xy, xy], axis=-1)
+
+
+def test_keypoint_models_associate_and_localize_from_keypoints():
+    """Boxes that lie (each person's box swapped with another's) but keypoints that are right:
+    a keypoint model must follow the keypoints, through association and localization."""
+    from models.detector.base import Detections
+
+    projections = room_cameras(2)
+    world = np.array([[1.5, 2.0], [4.0, 4.5], [2.5, 4.0]])
+    boxes = person_boxes(projections, world).astype(np.float32)
+    centres = (boxes[..., :2] + boxes[..., 2:]) / 2
+    runtime = KeypointOracle(projections)
+    detections = []
+    for k in range(2):
+        points = np.concatenate([centres[:, k], np.ones((3, 1), np.float32)], axis=1)
+        lying = np.roll(boxes[:, k], 1, axis=0)  # person i gets person i-1's box
+        detections.append(Detections(lying, np.ones(3, np.float32), points[:, None, :]))
+    associations = associate(detections, runtime)
+    assert len(associations) == 3
+    for a in associations:
+        assert a.detection_index[0] == a.detection_index[1]  # the same person in both views
+        person = a.detection_index[0]
+        # box-centre oracle: centimetres off; the lying boxes would put it metres off
+        np.testing.assert_allclose(a.world, world[person], atol=0.05)
+        assert a.keypoints is not None and a.keypoints.shape == (2, 1, 3)
+    with pytest.raises(MomlocError, match="keypoints"):
+        associate([d.boxes for d in detections], runtime)  # boxes only: refused, one line

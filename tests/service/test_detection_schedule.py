@@ -21,8 +21,9 @@ from service.detection_schedule import (
     DetectionScheduler,
     ThreadRunner,
 )
+from service.detector_stage import DetectorStage
 from service.hub import Hub
-from service.pipeline import DetectorStage, Pipeline
+from service.pipeline import Pipeline
 from tests.service.fake_frames import FPS, BoxWorld, Clock, FakeDetector
 
 

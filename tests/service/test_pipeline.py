@@ -13,9 +13,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from capture.rig import FrameSet
+from capture.worker import Frame
+from models.detector.base import Detections
 from models.errors import MomlocError
+from service.detector_stage import DetectorStage
 from service.hub import Hub
-from service.pipeline import DetectorStage, Pipeline
+from service.pipeline import Pipeline
 from service.tracking import Tracker
 
 
@@ -64,14 +68,14 @@ def boxes_stage(frame_set):
     """One person per camera whose box x encodes the scene frame (so positions move)."""
     seq = frame_set.frames[0].seq
     box = np.array([[100 + seq, 50, 160 + seq, 250]], np.float32)
-    return [box, box + 10]
+    return [Detections(b, np.ones(1, np.float32)) for b in (box, box + 10)]
 
 
 def fake_associate(detections, runtime, max_error_px):
     a = SimpleNamespace(
-        boxes=np.stack([d[0] for d in detections]),
+        boxes=np.stack([d.boxes[0] for d in detections]),
         cameras=[0, 1],
-        world=np.array([detections[0][0, 0] / 100.0, 2.0]),
+        world=np.array([detections[0].boxes[0, 0] / 100.0, 2.0]),
         cost=1.0,
         detection_index=[0, 0],
     )
@@ -204,7 +208,8 @@ def test_detector_stage_batches_and_leaves_scores_to_the_detector():
     assert det.batches == [2]
     # the detector applied its own score_threshold already: a second filter here would drop
     # boxes the settings asked to keep (the 0.2 box stands for one just above the threshold)
-    assert [o.shape for o in out] == [(2, 4), (0, 4), (2, 4)]
+    assert [o.boxes.shape for o in out] == [(2, 4), (0, 4), (2, 4)]
+    assert all(o.keypoints is None for o in out)
 
 
 def test_detection_listeners_and_alignment_see_every_frame_set():
@@ -218,4 +223,126 @@ def test_detection_listeners_and_alignment_see_every_frame_set():
     pipeline.remove_detection_listener(listener)
     pipeline.process(rig.frame_set())
     assert len(seen) == 3 and seen[0][1][0].shape == (1, 4)
-    assert [s.error_px for s in pipeline.alignment.status()] == [2.0, 2.0]
+    assert [s.error_px for s in pipeline.camera_watch.alignment.status()] == [2.0, 2.0]
+
+
+class KeypointRuntime(FakeRuntime):
+    observation = "keypoints"
+
+    def reprojection_error(self, boxes, world, keypoints=None):
+        assert keypoints is not None and keypoints.shape[-2:] == (17, 3)
+        return super().reprojection_error(boxes, world)
+
+
+def keypoint_stage(frame_set):
+    """Like ``boxes_stage``, with one COCO-17 keypoint set per box."""
+    out = boxes_stage(frame_set)
+    return [Detections(d.boxes, d.scores, np.ones((1, 17, 3), np.float32)) for d in out]
+
+
+keypoint_stage.keypoints = True  # type: ignore[attr-defined]
+
+
+def test_keypoints_reach_association_and_box_only_detectors_refuse_keypoint_models(tmp_path):
+    seen = []
+
+    def associate(detections, runtime, max_error_px):
+        seen.append([d.keypoints for d in detections])
+        (a,) = fake_associate(detections, runtime, max_error_px)
+        a.keypoints = np.stack([d.keypoints[0] for d in detections])
+        return [a]
+
+    pipeline, _ = make(detect=keypoint_stage, runtime=KeypointRuntime())
+    pipeline.associate = associate
+    snapshots = [pipeline.process(pipeline.rig.frame_set()) for _ in range(10)]
+    assert len(snapshots[-1].people) == 1 and seen[0][0].shape == (1, 17, 3)
+    assert pipeline.model_info()["observation"] == "keypoints"
+    # the camera-moved check judged the reprojection error with the keypoints too
+    assert [s.error_px for s in pipeline.camera_watch.alignment.status()] == [2.0, 2.0]
+    # a box-only detector: the keypoint model is refused at reload, the running one stays
+    boxes_only, _ = make(load_runtime=lambda path: KeypointRuntime())
+    current = boxes_only.runtime
+    with pytest.raises(MomlocError, match=r"reads keypoints.*boxes only") as info:
+        boxes_only.reload_model(tmp_path / "keypoint-model")
+    assert "\n" not in str(info.value) and "keeping the current model" in str(info.value)
+    assert boxes_only.runtime is current
+    with pytest.raises(MomlocError, match="reads keypoints"):
+        boxes_only.check_model(KeypointRuntime(), "model_dir: m")
+
+
+def test_detector_stage_keeps_each_boxs_keypoints():
+    class Det:
+        keypoints = True
+
+        def detect(self, frames):
+            boxes = np.array([[0, 0, 10, 20], [5, 5, 50, 90]], np.float32)
+            points = np.stack([np.full((17, 3), 1.0), np.full((17, 3), 2.0)]).astype(np.float32)
+            return [Detections(boxes, np.array([0.2, 0.9], np.float32), points) for _ in frames]
+
+    stage = DetectorStage(Det())
+    frame = SimpleNamespace(image=np.zeros((4, 4, 3), np.uint8))
+    (out,) = stage(SimpleNamespace(frames=[frame]))
+    assert stage.keypoints
+    assert out.boxes.tolist() == [[0, 0, 10, 20], [5, 5, 50, 90]]
+    assert (out.keypoints[0] == 1.0).all() and (out.keypoints[1] == 2.0).all()
+
+
+def test_skew_rule_leaves_stale_frames_out_of_fusion():
+    """A frame more than max_skew older than the newest (marked stale by the rig) is not fused:
+    the set is localized from the fresh cameras and stamped with their capture time."""
+    calls = []
+
+    def detect(frame_set):
+        calls.append([f is not None for f in frame_set.frames])
+        return [Detections.empty() for _ in frame_set.frames]
+
+    pipeline, _ = make(detect=detect)
+    pipeline.associate = lambda detections, runtime, max_error_px: []
+    image = np.zeros((480, 640, 3), np.uint8)
+    frames = [
+        Frame(camera=0, image=image, timestamp=10.0, seq=5),  # 120 ms late
+        Frame(camera=1, image=image, timestamp=10.12, seq=9),
+    ]
+    snapshot = pipeline.process(FrameSet(frames=frames, skew=0.12, stale=[True, False]))
+    assert calls[-1] == [False, True] and snapshot.t == pytest.approx(10.12)
+    assert pipeline.stats()["views_left_out"] == 1
+    assert pipeline.view(0).image is None and pipeline.view(1).image is not None
+    synced = FrameSet(frames=frames, skew=0.12, stale=[False, False])  # within the bound
+    assert pipeline.process(synced).t == pytest.approx(10.0) and calls[-1] == [True, True]
+
+
+def test_scheduled_detection_carries_keypoints_between_detections():
+    """With ``detection.schedule: auto`` the detector runs every few frame sets; the boxes
+    carried in between keep their keypoints (moved with the box), so a keypoint model gets
+    keypoints on every frame set, not only on the detected ones."""
+    from service.detection_schedule import DeferredRunner, DetectionScheduler
+
+    class Walker:
+        keypoints = True
+
+        def detect(self, frames):
+            box = np.array([[100, 50, 160, 250]], np.float32)
+            points = np.zeros((1, 17, 3), np.float32)
+            points[0, :, 0], points[0, :, 1], points[0, :, 2] = 130.0, np.linspace(60, 240, 17), 1
+            return [Detections(box, np.ones(1, np.float32), points) for _ in frames]
+
+    clock = SimpleNamespace(t=0.0)
+    detector = Walker()
+    runner = DeferredRunner(
+        lambda job: detector.detect(job.images), lambda: clock.t, cost=lambda job: 0.1
+    )
+    schedule = DetectionScheduler(
+        detector, runner=runner, clock=lambda: clock.t, wall=lambda: clock.t
+    )
+    stage = DetectorStage(detector, schedule)
+    assert stage.keypoints
+    image = np.zeros((480, 640, 3), np.uint8)
+    outputs = []
+    for i in range(12):
+        clock.t = i / 30
+        frames = [Frame(camera=k, image=image, timestamp=clock.t, seq=i) for k in range(2)]
+        outputs.append(stage(FrameSet(frames=frames, skew=0.0)))
+    later = [d for out in outputs[4:] for d in out]  # after the first detection arrived
+    assert later and all(len(d) == 1 and d.keypoints.shape == (1, 17, 3) for d in later)
+    assert all(np.isfinite(d.keypoints).all() for d in later)
+    assert schedule.jobs < 12  # most frame sets were carried, not detected

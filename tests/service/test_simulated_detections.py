@@ -18,11 +18,16 @@ def scene() -> Scene:
 def test_simulated_detections_are_the_scene_boxes_per_rig_camera() -> None:
     shown = scene()
     rig = SyntheticRig(shown, cameras=[1, 0], render_every=0)
-    boxes = SimulatedDetections(shown, rig.cameras)(rig.produce(40))
+    found = SimulatedDetections(shown, rig.cameras)(rig.produce(40))
     truth = shown.observe(40)
     for k, camera in enumerate([1, 0]):  # rig camera k is scene camera `camera`
         seen = np.concatenate([truth.boxes[:, camera], truth.false_boxes[camera]])
-        np.testing.assert_allclose(boxes[k], seen[np.isfinite(seen).all(axis=1)])
+        np.testing.assert_allclose(found[k].boxes, seen[np.isfinite(seen).all(axis=1)])
+        # each person's own keypoints ride with their box; false positives have none (NaN)
+        people = np.isfinite(truth.boxes[:, camera]).all(axis=1)
+        count = int(people.sum())
+        np.testing.assert_allclose(found[k].keypoints[:count], truth.keypoints[people, camera])
+        assert np.isnan(found[k].keypoints[count:]).all()
 
 
 def test_simulated_detections_include_the_profiles_false_positives() -> None:
@@ -33,7 +38,7 @@ def test_simulated_detections_include_the_profiles_false_positives() -> None:
     extra = 0
     for i in range(0, 640, 4):
         people = np.isfinite(shown.observe(i).boxes).all(axis=2).sum(axis=0)  # per camera
-        extra += sum(len(b) - n for b, n in zip(stage(rig.produce(i)), people, strict=True))
+        extra += sum(len(d) - n for d, n in zip(stage(rig.produce(i)), people, strict=True))
     assert extra > 0  # boxes where nobody is, as from the real detector
     ideal = make_scene("indoor-2cam", seed=3, people=2, detector_profile="ideal")
     assert ideal.profile.name == "ideal"
