@@ -253,7 +253,7 @@ def floor_extent(settings: Settings, runtime: Any, player: Any) -> dict[str, flo
 def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
     """Open cameras, load the detector and model, wire the pipeline (not started yet)."""
     from models.mom_runtime import MomRuntime
-    from service.tracking import Tracker
+    from service.tracking import RECOMMENDED, Tracker
 
     runtime = None
     try:
@@ -272,7 +272,9 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
         num_cameras=len(settings.cameras),
         runtime=runtime,
         model_dir=settings.model_dir,
-        tracker=Tracker(fps_hint=30.0, max_missing_s=settings.tracking.max_missing_s),
+        tracker=Tracker(
+            fps_hint=30.0, max_missing_s=settings.tracking.max_missing_s, **RECOMMENDED
+        ),
         max_error_px=settings.tracking.max_error_px,
     )
     if runtime is not None and int(runtime.num_cameras) != len(settings.cameras):

@@ -33,6 +33,7 @@ import numpy as np
 from models.errors import MomlocError
 from service.camera_shift import CameraShiftMonitor, ShiftWorker
 from service.hub import Hub, Snapshot
+from service.measurements import coverage_function, measurement_covariances
 from service.setup.camera_monitor import CameraMotionMonitor, CameraMoved, combine
 
 log = logging.getLogger("momloc.pipeline")
@@ -117,9 +118,9 @@ class Pipeline:
         shift_threaded: bool = True,
     ) -> None:
         if tracker is None:
-            from service.tracking import Tracker
+            from service.tracking import RECOMMENDED, Tracker
 
-            tracker = Tracker(fps_hint=30.0)
+            tracker = Tracker(fps_hint=30.0, **RECOMMENDED)
         if associate is None:
             from service.association import associate
         self.rig, self.detect, self.hub = rig, detect, hub
@@ -247,7 +248,16 @@ class Pipeline:
             for i, a in enumerate(associations)
         ]
         positions = np.array([np.asarray(a.world, float)[:2] for a in associations]).reshape(-1, 2)
-        tracks = self.tracker.update(t_capture, positions, meta)
+        # the tracker weighs each position by its covariance (a lone view is trusted across its
+        # line of sight, hardly along it) and drops single-view ghosts where another camera that
+        # delivered a frame should see the person (service.measurements)
+        tracks = self.tracker.update(
+            t_capture,
+            positions,
+            meta,
+            covariances=measurement_covariances(associations, runtime),
+            coverage=coverage_function(runtime, [f is not None for f in frames]),
+        )
         t3 = time.perf_counter()
         people = [_person(tr) for tr in tracks]
         snapshot = Snapshot.build(self._seq, t_capture, people)
