@@ -108,9 +108,11 @@ def test_unity_client_follows_the_stream_and_reconnects_after_a_restart(unity_ha
             lambda lines: any(s["attempts"] >= 3 for s in statuses(lines[gone:])),
             what="reconnect attempts while the daemon is down",
         )
+        # counted before the restart: the client's next retry may connect while the new daemon
+        # is still starting its pipeline (it did whenever the retry fell in that window)
+        back = len(client.snapshot())
         with running_server(token=TOKEN, port=port) as again:
             again.wait_for_seq(5)
-            back = len(client.snapshot())
             client.wait_for(
                 lambda lines: any(x.startswith(connected) for x in lines[back:]),
                 what="the client to reconnect to the restarted daemon",
