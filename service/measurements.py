@@ -24,10 +24,10 @@ profile (indoor-2cam, 3 people, seed 1000, 1,500 frames; 2,040 single-view rows)
 per axis. The constants are those figures rounded up (an overconfident measurement locks the
 track). For comparison the floor prior's GLS covariance on the same rows claims a median
 0.13 m along and 0.03 m across for single views, 0.03-0.04 m for two: it ranks rows well but is
-about 3× overconfident on these boxes. Still, where the model has one it beats these defaults on the stream
-bench (its model, indoor-2cam, 3 people, nanodet, seed 7 × 600 frames): MOTA 66.2 against
-63.9 %, matched mean 0.174 against 0.178 m (standing jitter 3.58 against 3.18 cm); with the
-defaults' two-view std at 0.06 m: 62.1 %. So the defaults are only the fallback.
+about 3× overconfident on these boxes. Still, where the model has one it beats these defaults
+on the stream bench (its model, indoor-2cam, 3 people, nanodet, seed 7 × 600 frames): MOTA 66.2
+against 63.9 %, matched mean 0.174 against 0.178 m (standing jitter 3.58 against 3.18 cm); with
+the defaults' two-view std at 0.06 m: 62.1 %. So the defaults are only the fallback.
 
 Rejected: an isotropic default for single views (the tracker's former 0.12 m): a single view
 then pulls a track along its poorly known range as hard as across it, and a second camera
