@@ -91,7 +91,9 @@ def _serve(*, lone_frames: int, joined_frames: int, camera1_delivers: bool, wire
     see the person where they are. ``wired=False`` drops the covariances and coverage before
     they reach the tracker (what the pipeline did before they were wired)."""
     runtime = OracleRuntime(CAMERAS)
-    wrong = TRUTH + 0.5 * line_of_sight(runtime, 0, TRUTH)
+    sight = line_of_sight(runtime, 0, TRUTH)
+    assert sight is not None
+    wrong = TRUTH + 0.5 * sight
 
     def frames(i: int) -> SimpleNamespace:
         present = (True, camera1_delivers or i >= lone_frames)
