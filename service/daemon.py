@@ -22,6 +22,7 @@ from service.setup.session import SetupSession
 from service.setup.training import TrainingJob, model_path
 from service.setup.verify import Verifier
 from service.state import NO_MODEL, Daemon
+from service.tracking import RECOMMENDED, Tracker
 
 log = logging.getLogger("momloc")
 
@@ -155,10 +156,15 @@ def resolve_model_dir(settings: Settings) -> Path | None:
     return trained if (trained / "model.json").is_file() else None
 
 
+def build_tracker(settings: Settings) -> Tracker:
+    """The tracker live and offline (``momloc track``) alike: the recommended settings
+    (``service.tracking.RECOMMENDED``, measured in ``bench/stream_accuracy.py``)."""
+    return Tracker(fps_hint=30.0, max_missing_s=settings.tracking.max_missing_s, **RECOMMENDED)
+
+
 def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
     """Open cameras, load the detector and model, wire the pipeline (not started yet)."""
     from models.mom_runtime import MomRuntime
-    from service.tracking import Tracker
 
     runtime = None
     model_dir = resolve_model_dir(settings)
@@ -181,7 +187,7 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
         num_cameras=len(settings.cameras),
         runtime=runtime,
         model_dir=model_dir,
-        tracker=Tracker(fps_hint=30.0, max_missing_s=settings.tracking.max_missing_s),
+        tracker=build_tracker(settings),
         max_error_px=settings.tracking.max_error_px,
     )
     extras = {}

@@ -140,7 +140,7 @@ def check_model(runtime: Any, feed: Feed, model_dir: Path) -> None:
 
 def offline_pipeline(settings: Settings, runtime: Any, feed: Feed, model_dir: Path) -> Pipeline:
     """The daemon's pipeline for ``feed`` (mirrors ``service.daemon.build_daemon``)."""
-    from service.tracking import Tracker
+    from service.daemon import build_tracker
 
     check_model(runtime, feed, model_dir)
     return Pipeline(
@@ -150,7 +150,7 @@ def offline_pipeline(settings: Settings, runtime: Any, feed: Feed, model_dir: Pa
         num_cameras=feed.num_cameras,
         runtime=runtime,
         model_dir=model_dir,
-        tracker=Tracker(fps_hint=30.0, max_missing_s=settings.tracking.max_missing_s),
+        tracker=build_tracker(settings),
         max_error_px=settings.tracking.max_error_px,
         shift_threaded=False,
     )

@@ -48,6 +48,7 @@ from models.errors import MomlocError
 from service.association import DEFAULT_MAX_ERROR_PX
 from service.frame_listeners import CameraView, CameraWatch, DetectionTap, Previews, Throughput
 from service.hub import Hub, Snapshot
+from service.measurements import coverage_function, measurement_covariances
 from service.setup.camera_monitor import CameraMoved
 from service.stages import (
     AssociateStage,
@@ -112,9 +113,9 @@ class Pipeline:
         shift_threaded: bool = True,
     ) -> None:
         if tracker is None:
-            from service.tracking import Tracker
+            from service.tracking import RECOMMENDED, Tracker
 
-            tracker = Tracker(fps_hint=30.0)
+            tracker = Tracker(fps_hint=30.0, **RECOMMENDED)
         if associate is None:
             from service.association import associate as associate_people
 
@@ -250,7 +251,7 @@ class Pipeline:
                 self.error = f"model: {problem}"
         t2 = time.perf_counter()
         self._seq += 1
-        tracks = self._track(t_used, associations)
+        tracks = self._track(t_used, associations, runtime, [f is not None for f in used.frames])
         t3 = time.perf_counter()
         snapshot = Snapshot.build(self._seq, t_used, [_person(tr) for tr in tracks])
         if runtime is not None:  # set-up mode (no model) publishes no positions at all
@@ -275,14 +276,29 @@ class Pipeline:
             listener(result)
         return snapshot
 
-    def _track(self, t: float, associations: Sequence[Association]) -> list[Track]:
+    def _track(
+        self,
+        t: float,
+        associations: Sequence[Association],
+        runtime: LocalizationModel | None,
+        delivered: Sequence[bool],
+    ) -> list[Track]:
         """The tracker's one call per frame set (meta links each track back to its association)."""
         meta = [
             {"cameras": [int(c) for c in a.cameras], "frame": self._seq, "association": i}
             for i, a in enumerate(associations)
         ]
         positions = np.array([np.asarray(a.world, float)[:2] for a in associations]).reshape(-1, 2)
-        return self.tracker.update(t, positions, meta)
+        # the tracker weighs each position by its covariance (a lone view is trusted across its
+        # line of sight, hardly along it) and drops single-view ghosts where another camera that
+        # delivered a frame should see the person (service.measurements)
+        return self.tracker.update(
+            t,
+            positions,
+            meta,
+            covariances=measurement_covariances(associations, runtime),
+            coverage=coverage_function(runtime, delivered),
+        )
 
     def _incompatibility(self, runtime: LocalizationModel) -> str | None:
         """Why ``runtime`` cannot serve these cameras and this detector, or None when it can."""

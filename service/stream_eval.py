@@ -24,7 +24,6 @@ Example::
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -35,10 +34,9 @@ from service.association import (
     DEFAULT_MAX_ERROR_PX,
     DEFAULT_MAX_VIEW_GAP_M,
     LocalizationModel,
-    ReprojectingModel,
     associate,
-    covering_cameras,
 )
+from service.measurements import coverage_function, measurement_covariances
 from service.tracking import RECOMMENDED, Tracker
 
 MIN_VISIBLE_FRACTION = 0.5
@@ -93,24 +91,22 @@ def run_stream(
     """Stream metrics per gate (metres → :meth:`StreamScorer.result`) of one scene run.
 
     ``tracker`` defaults to ``Tracker(fps_hint=scene fps, **RECOMMENDED)``; ``use_covariance``
-    hands the associations' covariances (when the model gives them) to the tracker as its
-    measurement noise;
+    hands the associations' covariances to the tracker as its measurement noise, the same way
+    the live pipeline does (:func:`service.measurements.measurement_covariances`);
     ``on_frame(i, associations, tracks)`` taps every frame (diagnostics, other scorers).
     """
     scene = Scene(config, seed=seed)
     tracker = tracker if tracker is not None else Tracker(fps_hint=scene.fps, **RECOMMENDED)
     rng = np.random.default_rng([seed, 77])
     scorers = {float(g): StreamScorer(g) for g in gates}
-    coverage: Callable[[np.ndarray], np.ndarray] | None = None
-    if isinstance(runtime, ReprojectingModel):  # the tracker's ghost check needs the decoder
-        coverage = functools.partial(covering_cameras, runtime)
+    coverage = coverage_function(runtime, [True] * int(runtime.num_cameras))
     for i in range(frames):
         obs = scene.observe(i)
         t = i / scene.fps
         result = associate(frame_detections(obs, rng), runtime, max_error_px, max_view_gap_m)
         positions = np.array([a.world for a in result]).reshape(-1, 2)
         meta = [{"cameras": a.cameras, "cost": a.cost} for a in result]
-        covariances = [a.covariance for a in result]
+        covariances = measurement_covariances(result, runtime)
         tracks = tracker.update(
             t,
             positions,

@@ -43,9 +43,21 @@ Output policy (documented for API users):
 - ``confidence`` is a running detection rate (exponential average of seen / unseen frames) times
   the coasting factor, in 0..1.
 
-``RECOMMENDED`` settings (``Tracker(**RECOMMENDED)``, what
-:func:`service.stream_eval.run_stream` uses; the constructor's defaults are still the former
-tracker's until the live pipeline passes covariances and coverage), measured with
+- a track counts as seen by two cameras (``multi_view``: no longer subject to the single-view
+  confirmation and ghost check) once two cameras have reported it together for ``multi_view_s``
+  in all, not at the first such frame: one mispaired box is enough to make a ghost a person.
+  Found in the one-person MQTT demo scene: a false positive persisting beside the person in
+  camera 0 was a tentative single-view track; in a frame where camera 0 missed the person,
+  association paired the false box with camera 1's real box, and that one two-view position
+  (0.45 m from the ghost, 0.53 m from the person's track) confirmed the ghost as a second id for
+  good. 0.1 s (3 frames at 30 fps) is enough there. Measured (stream bench, indoor-2cam,
+  3 people, nanodet, 2 seeds × 600 frames: MOTA / id switches; demo replay, nanodet: recall):
+  0 s 61.0 % / 20, 0.864; 0.1 s 60.6 % / 19, 0.857; 0.2 s 59.7 % / 16, 0.788 (the regression
+  gate's scene alone: 0.2 s 42.9 % against 36.8 % for 0 and 0.1 s, and 0.4 s 40.7 %). Longer
+  waits keep real people seen by one camera hidden longer, so 0.1 s.
+
+``RECOMMENDED`` settings (``Tracker(**RECOMMENDED)``, what the daemon's pipeline and
+:func:`service.stream_eval.run_stream` use), measured with
 ``bench/stream_accuracy.py`` (indoor-2cam, 3 people, nanodet profile, 2 seeds × 600 frames, MOTA
 at 0.5 m / standing jitter): the former tracker (constant velocity, 2 m/s², isotropic 0.12 m,
 0.3 s confirmation) 32.6 % / 8.0 cm; + IMM and covariances 51.0 % / 7.0 cm; + 1 s single-view
@@ -57,6 +69,15 @@ accel 0.7 (61.6 %) and 1.5 m/s² (58.3 %); single-view confirmation 0.6 s (57.7 
 tracks survive 0.3 s of misses (MOTA 55.8 → 36.9 %, quick model: more twins); folding a second
 single-view measurement from another camera into a track already matched (no measurable effect:
 split associations were not the cause).
+
+Re-measured 2026-12-01 with the live wiring (``service.measurements``), the bench's model,
+indoor-2cam, 3 people, nanodet, seed 7 × 600 frames, MOTA / standing jitter: RECOMMENDED
+66.2 % / 3.58 cm. Rejected: covariances ×4 (``measurement_scale``; the floor prior's
+covariance is ~3× overconfident in std on these boxes) 56.9 % / 2.87 cm, ×9 65.3 % / 3.06 cm
+(lag 0.05 → 0.09 s); ``min_measurement_std_m`` 0.1: 63.0 % / 3.17 cm; ``stand_std_m`` 0.01:
+66.1 % / 3.60 cm, with ``stand_s`` 10: 67.0 % / 3.61 cm. No filter setting approaches the 1 cm
+jitter target: it is made of jumps when a second camera comes or goes (the lone view's range
+bias, ~10 % of the box height for 0.4 s at a time in the nanodet profile), not of noise.
 
 ``meta`` (one dict per detection) is passed through: ``cameras`` is copied onto the track and the
 whole dict is kept as ``Track.meta``.
@@ -80,15 +101,16 @@ from scipy.optimize import linear_sum_assignment
 from service.motion import ConstantVelocity, StandOrWalk
 
 _UNASSIGNED = 1e9
-# What the stream benchmark measured best (module docstring). Not yet the constructor's
-# defaults: the live pipeline does not pass covariances or coverage yet, and without them these
-# settings gave a twin id in the MQTT e2e test's one-person demo scene.
+# What the stream benchmark measured best (module docstring); the daemon's pipeline uses them
+# (with covariances and coverage from service.measurements). The constructor keeps the former
+# tracker's defaults, which tests of single mechanisms rely on.
 RECOMMENDED: dict[str, Any] = {
     "motion": "imm",
     "accel_std": 1.0,
     "confirm_single_s": 1.0,
     "ghost_s": 0.5,
     "robust_chi2": 9.0,
+    "multi_view_s": 0.1,
 }
 MOTION_MODELS = {"cv": ConstantVelocity, "imm": StandOrWalk}
 
@@ -118,7 +140,8 @@ class _State:
     hits: int = 1
     rate: float = 1.0
     confirmed: bool = False
-    multi_view: bool = False  # seen by two cameras at once at least once
+    multi_view: bool = False  # seen by two cameras at once for ``multi_view_s`` in all
+    multi_view_time: float = 0.0  # seconds seen by two or more cameras at once
     doubted_s: float = 0.0  # time single-view while another camera should have seen it
     cameras: list[int] = field(default_factory=list)
     meta: dict[str, Any] = field(default_factory=dict)
@@ -148,6 +171,7 @@ class Tracker:
         walk_s: float = 10.0,
         ghost_s: float = 0.0,
         robust_chi2: float = 0.0,
+        multi_view_s: float = 0.0,
     ) -> None:
         if fps_hint <= 0 or max_missing_s <= 0 or gate_m <= 0:
             raise ValueError("fps_hint, max_missing_s and gate_m must be positive")
@@ -170,6 +194,8 @@ class Tracker:
         self.confirm_single_s = max(self.confirm_s, float(confirm_single_s))
         self.ghost_s = float(ghost_s)
         self.robust_chi2 = float(robust_chi2)
+        self.multi_view_s = max(0.0, float(multi_view_s))
+        self._frame_dt = 1.0 / self.fps_hint
         self._motion_options = (
             {"stand_std": stand_std_m, "stand_s": stand_s, "walk_s": walk_s}
             if motion == "imm"
@@ -216,6 +242,7 @@ class Tracker:
         dt = 1.0 / self.fps_hint if self._time is None else float(t) - self._time
         if dt < 0:  # out-of-order frame set: treat as simultaneous rather than rewinding
             dt = 0.0
+        self._frame_dt = dt
         self._time = float(t) if self._time is None else max(self._time, float(t))
         for track in self._tracks:
             self._predict(track, dt)
@@ -245,7 +272,7 @@ class Tracker:
         now = self._time if self._time is not None else 0.0
         out = []
         for tr in sorted(self._tracks, key=lambda s: s.id):
-            if not tr.confirmed or (not tr.multi_view and tr.doubted_s > self.ghost_s > 0):
+            if not tr.confirmed or self._ghost(tr):
                 continue
             missing = now - tr.last_seen
             mean = tr.motion.mean
@@ -298,7 +325,7 @@ class Tracker:
         track.hits += 1
         track.rate = track.rate * (1.0 - self.rate_alpha) + self.rate_alpha
         track.cameras = [int(k) for k in meta.get("cameras", [])]
-        track.multi_view = track.multi_view or len(track.cameras) > 1
+        self._count_views(track, self._frame_dt)
         self._confirm(track, t)
         track.meta = dict(meta)
 
@@ -314,7 +341,8 @@ class Tracker:
 
     def _confirm(self, track: _State, t: float) -> None:
         # Tentative tracks die at their first miss, so surviving confirm_s means seen throughout.
-        single = len(track.cameras) == 1 and not track.multi_view  # no camera info: confirm_s
+        # single-view until seen by two cameras for multi_view_s; no camera info: confirm_s
+        single = len(track.cameras) >= 1 and not track.multi_view
         wait = self.confirm_single_s if single else self.confirm_s
         track.confirmed = track.confirmed or t - track.born >= wait - 1e-9
 
@@ -330,6 +358,18 @@ class Tracker:
             if set(np.flatnonzero(row).tolist()) - seen and seen:
                 tr.doubted_s += dt
 
+    def _count_views(self, track: _State, dt: float) -> None:
+        if len(track.cameras) > 1:
+            track.multi_view_time += dt
+        track.multi_view = track.multi_view or (
+            len(track.cameras) > 1 and track.multi_view_time >= self.multi_view_s - 1e-9
+        )
+
+    def _ghost(self, track: _State) -> bool:
+        """Not (yet) a multi-view track, and longer than ``ghost_s`` unseen by a camera that
+        should see it: a detector's false positive, not reported."""
+        return not track.multi_view and track.doubted_s > self.ghost_s > 0
+
     def _spawn(self, z: np.ndarray, r: np.ndarray, meta: dict, t: float) -> _State:
         # Unknown velocity: a walking person is within ~2 m/s, so start with that spread.
         motion = MOTION_MODELS[self.motion](
@@ -343,7 +383,7 @@ class Tracker:
             cameras=[int(k) for k in meta.get("cameras", [])],
             meta=dict(meta),
         )
-        state.multi_view = len(state.cameras) > 1
+        self._count_views(state, 1.0 / self.fps_hint)
         self._confirm(state, t)
         self._next_id += 1
         return state
