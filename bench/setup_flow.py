@@ -28,7 +28,8 @@ from typing import Any
 import httpx
 import numpy as np
 
-from service.daemon import build_daemon, serve_in_thread
+from service.daemon import build_daemon
+from service.server import serve_in_thread
 from service.settings import load_settings
 
 

@@ -10,12 +10,12 @@ import pytest
 from capture.synthetic import SyntheticRig
 from models.mom_runtime import MomRuntime
 from models.simulate import Perturbation, make_scene
-from service.daemon import Daemon
 from service.demo import DEMO_PEOPLE, DEMO_PRESET, DEMO_SEED
 from service.hub import Hub
 from service.pipeline import Pipeline
 from service.settings import DEMO_MODEL_DIR
 from service.simulated_detections import SimulatedDetections
+from service.state import Daemon
 
 FPS = 30.0
 STEP = 2  # process every other scene frame (a loaded machine drops frames the same way)
