@@ -56,7 +56,7 @@ def test_keypoint_model_streams_positions_from_the_scenes_keypoints(keypoint_mod
         assert server.get("/v1/health").json()["pipeline"]["error"] is None
     errors, reported, visible = [], 0, 0
     for message in messages:
-        truth = rig.observation_at(message["t"])
+        truth = rig.scene.observe(rig.index_at(message["t"]))
         seen = np.isfinite(truth.boxes).all(axis=2).any(axis=1)
         gt = truth.world[seen, :2]
         got = np.array([[p["x"], p["y"]] for p in message["people"]]).reshape(-1, 2)

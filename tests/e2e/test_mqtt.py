@@ -283,6 +283,7 @@ def test_serve_reads_mqtt_from_yaml_and_environment(mosquitto, tmp_path):
     config = tmp_path / "momloc.yaml"
     config.write_text(
         "cameras:\n  - {type: synthetic, index: 0}\n  - {type: synthetic, index: 1}\n"
+        f"model_dir: {DEMO_MODEL_DIR}\n"  # without one, serve starts in set-up mode (no positions)
         "mqtt:\n  host: 127.0.0.1\n  port: 1\n  room: from-yaml\n  rate: 2\n"
         "zones:\n  - {name: all, polygon: [[-1, -1], [11, -1], [11, 11], [-1, 11]]}\n"
     )
