@@ -20,7 +20,8 @@ import numpy as np
 import pytest
 
 from models.dataset import MomDataset
-from service.daemon import build_daemon, serve_in_thread
+from service.daemon import build_daemon
+from service.server import serve_in_thread
 from service.settings import load_settings
 
 pytestmark = pytest.mark.timeout(600)
