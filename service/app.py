@@ -154,11 +154,14 @@ def create_app(daemon: Daemon, *, manage_pipeline: bool = True) -> FastAPI:
     def setup_page() -> FileResponse:
         return FileResponse(WEB_DIR / "setup.html", headers={"Cache-Control": "no-cache"})
 
-    if daemon.setup is not None:
+    # service.daemon wires the set-up flow's three parts together; a Daemon built without them
+    # (tests of other routes) has no /v1/setup routes
+    setup, training, verifier = daemon.setup, daemon.training, daemon.verifier
+    if setup is not None and training is not None and verifier is not None:
         router = create_setup_router(
-            daemon.setup,
-            daemon.training,
-            daemon.verifier,
+            setup,
+            training,
+            verifier,
             lambda: [len(daemon.pipeline.view(k).boxes) for k in range(len(daemon.camera_names))],
         )
         app.include_router(router, dependencies=secured, responses=auth)

@@ -85,7 +85,8 @@ def build_detect_stage(settings: Settings, player: Any) -> Any:
     if player is not None and settings.synthetic.detections == "simulated":
         from service.simulated_detections import SimulatedDetections
 
-        return SimulatedDetections(player, [c.index for c in settings.cameras])
+        indices = [c.index for c in settings.cameras if isinstance(c, SyntheticCamera)]
+        return SimulatedDetections(player, indices)  # a player: build_rig saw only synthetic
     from models.detector import create_detector
 
     options = {
@@ -193,6 +194,12 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
     extras = {}
     if player is not None:
         extras["source"] = {"synthetic": settings.synthetic.model_dump()}
+    session = SetupSession(
+        settings.data_dir,
+        image_sizes=lambda: _known_sizes(pipeline),
+        attach=pipeline.add_detection_listener,
+        detach=pipeline.remove_detection_listener,
+    )
     daemon = Daemon(
         hub=hub,
         pipeline=pipeline,
@@ -207,19 +214,17 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
         bind_host=settings.host,
         allowed_hosts=list(settings.allowed_hosts),
         allowed_origins=list(settings.allowed_origins),
-        setup=SetupSession(
-            settings.data_dir,
-            image_sizes=lambda: _known_sizes(pipeline),
-            attach=pipeline.add_detection_listener,
-            detach=pipeline.remove_detection_listener,
-        ),
+        setup=session,
     )
-    session = daemon.setup
     daemon.training = TrainingJob(lambda: session.data_dir, pipeline.reload_model)
-    daemon.verifier = Verifier(hub.latest, lambda: pipeline.model_dir if pipeline.runtime else None)
-    walker = getattr(player, "walkers", None)
-    if hasattr(walker, "target"):  # synthetic.follow_setup: the simulated person obeys /setup
-        walker.target = lambda: session.target() or daemon.verifier.target()
+    verifier = Verifier(hub.latest, lambda: pipeline.model_dir if pipeline.runtime else None)
+    daemon.verifier = verifier
+    if player is not None:  # synthetic.follow_setup: the simulated person obeys /setup
+        from models.simulate.following import FollowingWalker
+
+        walker = getattr(player, "walkers", None)
+        if isinstance(walker, FollowingWalker):
+            walker.target = lambda: session.target() or verifier.target()
     from service.outputs import build_outputs
 
     daemon.outputs = build_outputs(settings, daemon)

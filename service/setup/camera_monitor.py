@@ -59,9 +59,12 @@ class CameraMotionMonitor:
     ) -> None:
         self.window_s, self.hold_s, self.warmup_s = window_s, hold_s, warmup_s
         self.ratio, self.margin_px = ratio, margin_px
-        self._samples = [deque() for _ in range(num_cameras)]  # (t, error) per camera
+        # (t, error) per camera
+        self._samples: list[deque[tuple[float, float]]] = [deque() for _ in range(num_cameras)]
         self._warmup: list[list[float]] = [[] for _ in range(num_cameras)]
-        self._baseline = list(baseline_px) if baseline_px is not None else [None] * num_cameras
+        self._baseline: list[float | None] = (
+            list(baseline_px) if baseline_px is not None else [None] * num_cameras
+        )
         self._moved = [HeldFlag(hold_s) for _ in range(num_cameras)]
         self._start: float | None = None
         # the pipeline thread updates while /v1/health reads: one lock, or a read can meet a

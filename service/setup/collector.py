@@ -31,9 +31,10 @@ import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal, Protocol
+from typing import Literal, Protocol, TypeVar
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from models.atomic import atomic_write_json
 from models.dataset import MomDataset
@@ -129,8 +130,11 @@ class DetectionFeed(Protocol):
         ...
 
 
-def frame_row(frame: FeedFrame, require_all_cameras: bool) -> tuple[np.ndarray, np.ndarray] | None:
-    """The frame as one row (boxes [K,4], keypoints [K,J,3]) or None when it must be dropped."""
+def frame_row(
+    frame: FeedFrame, require_all_cameras: bool
+) -> tuple[np.ndarray, np.ndarray | None] | None:
+    """The frame as one row (boxes [K,4], keypoints [K,J,3] or None when the feed has none), or
+    None when it must be dropped."""
     counts = [len(b) for b in frame.boxes]
     if max(counts) > 1 or max(counts) == 0 or (require_all_cameras and min(counts) < 1):
         return None
@@ -142,8 +146,9 @@ def frame_row(frame: FeedFrame, require_all_cameras: bool) -> tuple[np.ndarray, 
     for k, camera_boxes in enumerate(frame.boxes):
         if len(camera_boxes):
             boxes[k] = camera_boxes[0]
-            if keypoints is not None and frame.keypoints[k] is not None:
-                keypoints[k] = frame.keypoints[k][0]
+            camera_keypoints = None if frame.keypoints is None else frame.keypoints[k]
+            if keypoints is not None and camera_keypoints is not None:
+                keypoints[k] = camera_keypoints[0]
     return boxes, keypoints
 
 
@@ -221,7 +226,9 @@ class DatasetAppender:
         self.next_track += 1
         return self.next_track - 1
 
-    def add(self, world, boxes: np.ndarray, keypoints: np.ndarray | None, track: int) -> None:
+    def add(
+        self, world: ArrayLike, boxes: np.ndarray, keypoints: np.ndarray | None, track: int
+    ) -> None:
         world = np.asarray(world, np.float32)[:2]
         self._row_keys.add(mark_key(float(world[0]), float(world[1])))
         self._rows["world"].append(world)
@@ -325,14 +332,35 @@ class Progress:
     kept_rows: int
 
 
+class RowWriter(Protocol):
+    """What :func:`collect` writes through: a :class:`DatasetAppender`, or one wrapped to count
+    its rows per mark (``MarkQuality.counting`` in :mod:`service.setup.quality`)."""
+
+    @property
+    def new_rows(self) -> int: ...
+
+    def new_track(self) -> int: ...
+
+    def add(
+        self, world: ArrayLike, boxes: np.ndarray, keypoints: np.ndarray | None, track: int
+    ) -> None: ...
+
+    def mark_done(self, mark: FloorMark) -> None: ...
+
+    def flush(self) -> None: ...
+
+
+Writer = TypeVar("Writer", bound=RowWriter)
+
+
 def collect(
     feed: DetectionFeed,
     steps: list[Step],
-    writer: DatasetAppender,
+    writer: Writer,
     *,
     require_all_cameras: bool = False,
     on_progress: Callable[[Progress], None] | None = None,
-) -> DatasetAppender:
+) -> Writer:
     """Run the plan, appending kept frames through ``writer``; flushes on every exit path."""
     try:
         for index, step in enumerate(steps):

@@ -16,6 +16,7 @@ import numpy as np
 
 from models.errors import MomlocError
 from models.simulate import get_config
+from models.simulate.scene import Scene
 from models.simulate.scripted import Segment, scripted_scene
 from service.setup.collector import FeedFrame, Step
 
@@ -29,7 +30,7 @@ class SyntheticFeed:
         self.image_sizes = np.array([c.image_size for c in self.config.cameras], np.int32)
         self.room = self.config.room
         self._fps = self.config.fps
-        self.scene = None
+        self.scene: Scene | None = None  # scripted by prepare()
 
     def prepare(self, steps: list[Step]) -> None:
         """Script the simulated person to follow ``steps`` back to back."""
@@ -39,13 +40,17 @@ class SyntheticFeed:
         self._begins = {id(step): float(begins[i]) for i, step in enumerate(steps)}
 
     def frames(self, step: Step) -> Iterator[FeedFrame]:
+        scene = self.scene
+        if scene is None:
+            raise MomlocError("SyntheticFeed.frames: call prepare() with the plan first")
         begin = self._begins[id(step)]
         first = round(begin * self._fps)
         last = max(first + 1, round((begin + step.seconds) * self._fps))
         for index in range(first, last):
-            observation = self.scene.observe(index)
-            boxes, keypoints = [], []
-            for k in range(self.scene.num_cameras):
+            observation = scene.observe(index)
+            boxes: list[np.ndarray] = []
+            keypoints: list[np.ndarray | None] = []
+            for k in range(scene.num_cameras):
                 seen = np.isfinite(observation.boxes[:, k]).all(axis=-1)
                 false = observation.false_boxes[k]  # the detector's false positives
                 false = false[np.isfinite(false).all(axis=-1)]

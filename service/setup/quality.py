@@ -81,14 +81,27 @@ class MarkQuality:
 
 
 class _CountingWriter:
-    """Delegates to a :class:`DatasetAppender`, counting the rows it is given per mark."""
+    """Delegates to a :class:`DatasetAppender`, counting the rows it is given per mark.
+
+    A :class:`~service.setup.collector.RowWriter` spelled out member by member (no
+    ``__getattr__`` forwarding, which would type every other attribute as ``Any``)."""
 
     def __init__(self, writer: DatasetAppender, quality: MarkQuality) -> None:
         self._writer, self._quality = writer, quality
 
-    def add(self, world: Any, boxes: np.ndarray, keypoints: Any, track: int) -> None:
+    @property
+    def new_rows(self) -> int:
+        return self._writer.new_rows
+
+    def new_track(self) -> int:
+        return self._writer.new_track()
+
+    def add(self, world: Any, boxes: np.ndarray, keypoints: np.ndarray | None, track: int) -> None:
         self._quality._row(world, boxes)
         self._writer.add(world, boxes, keypoints, track)
 
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._writer, name)
+    def mark_done(self, mark: FloorMark) -> None:
+        self._writer.mark_done(mark)
+
+    def flush(self) -> None:
+        self._writer.flush()

@@ -14,6 +14,7 @@ import re
 import threading
 import time
 from collections.abc import Iterator
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -59,16 +60,20 @@ class DetectionTap:
 
     def frames(self, step: Step) -> Iterator[FeedFrame]:
         end = time.monotonic() + step.seconds
-        last = None
+        last: FeedFrame | None = None
         while time.monotonic() < end:
             if self.cancelled.is_set():
                 raise Cancelled
             with self._new:
-                self._new.wait_for(lambda seen=last: self._latest is not seen, timeout=0.1)
+                self._new.wait_for(partial(self._changed_since, last), timeout=0.1)
                 frame = self._latest
             if frame is not None and frame is not last:
                 last = frame
                 yield frame
+
+    def _changed_since(self, seen: FeedFrame | None) -> bool:
+        """Whether a frame set newer than ``seen`` arrived (called holding ``_new``)."""
+        return self._latest is not seen
 
     def close(self) -> None:
         self.cancelled.set()
@@ -130,7 +135,8 @@ class SetupSession:
             self._done = {m.name for m, d in zip(marks, done, strict=True) if d}
             self._options = {"seconds": seconds, "name": name, "walk": walk,
                              "countdown_s": countdown_s, "move_s": move_s}  # fmt: skip
-            self._quality = MarkQuality(todo, writer.image_sizes.shape[0])
+            quality = MarkQuality(todo, writer.image_sizes.shape[0])
+            self._quality = quality
             self._earlier_quality = []
             self.last_recording = writer.path
             self._state = {
@@ -144,15 +150,20 @@ class SetupSession:
                 "existing_rows": writer.existing_rows,
             }
             self._thread = threading.Thread(
-                target=self._run, args=(tap, steps, writer), name="momloc-setup", daemon=True
+                target=self._run,
+                args=(tap, steps, writer, quality),
+                name="momloc-setup",
+                daemon=True,
             )
             self._attach(tap.push)
             self._thread.start()
         return self.status()
 
-    def _run(self, tap: DetectionTap, steps: list[Step], writer: DatasetAppender) -> None:
+    def _run(
+        self, tap: DetectionTap, steps: list[Step], writer: DatasetAppender, quality: MarkQuality
+    ) -> None:
         try:
-            collect(tap, steps, self._quality.counting(writer), on_progress=self._on_progress)
+            collect(tap, steps, quality.counting(writer), on_progress=self._on_progress)
             final = "done"
         except Cancelled:
             final = "stopped"
@@ -160,8 +171,7 @@ class SetupSession:
             final = f"failed: {error}"
         finally:
             self._detach(tap.push)
-            if self._quality is not None:
-                self._quality.finish()
+            quality.finish()
         self._state.update(
             state=final.split(":")[0],
             error=final if final.startswith("failed") else None,
