@@ -32,6 +32,7 @@ from capture.recording import Recording
 from capture.rig import FrameSet
 from capture.worker import Frame
 from models.dataset import MomDataset
+from models.detector.base import Detections
 from models.errors import MomlocError
 from service.hub import Hub
 from service.pipeline import Pipeline
@@ -64,10 +65,12 @@ def recording_feed(recording: Recording, settings: Settings) -> Feed:
 
 
 class DatasetDetections:
-    """Detection stage answering each frame set with a dataset's boxes of that frame index."""
+    """Detection stage answering each frame set with a dataset's boxes (and, if it has them,
+    keypoints) of that frame index, as a detector would: one ``Detections`` per camera."""
 
     def __init__(self, data: MomDataset, seed: int = 0) -> None:
         self.data = data
+        self.keypoints = data.keypoints is not None  # what a keypoint model needs (Pipeline)
         self.rng = np.random.default_rng([seed, 13])
         order = np.argsort(data.frame, kind="stable")
         frames = data.frame[order]
@@ -77,15 +80,25 @@ class DatasetDetections:
             for s, e in zip(starts, [*starts[1:], len(frames)], strict=True)
         }
 
-    def __call__(self, frame_set: FrameSet) -> list[np.ndarray]:
+    def __call__(self, frame_set: FrameSet) -> list[Detections]:
         seq = next((f.seq for f in frame_set.frames if f is not None), None)
         empty = np.zeros(0, np.int64)
         rows = self._rows.get(int(seq), empty) if seq is not None else empty
         out = []
         for k in range(self.data.num_cameras):
             boxes = self.data.boxes[rows, k].reshape(-1, 4)
-            boxes = boxes[np.isfinite(boxes).all(axis=1)]
-            out.append(boxes[self.rng.permutation(len(boxes))].astype(np.float32))
+            seen = np.isfinite(boxes).all(axis=1)
+            shuffle = self.rng.permutation(int(seen.sum()))
+            points = None
+            if self.data.keypoints is not None:
+                points = self.data.keypoints[rows, k][seen][shuffle].astype(np.float32)
+            out.append(
+                Detections(
+                    boxes[seen][shuffle].astype(np.float32),
+                    np.ones(len(shuffle), np.float32),
+                    points,
+                )
+            )
         return out
 
 

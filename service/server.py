@@ -10,7 +10,9 @@ import os
 import socket
 import threading
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from models.errors import MomlocError
@@ -96,10 +98,26 @@ class BackgroundServer:
         self.sock.close()
 
 
-def serve_in_thread(daemon: Daemon, host: str = "127.0.0.1", port: int = 0) -> BackgroundServer:
-    """Start serving ``daemon`` on host:port (0: any free port); returns once it accepts."""
+def serve_in_thread(
+    daemon: Daemon,
+    host: str = "127.0.0.1",
+    port: int = 0,
+    *,
+    static: Mapping[str, Path] | None = None,
+) -> BackgroundServer:
+    """Start serving ``daemon`` on host:port (0: any free port); returns once it accepts.
+
+    ``static`` mounts extra folders (URL prefix -> folder) on the daemon's own app: the client
+    example pages (``examples/web``) are served from the daemon's origin, since a page from
+    another origin would be refused by the Origin checks (``service.request_guard``).
+    """
     sock = bind_socket(host, port)
     server = make_server(daemon, host, sock.getsockname()[1])
+    if static:
+        from fastapi.staticfiles import StaticFiles
+
+        for prefix, directory in static.items():
+            server.config.app.mount(prefix, StaticFiles(directory=directory), name=prefix)
     thread = threading.Thread(
         target=server.run, kwargs={"sockets": [sock]}, name="uvicorn", daemon=True
     )

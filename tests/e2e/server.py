@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import itertools
-import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -18,7 +17,7 @@ from capture.synthetic import SyntheticRig
 from capture.worker import Frame
 from service.daemon import build_daemon
 from service.demo import demo_settings
-from service.server import BackgroundServer, bind_socket, make_server, serve_in_thread
+from service.server import serve_in_thread
 from service.state import Daemon
 
 
@@ -88,35 +87,6 @@ class LockstepRig(SyntheticRig):
                     return
 
 
-def serve_with_static(
-    daemon: Daemon, port: int = 0, static: dict[str, Path] | None = None
-) -> BackgroundServer:
-    """``service.server.serve_in_thread`` plus test-only static mounts on the daemon's own app.
-
-    Client example pages (``examples/web``) are mounted here so a browser loads them from the
-    daemon's origin: a page on another origin would be refused by the Origin checks.
-    """
-    from fastapi.staticfiles import StaticFiles
-
-    if not static:
-        return serve_in_thread(daemon, port=port)
-    sock = bind_socket("127.0.0.1", port)
-    server = make_server(daemon, "127.0.0.1", sock.getsockname()[1])
-    for prefix, directory in (static or {}).items():
-        server.config.app.mount(prefix, StaticFiles(directory=directory), name=prefix)
-    thread = threading.Thread(
-        target=server.run, kwargs={"sockets": [sock]}, name="uvicorn", daemon=True
-    )
-    thread.start()
-    deadline = time.time() + 60
-    while not server.started:
-        if time.time() > deadline or not thread.is_alive():
-            sock.close()
-            raise RuntimeError("the HTTP server did not start")
-        time.sleep(0.02)
-    return BackgroundServer(daemon, sock.getsockname()[1], server, thread, sock)
-
-
 @contextmanager
 def running_server(
     *, port: int = 0, static: dict[str, Path] | None = None, **settings: Any
@@ -126,10 +96,12 @@ def running_server(
     ``lockstep=True`` replaces the real-time synthetic rig by :class:`LockstepRig` and runs the
     detector inline on every frame set (``detection.schedule: every_frame``): the scheduled
     detector runs beside the pipeline on wall-clock time, so how many frame sets got fresh
-    boxes would depend on the machine's load.
+    boxes would depend on the machine's load. ``publishers`` are added to the hub before the
+    pipeline starts, so they see every snapshot from seq 1.
     """
     lockstep = settings.pop("lockstep", False)
     token = settings.pop("token", None)
+    publishers = settings.pop("publishers", ())
     # The simulator's boxes unless a test asks for the drawn frames through the detector: these
     # tests are about the server, and the detector would only add CPU load and timing slack.
     settings.setdefault("detections", "simulated")
@@ -147,7 +119,9 @@ def running_server(
         daemon.pipeline.rig = LockstepRig(daemon.pipeline.rig, daemon.hub)
     for key, value in guard.items():
         setattr(daemon, key, list(value))
-    background = serve_with_static(daemon, port, static)
+    for publisher in publishers:  # before the pipeline starts: they see every snapshot
+        daemon.hub.add_publisher(publisher)
+    background = serve_in_thread(daemon, port=port, static=static)
     try:
         yield RunningServer(daemon, background.port, token)
     finally:

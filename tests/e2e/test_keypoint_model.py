@@ -75,6 +75,28 @@ def test_keypoint_model_streams_positions_from_the_scenes_keypoints(keypoint_mod
     assert np.mean(errors_m < 0.5) > 0.85, np.mean(errors_m < 0.5)
 
 
+def test_keypoint_model_tracks_offline_from_a_datasets_keypoints(
+    keypoint_model: Path, tmp_path, capsys
+):
+    """``momloc track --detections`` with a keypoint model: the dataset's keypoints are the
+    detector's output, frame by frame, shuffled per camera; scored against the same frames."""
+    data = tmp_path / "walk.npz"
+    simulate = ["simulate", "--preset", DEMO_PRESET, "--frames", "300", "--seed", "5"]
+    assert main([*simulate, "--people", "3", "--out", str(data)]) == 0
+    out = tmp_path / "positions.jsonl"
+    track = ["track", "--detections", str(data), "--model", str(keypoint_model)]
+    capsys.readouterr()
+    assert main([*track, "--out", str(out), "--truth", str(data), "--json"]) == 0
+    metrics = json.loads(capsys.readouterr().out)
+    lines = out.read_text().splitlines()
+    assert len(lines) == 300 and all("people" in json.loads(line) for line in lines)
+    # measured 2026-12-01 (deterministic: seeded data, training and shuffle): recall 94.8 %,
+    # precision 86.7 %, MOTA 80.3 %, 0 id switches, matched mean 0.143 m (one view 0.176 m,
+    # two views 0.089 m). Before the feed carried keypoints, every frame set failed.
+    assert metrics["recall"] > 85.0 and metrics["mota"] > 60.0, metrics
+    assert metrics["mean"] < 0.25 and metrics["by_views"]["2"]["mean"] < 0.15, metrics
+
+
 def test_keypoint_model_is_refused_on_a_box_only_detector(
     keypoint_model: Path, tmp_path, capsys, monkeypatch
 ):

@@ -13,7 +13,7 @@ from typing import Any
 
 import pytest
 
-from service.hub import Snapshot
+from tests.e2e.client_checks import Tap
 from tests.e2e.mqtt_broker import free_port
 from tests.e2e.server import running_server
 from tests.e2e.test_map_page import CHROMEDRIVER, CHROMIUM, FLAGS, ensure_chromium, wait_until
@@ -23,19 +23,6 @@ pytestmark = [pytest.mark.browser, pytest.mark.timeout(600)]
 WEB = Path(__file__).resolve().parents[2] / "examples" / "web"
 STATIC = {"/examples/web": WEB}
 TOKEN = "web-token"
-
-
-class Tap:
-    name = "test-tap"
-
-    def __init__(self) -> None:
-        self.by_seq: dict[int, Snapshot] = {}
-
-    def offer(self, snapshot: Snapshot) -> None:
-        self.by_seq[snapshot.seq] = snapshot
-
-    def stats(self) -> dict[str, Any]:
-        return {}
 
 
 @pytest.fixture(scope="module")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from models.dataset import MomDataset
@@ -29,12 +31,38 @@ def test_dataset_boxes_come_frame_by_frame_shuffled_per_camera(tmp_path):
     for frame, frame_set in feed.frame_sets:
         assert [f.timestamp for f in frame_set.frames] == [frame / 10.0] * 2
         assert all(f.image is None for f in frame_set.frames)
-        boxes = feed.detect(frame_set)
+        found = feed.detect(frame_set)
         if frame == 5:  # nobody seen: an empty frame set, so tracks age as they would live
-            assert [len(b) for b in boxes] == [0, 0]
+            assert [len(d) for d in found] == [0, 0]
             continue
-        lefts = [b[:, 0].tolist() for b in boxes]
+        lefts = [d.boxes[:, 0].tolist() for d in found]
         assert [sorted(x) for x in lefts] == [[100.0, 400.0]] * 2  # every box, nothing else
         same_order += lefts[0] == lefts[1]
     # row order (person 0 first) must not survive: each camera is shuffled on its own
     assert 10 < same_order < 49
+
+
+def test_dataset_keypoints_ride_with_their_shuffled_boxes(tmp_path):
+    """A keypoint model offline (``--detections`` of a dataset with keypoints): each box keeps
+    its own person's keypoints through the per-camera shuffle."""
+    data = two_people(30)
+    keypoints = np.zeros((data.n, 2, 17, 3), np.float32)
+    keypoints[..., 0] = data.boxes[:, :, None, 0] + 7.0  # x marks whose box it is
+    keypoints[..., 2] = 1.0
+    data = dataclasses.replace(data, keypoints=keypoints)
+    feed = detections_feed(data.save(tmp_path / "k.npz"), fps=10.0, seed=2)
+    assert feed.detect.keypoints
+    checked = 0
+    for _, frame_set in feed.frame_sets:
+        for d in feed.detect(frame_set):
+            assert d.keypoints is not None and d.keypoints.shape == (len(d), 17, 3)
+            assert (d.keypoints[:, :, 0] == d.boxes[:, :1] + 7.0).all()
+            checked += len(d)
+    assert checked == 2 * 2 * 29
+
+
+def test_a_dataset_without_keypoints_feeds_boxes_only(tmp_path):
+    feed = detections_feed(two_people(8).save(tmp_path / "b.npz"), fps=10.0)
+    assert not feed.detect.keypoints
+    _, frame_set = next(iter(feed.frame_sets))
+    assert all(d.keypoints is None for d in feed.detect(frame_set))
