@@ -54,7 +54,7 @@ from models.errors import MomlocError
 from service.api_errors import error_response, error_responses, install_error_handlers
 from service.metrics import metrics_text
 from service.request_guard import BodyTooLarge, RequestGuard
-from service.routes_zones import create_zones_router
+from service.routes_zones import create_zones_router, outputs_running
 from service.setup.routes import create_setup_router
 from service.snapshot_image import render_camera_jpeg
 from service.state import Daemon
@@ -109,7 +109,8 @@ def create_app(daemon: Daemon, *, manage_pipeline: bool = True) -> FastAPI:
         if daemon.watcher is not None:
             daemon.watcher.start()
         try:
-            yield
+            async with outputs_running(daemon.outputs):
+                yield
         finally:
             if daemon.watcher is not None:
                 daemon.watcher.stop()

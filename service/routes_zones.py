@@ -16,6 +16,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import secrets
+from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from typing import Any
 
@@ -32,6 +33,32 @@ def _authorized(expected: str | None, headers: Any, query: Any) -> bool:
     return given is not None and secrets.compare_digest(given.encode(), expected.encode())
 
 
+@asynccontextmanager
+async def outputs_running(outputs: Any) -> AsyncIterator[None]:
+    """Start the publishers (MQTT, OSC) and zone events with the app, stop them with it.
+
+    Entered by the app's own lifespan, not given to ``APIRouter(lifespan=...)``: FastAPI
+    releases before 0.112 (our floor is 0.110) never run a router's lifespan, so MQTT would
+    silently never connect there (found by ``make test-floors``).
+    """
+    if outputs is None:
+        yield
+        return
+    outputs.zones.events.bind(asyncio.get_running_loop())
+    if outputs.mqtt is not None:
+        await asyncio.to_thread(outputs.mqtt.start)
+    if getattr(outputs, "osc", None) is not None:
+        outputs.osc.start()
+    try:
+        yield
+    finally:
+        if getattr(outputs, "osc", None) is not None:
+            await asyncio.to_thread(outputs.osc.stop)
+        if outputs.mqtt is not None:
+            await asyncio.to_thread(outputs.mqtt.stop)
+        outputs.zones.events.bind(None)
+
+
 def create_zones_router(daemon: Any) -> APIRouter:
     outputs = daemon.outputs
 
@@ -39,26 +66,7 @@ def create_zones_router(daemon: Any) -> APIRouter:
         if not _authorized(daemon.token, request.headers, request.query_params):
             raise HTTPException(401, "missing or wrong token", {"WWW-Authenticate": "Bearer"})
 
-    @asynccontextmanager
-    async def lifespan(app: Any):  # type: ignore[no-untyped-def]
-        if outputs is None:
-            yield
-            return
-        outputs.zones.events.bind(asyncio.get_running_loop())
-        if outputs.mqtt is not None:
-            await asyncio.to_thread(outputs.mqtt.start)
-        if getattr(outputs, "osc", None) is not None:
-            outputs.osc.start()
-        try:
-            yield
-        finally:
-            if getattr(outputs, "osc", None) is not None:
-                await asyncio.to_thread(outputs.osc.stop)
-            if outputs.mqtt is not None:
-                await asyncio.to_thread(outputs.mqtt.stop)
-            outputs.zones.events.bind(None)
-
-    router = APIRouter(lifespan=lifespan)
+    router = APIRouter()
     secured = [Depends(require_token)]
 
     @router.get("/v1/zones", dependencies=secured, summary="Zones: polygons, occupancy, events")

@@ -161,7 +161,10 @@ def test_record_video_files_then_replay_the_recording_and_track(tmp_path):
     count, inside = room_share(rows)
     assert count >= 5, "the detector found (almost) nobody in the recorded frames"
     assert inside >= 0.9
-    assert any(sorted(p["cameras"]) == [0, 1] for r in rows for p in r["people"])
+    # No check of two-camera fusion here: how many frame sets a real-time recording of video
+    # files holds depends on the machine's load (a loaded CI run recorded too few for a track to
+    # be confirmed by both cameras, RECOMMENDED multi_view_s). Fusion through record -> track
+    # is scored against the truth, deterministically, in the simulate --record test below.
 
 
 def test_simulate_record_then_track_against_the_truth(tmp_path):
