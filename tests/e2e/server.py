@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import httpx
+import numpy as np
 
 from capture.rig import FrameSet
 from capture.synthetic import SyntheticRig
@@ -126,3 +127,26 @@ def running_server(
         yield RunningServer(daemon, background.port, token)
     finally:
         background.stop()
+
+
+def match_to_truth(
+    rig: SyntheticRig, messages: list[dict[str, Any]]
+) -> tuple[np.ndarray, int, int]:
+    """Served people vs the scene's truth (everyone some camera's detector reports), matched one
+    to one per message: the matched errors [m], people reported, people visible."""
+    from scipy.optimize import linear_sum_assignment
+
+    errors: list[float] = []
+    reported = visible = 0
+    for message in messages:
+        truth = rig.scene.observe(rig.index_at(message["t"]))
+        seen = np.isfinite(truth.boxes).all(axis=2).any(axis=1)
+        gt = truth.world[seen, :2]
+        got = np.array([[p["x"], p["y"]] for p in message["people"]]).reshape(-1, 2)
+        reported += len(got)
+        visible += len(gt)
+        if len(got) and len(gt):
+            cost = np.linalg.norm(got[:, None] - gt[None], axis=2)
+            rows, cols = linear_sum_assignment(cost)
+            errors.extend(cost[rows, cols])
+    return np.array(errors), reported, visible

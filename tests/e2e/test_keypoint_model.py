@@ -16,12 +16,11 @@ from pathlib import Path
 import httpx
 import numpy as np
 import pytest
-from scipy.optimize import linear_sum_assignment
 from websockets.asyncio.client import connect
 
 from service.cli import main
 from service.demo import DEMO_PRESET
-from tests.e2e.server import running_server
+from tests.e2e.server import match_to_truth, running_server
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -54,19 +53,7 @@ def test_keypoint_model_streams_positions_from_the_scenes_keypoints(keypoint_mod
         rig = server.daemon.pipeline.rig
         messages = asyncio.run(receive(server.ws + "/v1/stream", 200))[30:]  # tracks confirmed
         assert server.get("/v1/health").json()["pipeline"]["error"] is None
-    errors, reported, visible = [], 0, 0
-    for message in messages:
-        truth = rig.scene.observe(rig.index_at(message["t"]))
-        seen = np.isfinite(truth.boxes).all(axis=2).any(axis=1)
-        gt = truth.world[seen, :2]
-        got = np.array([[p["x"], p["y"]] for p in message["people"]]).reshape(-1, 2)
-        reported += len(got)
-        visible += len(gt)
-        if len(got) and len(gt):
-            cost = np.linalg.norm(got[:, None] - gt[None], axis=2)
-            rows, cols = linear_sum_assignment(cost)
-            errors.extend(cost[rows, cols])
-    errors_m = np.array(errors)
+    errors_m, reported, visible = match_to_truth(rig, messages)
     assert visible > 0 and reported >= 0.8 * visible, (reported, visible)
     # measured 2026-12-01 on this lock-step run (deterministic: seeded training, scene time):
     # median 0.166 m, 91.1 % within 0.5 m, 510 people reported for 448 visible (tracks on the

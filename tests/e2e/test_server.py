@@ -13,12 +13,11 @@ import cv2
 import numpy as np
 import pytest
 import websockets
-from scipy.optimize import linear_sum_assignment
 from websockets.asyncio.client import connect
 
 from service.settings import DEMO_MODEL_DIR
 from tests.e2e.client_checks import Tap
-from tests.e2e.server import running_server
+from tests.e2e.server import match_to_truth, running_server
 
 pytestmark = pytest.mark.timeout(180)
 LAST_SEQ = 330
@@ -64,20 +63,8 @@ def test_positions_follow_ground_truth():
         rig = server.daemon.pipeline.rig
     for m in streamed:
         assert m == tap.by_seq[m["seq"]].as_dict()  # what clients get is what was published
-    errors, reported, visible = [], 0, 0
-    for seq in range(31, LAST_SEQ + 1):  # tracks confirmed after the first second
-        m = tap.by_seq[seq].as_dict()
-        truth = rig.scene.observe(rig.index_at(m["t"]))
-        seen = np.isfinite(truth.boxes).all(axis=2).any(axis=1)  # seen by some camera
-        gt = truth.world[seen, :2]
-        got = np.array([[p["x"], p["y"]] for p in m["people"]]).reshape(-1, 2)
-        reported += len(got)
-        visible += len(gt)
-        if len(got) and len(gt):
-            cost = np.linalg.norm(got[:, None] - gt[None], axis=2)
-            rows, cols = linear_sum_assignment(cost)
-            errors.extend(cost[rows, cols])
-    errors = np.array(errors)
+    window = [tap.by_seq[seq].as_dict() for seq in range(31, LAST_SEQ + 1)]  # tracks confirmed
+    errors, reported, visible = match_to_truth(rig, window)
     assert visible > 0 and reported >= 0.8 * visible, (reported, visible)
     # The demo's default detector profile is the measured nanodet one (the replay gate of the
     # whole scene is tests/service/test_demo_accuracy.py). This window is deterministic;
