@@ -152,8 +152,8 @@ def consensus(
     RANSAC over the (per-mark) points ``world`` [M, 2] ↔ ``pixels`` [M, 2]: every 4-point
     homography (all subsets when there are at most ``subsets``, else ``samples`` random ones
     with a fixed seed) is scored by how many points it maps within ``tolerance`` box heights
-    (``height`` [M]) of their pixel; the largest set wins (ties: the smaller summed error). With fewer than 6
-    points there is no redundancy to judge by, and all are kept.
+    (``height`` [M]) of their pixel; the largest set wins (ties: the smaller summed error).
+    With fewer than 6 points there is no redundancy to judge by, and all are kept.
 
     Why: at a mark, the box a camera reports may not be the person's. A static false positive
     (a coat on a chair) is the only box while the person is out of that camera's view, and a
