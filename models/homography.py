@@ -36,6 +36,14 @@ from models.errors import MomlocError
 # detector's edges is off by a few percent of the box height; boxes that are not the person are
 # off by far more (0.7-5 box heights in the measurement quoted there).
 CONSENSUS_TOLERANCE = 0.15
+# Repeated boxes (:func:`repeated_boxes`): one camera's box at marks this far apart on the floor,
+# within these tolerances, is a static false positive. A person a metre farther from a camera
+# 10 m away changes box height by 10 %, so 3 % does not catch real people; a static false box's
+# per-mark medians agree to about 1 %.
+REPEAT_APART_M = 1.0
+REPEAT_PIXEL_TOLERANCE = 0.05
+REPEAT_HEIGHT_TOLERANCE = 0.03
+MAX_MARKS = 256  # more floor positions than this: dense data, no repeated-box check
 CONSENSUS_SUBSETS = 2000  # try every 4-point subset up to this many (16 marks: 1,820)
 # Otherwise (dense data, rows ~ points) this many random ones: with 85 % inliers (dense nanodet
 # rows at 0.15 box heights) a sample is clean with p = 0.52, so 300 miss a clean one with
@@ -133,10 +141,45 @@ def fit_plane_to_image(
         return np.stack([np.median(values[rows], axis=0) for rows in pieces])
 
     pos, pix, hgt = medians(world), medians(pixels), medians(height)
-    keep = consensus(pos, pix, hgt)
+    # Dense rows (each its own position) are not marks: the pairwise check would cost O(M²).
+    keep = ~repeated_boxes(pos, pix, hgt) if len(pos) <= MAX_MARKS else np.ones(len(pos), bool)
+    if keep.sum() < 4:
+        raise MomlocError(
+            f"homography: degenerate boxes ({int((~keep).sum())} of {len(keep)} floor positions "
+            "show one box, repeated: a static false positive, not the person)"
+        )
+    keep[keep] = consensus(pos[keep], pix[keep], hgt[keep])
     pos, pix, hgt, count = pos[keep], pix[keep], hgt[keep], count[keep]
     ref = float(np.median(hgt))
     return fit_homography(pos, pix, weights=np.sqrt(count) * ref / hgt, scale=0.1 * ref)
+
+
+def repeated_boxes(
+    world: np.ndarray,
+    pixels: np.ndarray,
+    height: np.ndarray,
+    apart_m: float = REPEAT_APART_M,
+    pixel_tolerance: float = REPEAT_PIXEL_TOLERANCE,
+    height_tolerance: float = REPEAT_HEIGHT_TOLERANCE,
+) -> np.ndarray:
+    """[M] bool: points whose box (pixel and height) another point more than ``apart_m`` away
+    on the floor repeats, within ``pixel_tolerance`` box heights and ``height_tolerance``
+    relative height.
+
+    A person at two floor points a metre apart never gives one camera the same box (the floor
+    → image map is one-to-one, and the box height changes with the distance), but a static false
+    positive (a coat on a chair) does, at every mark where it is the only box because the person
+    is out of that camera's view. Measured on the synthetic 3x3 set-up (nanodet profile,
+    6 s per mark): camera 1 reported one such box at two far marks (medians 3 px and 0 px apart
+    in height 177 px), and with a cut box and a wrong one beside them, four wrong points of nine
+    fitted a near-degenerate map that outvoted the five right ones in :func:`consensus`. All
+    copies are dropped: which one (if any) was the person cannot be told.
+    """
+    floor = np.linalg.norm(world[:, None] - world[None], axis=-1)
+    scale = np.minimum(height[:, None], height[None])
+    same_place = np.linalg.norm(pixels[:, None] - pixels[None], axis=-1) <= pixel_tolerance * scale
+    same_size = np.abs(np.log(height[:, None] / height[None])) <= height_tolerance
+    return np.any((floor > apart_m) & same_place & same_size, axis=1)
 
 
 def consensus(
