@@ -110,7 +110,9 @@ def run_stream(
         obs = scene.observe(i)
         t = i / scene.fps
         result = associate(frame_detections(obs, rng), runtime, max_error_px, max_view_gap_m)
-        meta = [{"cameras": a.cameras, "cost": a.cost, "association": j} for j, a in enumerate(result)]
+        meta = [
+            {"cameras": a.cameras, "cost": a.cost, "association": j} for j, a in enumerate(result)
+        ]
         covariances = measurement_covariances(result, runtime) if use_covariance else None
         if bias is not None:
             tracks = bias.update(tracker, t, result, runtime, meta, covariances, coverage)

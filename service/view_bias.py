@@ -88,6 +88,7 @@ class ViewBias:
         self.forget_s = float(forget_s)
         self.transient_s = float(transient_s)
         self.camera_s = float(camera_s)
+        self.corrected_scale = 1.0
         self._cameras: dict[int, _Offset] = {}
         self._offsets: dict[tuple[int, int], _Offset] = {}
         self._tracks: list[Track] = []
@@ -109,7 +110,13 @@ class ViewBias:
         then the offsets learned from the two-view associations (``meta[i]["association"]``
         must be ``i``, so the served tracks link back to what fed them)."""
         positions = np.array([np.asarray(a.world, float)[:2] for a in associations]).reshape(-1, 2)
+        raw = positions
         positions = self.correct(t, associations, positions, runtime)
+        if covariances is not None and self.corrected_scale != 1.0:
+            covariances = [
+                c if c is None or np.allclose(p, q) else c * self.corrected_scale
+                for c, p, q in zip(covariances, raw, positions, strict=True)
+            ]
         tracks = tracker.update(t, positions, meta, covariances=covariances, coverage=coverage)
         self.learn(t, associations, runtime, tracks)
         return tracks
@@ -141,9 +148,9 @@ class ViewBias:
                 if d <= self.gate_m:
                     cost[i, j] = d
         rows, cols = linear_sum_assignment(cost)
-        for i, j in zip(rows, cols, strict=True):
-            if cost[i, j] < _FAR and (i, j) in shifted:
-                out[i] = shifted[(i, j)]
+        for r, c in zip(rows.tolist(), cols.tolist(), strict=True):
+            if cost[r, c] < _FAR and (r, c) in shifted:
+                out[r] = shifted[(r, c)]
         return out
 
     def learn(
@@ -160,12 +167,13 @@ class ViewBias:
         frame_s = float(np.clip(frame_s, 0.0, MAX_FRAME_WEIGHT_S))
         fed = []
         for tr in tracks:
-            index = tr.meta.get("association") if not tr.coasting else None
+            meta = getattr(tr, "meta", None) or {}
+            index = meta.get("association") if not getattr(tr, "coasting", False) else None
             if index is not None and 0 <= int(index) < len(associations):
                 a = associations[int(index)]
                 if len(a.cameras) >= 2:
                     fed.append((tr.id, a))
-        if fed and runtime is not None:
+        if fed and runtime is not None and getattr(runtime, "localize", None) is not None:
             lone = lone_view_positions([a for _, a in fed], runtime)
             for (track_id, a), views in zip(fed, lone, strict=True):
                 fused = np.asarray(a.world, dtype=np.float64)[:2]
@@ -173,9 +181,7 @@ class ViewBias:
                     if np.isfinite(xy).all():
                         sample = _to_sight(runtime, k, fused, xy - fused)
                         self._fold(track_id, k, t, sample, frame_s)
-        self._offsets = {
-            key: o for key, o in self._offsets.items() if t - o.t <= self.forget_s
-        }
+        self._offsets = {key: o for key, o in self._offsets.items() if t - o.t <= self.forget_s}
         self._tracks = list(tracks)
         self._time = t
 
@@ -265,7 +271,9 @@ def _sight_frame(runtime: LocalizationModel | None, camera: int, world: np.ndarr
     return np.array([along, [-along[1], along[0]]])
 
 
-def _to_sight(runtime: LocalizationModel | None, camera: int, world: np.ndarray, v: np.ndarray):
+def _to_sight(
+    runtime: LocalizationModel | None, camera: int, world: np.ndarray, v: np.ndarray
+) -> np.ndarray:
     return _sight_frame(runtime, camera, world) @ v
 
 
