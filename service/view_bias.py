@@ -38,9 +38,15 @@ matched mean / single-view mean / jitter cm): without 55.0 % / 109 / 0.163 / 0.1
 5.26; with ``transient_s`` 0.4 (kept): 55.7 % / 88 / 0.161 / 0.179 / 5.17, lag 0.043 →
 0.044 s. The tracker trusts a lone view little along its line of sight, so a better range
 moves the served single-view position by millimetres; the gain is mostly fewer id switches.
+Full bench (seeds 7-8 × 600 frames, MOTA without → with, bench/results/stream_accuracy.md):
+indoor-2cam 1 person 56.2 → 64.0 %, 3: 57.1 → 61.7 % (id switches 24 → 11), 5: 49.2 → 48.6 %;
+indoor-4cam 68.6 → 68.0 %; living-room 61.6 → 60.2 % (id switches 14 → 27). On seeds 9-11:
+living-room 57.3 → 56.4 % (26 → 25, matched mean 0.154 → 0.151 m), indoor-4cam 64.9 → 67.1 %.
 Rejected: time constant 1 s (55.4 % / 110 / 0.163 / 0.183 / 5.40) and 10 s (56.4 % / 103 /
 0.163 / 0.183 / 5.87); ``prior_s`` 0.1 (55.3 % / 96, jitter 5.41) and 2 (56.2 % / 105, 5.25);
-a per-camera offset over all tracks (30 s) as the prior instead of zero (54.9 % / 102 / 0.161
+matching the lone views to tracks on their uncorrected positions (living-room 61.8 % / 16
+against 60.2 % / 27, but indoor-2cam 3 people 54.8 % against 61.7 %, 5 people 43.6 % against
+48.6 %, seeds 7-8 × 600); a per-camera offset over all tracks (30 s) as the prior instead of zero (54.9 % / 102 / 0.161
 / 0.181 / 5.38; with the transient 54.0 % / 95 / 0.159 / 0.178 / 5.14); trusting a corrected
 lone view more (its covariance × 0.75: 55.9 % / 91 / 0.161 / 0.180 / 5.56).
 
