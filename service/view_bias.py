@@ -49,10 +49,10 @@ against 60.2 % / 27, but indoor-2cam 3 people 54.8 % against 61.7 %, 5 people 43
 48.6 %, seeds 7-8 × 600); correcting only where one track alone is within the gate (living-room
 62.5 % / 13, indoor-2cam 3 people 57.7 % / 21, 5 people 47.6 %: the correction helps most where
 people are close, by telling their tracks apart); the along-sight component only (indoor-2cam
-1 / 3 / 5 people 64.0 / 62.0 / 48.9 %, living-room 60.1 %: no difference); a per-camera offset over all tracks (30 s) as the prior instead of
-zero (54.9 % / 102 / 0.161 / 0.181 / 5.38; with the transient 54.0 % / 95 / 0.159 / 0.178 /
-5.14); trusting a corrected lone view more (its covariance × 0.75: 55.9 % / 91 / 0.161 / 0.180
-/ 5.56).
+1 / 3 / 5 people 64.0 / 62.0 / 48.9 %, living-room 60.1 %: no difference); a per-camera
+offset over all tracks (30 s) as the prior instead of zero (54.9 % / 102 / 0.161 / 0.181 /
+5.38; with the transient 54.0 % / 95 / 0.159 / 0.178 / 5.14); trusting a corrected lone view
+more (its covariance × 0.75: 55.9 % / 91 / 0.161 / 0.180 / 5.56).
 
 Which track a single-view position will feed is decided by the tracker's assignment, after the
 correction. The correction therefore guesses it: the previous frame's served tracks, predicted
