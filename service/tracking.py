@@ -129,7 +129,6 @@ class Track:
     coasting: bool = False
     age_s: float = 0.0
     meta: dict[str, Any] = field(default_factory=dict)
-    standing: float = 0.0  # the motion model's probability that the person stands still
 
 
 @dataclass
@@ -290,7 +289,6 @@ class Tracker:
                     coasting=missing > 0,
                     age_s=float(now - tr.born),
                     meta=dict(tr.meta),
-                    standing=float(tr.motion.standing),
                 )
             )
         return out
