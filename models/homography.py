@@ -44,6 +44,10 @@ REPEAT_APART_M = 1.0
 REPEAT_PIXEL_TOLERANCE = 0.05
 REPEAT_HEIGHT_TOLERANCE = 0.03
 MAX_MARKS = 256  # more floor positions than this: dense data, no repeated-box check
+# People's box heights agree with the map's scale within this (log units, ~25 %): a box that is
+# not the person, or a wrong map, breaks the agreement. The detector's scale error (5 %) and
+# pose (bending, turning) stay well inside it.
+CONSENSUS_HEIGHT_SPREAD = 0.25
 CONSENSUS_SUBSETS = 2000  # try every 4-point subset up to this many (16 marks: 1,820)
 # Otherwise (dense data, rows ~ points) this many random ones: with 85 % inliers (dense nanodet
 # rows at 0.15 box heights) a sample is clean with p = 0.52, so 300 miss a clean one with
@@ -182,6 +186,14 @@ def repeated_boxes(
     return np.any((floor > apart_m) & same_place & same_size, axis=1)
 
 
+def lateral_scale(jacobian: np.ndarray) -> np.ndarray:
+    """[...] pixels per metre across the line of sight: the larger singular value of each
+    [..., 2, 2] floor → image Jacobian (the other one is foreshortened with depth)."""
+    frobenius = (jacobian**2).sum(axis=(-2, -1))
+    det = np.linalg.det(np.nan_to_num(jacobian))
+    return np.sqrt((frobenius + np.sqrt(np.maximum(frobenius**2 - 4 * det**2, 0.0))) / 2)
+
+
 def consensus(
     world: np.ndarray,
     pixels: np.ndarray,
@@ -189,14 +201,19 @@ def consensus(
     tolerance: float = CONSENSUS_TOLERANCE,
     subsets: int = CONSENSUS_SUBSETS,
     samples: int = CONSENSUS_SAMPLES,
+    height_spread: float = CONSENSUS_HEIGHT_SPREAD,
 ) -> np.ndarray:
     """[M] bool: the points consistent with the floor → image map most of them agree on.
 
     RANSAC over the (per-mark) points ``world`` [M, 2] ↔ ``pixels`` [M, 2]: every 4-point
     homography (all subsets when there are at most ``subsets``, else ``samples`` random ones
     with a fixed seed) is scored by how many points it maps within ``tolerance`` box heights
-    (``height`` [M]) of their pixel; the largest set wins (ties: the smaller summed error).
-    With fewer than 6 points there is no redundancy to judge by, and all are kept.
+    (``height`` [M]) of their pixel *and* whose box height agrees with the map's scale there:
+    the person who walked the marks has one height, so box height divided by the map's
+    pixels per metre across the line of sight (:func:`lateral_scale`) is about the same at every
+    mark (within ``height_spread``, in log units, of the set's median). The largest set wins
+    (ties: the smaller summed error). With fewer than 6 points there is no redundancy to judge
+    by, and all are kept.
 
     Why: at a mark, the box a camera reports may not be the person's. A static false positive
     (a coat on a chair) is the only box while the person is out of that camera's view, and a
@@ -204,7 +221,11 @@ def consensus(
     inside the border, so it looks whole. Measured on the synthetic 3x3 set-up with the nanodet
     profile: 3 of 18 mark × camera medians were such boxes (100-530 px from the person's foot
     pixel); the soft-L1 refinement alone cannot reject them with 9 points for 8 unknowns, and the
-    floor prior ended 2.5 m (median) off over the room.
+    floor prior ended 2.5 m (median) off over the room. With 6 s per mark 4 of 9 marks of a
+    camera were such boxes, and 9 points leave a 4-point map so much freedom that a set with two
+    wrong points tied the right one on the pixels alone; the height check broke the tie (the
+    floor prior over the room: mean 1.62 -> 0.49 m, ``tests/models/test_prior_policy.py``'s
+    recording).
     """
     m = len(world)
     everything = np.ones(m, dtype=bool)
@@ -223,7 +244,11 @@ def consensus(
             continue
         with np.errstate(all="ignore"):
             error = np.linalg.norm(apply_homography(h, world) - pixels, axis=1) / height
+            size = np.log(height / lateral_scale(homography_jacobian(h, world)))
         inliers = np.nan_to_num(error, nan=np.inf) <= tolerance
+        if inliers.sum() >= 4:  # one person: box height / (pixels per metre) is their height
+            off = np.abs(size - np.median(size[inliers]))
+            inliers &= np.nan_to_num(off, nan=np.inf) <= height_spread
         key = (int(inliers.sum()), float(error[inliers].sum()))
         if key[0] > best_key[0] or (key[0] == best_key[0] and key[1] < best_key[1]):
             best, best_key = inliers, key
