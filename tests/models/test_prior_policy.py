@@ -132,7 +132,7 @@ def test_model_trained_on_marks_localizes_the_whole_room_with_the_prior(
     alone's error). With the measured default ``nanodet`` the recording holds boxes that are not
     the person at 4 of a camera's 9 marks (the person out of its view and a lasting false box
     there, or the feet cut at the border); the floor prior's consensus leaves them out
-    (``models/homography.py``): 0.494 m per frame over the room on nanodet's own boxes
+    (``models/mark_fit.py``): 0.494 m per frame over the room on nanodet's own boxes
     (2026-12-02; 1.62 m before it, and the dense-label model is 0.42 m on such boxes).
     """
     from models.dataset import MomDataset
