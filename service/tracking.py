@@ -111,6 +111,7 @@ RECOMMENDED: dict[str, Any] = {
     "ghost_s": 0.5,
     "robust_chi2": 9.0,
     "multi_view_s": 0.1,
+    "serve_coast_s": 0.5,
 }
 MOTION_MODELS = {"cv": ConstantVelocity, "imm": StandOrWalk}
 
@@ -172,6 +173,7 @@ class Tracker:
         ghost_s: float = 0.0,
         robust_chi2: float = 0.0,
         multi_view_s: float = 0.0,
+        serve_coast_s: float | None = None,
     ) -> None:
         if fps_hint <= 0 or max_missing_s <= 0 or gate_m <= 0:
             raise ValueError("fps_hint, max_missing_s and gate_m must be positive")
@@ -195,6 +197,7 @@ class Tracker:
         self.ghost_s = float(ghost_s)
         self.robust_chi2 = float(robust_chi2)
         self.multi_view_s = max(0.0, float(multi_view_s))
+        self.serve_coast_s = self.max_missing_s if serve_coast_s is None else float(serve_coast_s)
         self._frame_dt = 1.0 / self.fps_hint
         self._motion_options = (
             {"stand_std": stand_std_m, "stand_s": stand_s, "walk_s": walk_s}
@@ -269,29 +272,49 @@ class Tracker:
 
     def tracks(self) -> list[Track]:
         """The reportable tracks (confirmed ones, coasting included), sorted by id."""
+        return [
+            self._report(tr)
+            for tr in sorted(self._tracks, key=lambda s: s.id)
+            if tr.confirmed and not self._ghost(tr) and self._servable(tr)
+        ]
+
+    def hidden(self) -> list[tuple[Track, str]]:
+        """The tracks held but not reported, each with why: ``"tentative"`` (not confirmed
+        yet) or ``"ghost"`` (the ghost check). For diagnostics (``bench/stream_breakdown.py``
+        attributes the stream's misses to them)."""
+        return [
+            (self._report(tr), self._why_hidden(tr))
+            for tr in sorted(self._tracks, key=lambda s: s.id)
+            if not tr.confirmed or self._ghost(tr) or not self._servable(tr)
+        ]
+
+    def _why_hidden(self, tr: _State) -> str:
+        if not tr.confirmed:
+            return "tentative"
+        return "ghost" if self._ghost(tr) else "coasting"
+
+    def _servable(self, tr: _State) -> bool:
+        """Seen now, or coasting for at most ``serve_coast_s`` (module docstring)."""
         now = self._time if self._time is not None else 0.0
-        out = []
-        for tr in sorted(self._tracks, key=lambda s: s.id):
-            if not tr.confirmed or self._ghost(tr):
-                continue
-            missing = now - tr.last_seen
-            mean = tr.motion.mean
-            coast = max(0.0, 1.0 - missing / self.max_missing_s)
-            out.append(
-                Track(
-                    id=tr.id,
-                    x=float(mean[0]),
-                    y=float(mean[1]),
-                    vx=float(mean[2]),
-                    vy=float(mean[3]),
-                    confidence=float(np.clip(tr.rate * coast, 0.0, 1.0)),
-                    cameras=list(tr.cameras) if missing == 0 else [],
-                    coasting=missing > 0,
-                    age_s=float(now - tr.born),
-                    meta=dict(tr.meta),
-                )
-            )
-        return out
+        return now - tr.last_seen <= self.serve_coast_s + 1e-9
+
+    def _report(self, tr: _State) -> Track:
+        now = self._time if self._time is not None else 0.0
+        missing = now - tr.last_seen
+        mean = tr.motion.mean
+        coast = max(0.0, 1.0 - missing / self.max_missing_s)
+        return Track(
+            id=tr.id,
+            x=float(mean[0]),
+            y=float(mean[1]),
+            vx=float(mean[2]),
+            vy=float(mean[3]),
+            confidence=float(np.clip(tr.rate * coast, 0.0, 1.0)),
+            cameras=list(tr.cameras) if missing == 0 else [],
+            coasting=missing > 0,
+            age_s=float(now - tr.born),
+            meta=dict(tr.meta),
+        )
 
     # -- filters -------------------------------------------------------------------------------
 
