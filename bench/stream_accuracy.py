@@ -89,7 +89,10 @@ def variant(spec: str) -> tuple[dict, bool]:
     options = dict(options)
     for pair in pairs:
         key, value = pair.split("=")
-        options[key] = float(value)
+        try:
+            options[key] = float(value)
+        except ValueError:  # a named choice (e.g. assign_cost=mahalanobis)
+            options[key] = value
     return options, use_cov
 
 

@@ -112,7 +112,11 @@ RECOMMENDED: dict[str, Any] = {
     "robust_chi2": 9.0,
     "multi_view_s": 0.1,
     "serve_coast_s": 0.5,
+    "gate_m": 1.5,
+    "assign_cost": "likelihood",
+    "doubt_outside": True,
 }
+ASSIGN_COSTS = ("euclidean", "likelihood")
 MOTION_MODELS = {"cv": ConstantVelocity, "imm": StandOrWalk}
 
 
@@ -174,6 +178,8 @@ class Tracker:
         robust_chi2: float = 0.0,
         multi_view_s: float = 0.0,
         serve_coast_s: float | None = None,
+        assign_cost: str = "euclidean",
+        doubt_outside: bool = False,
     ) -> None:
         if fps_hint <= 0 or max_missing_s <= 0 or gate_m <= 0:
             raise ValueError("fps_hint, max_missing_s and gate_m must be positive")
@@ -197,6 +203,10 @@ class Tracker:
         self.ghost_s = float(ghost_s)
         self.robust_chi2 = float(robust_chi2)
         self.multi_view_s = max(0.0, float(multi_view_s))
+        if assign_cost not in ASSIGN_COSTS:
+            raise ValueError(f"assign_cost {assign_cost!r}: expected one of {ASSIGN_COSTS}")
+        self.assign_cost = assign_cost
+        self.doubt_outside = bool(doubt_outside)
         self.serve_coast_s = self.max_missing_s if serve_coast_s is None else float(serve_coast_s)
         self._frame_dt = 1.0 / self.fps_hint
         self._motion_options = (
@@ -250,7 +260,7 @@ class Tracker:
         for track in self._tracks:
             self._predict(track, dt)
 
-        rows, cols = self._assign(positions, self._time)
+        rows, cols = self._assign(positions, noise, self._time)
         matched_tracks = set(rows.tolist())
         for r, c in zip(rows, cols, strict=True):
             self._correct(self._tracks[r], positions[c], noise[c], meta[c], self._time)
@@ -378,7 +388,8 @@ class Tracker:
         covered = np.asarray(coverage(np.stack([tr.motion.mean[:2] for tr in doubtful])))
         for tr, row in zip(doubtful, covered, strict=True):
             seen = set(tr.cameras) if tr.last_seen == self._time else set()
-            if set(np.flatnonzero(row).tolist()) - seen and seen:
+            should = set(np.flatnonzero(row).tolist())
+            if seen and (should - seen or (self.doubt_outside and not should & seen)):
                 tr.doubted_s += dt
 
     def _count_views(self, track: _State, dt: float) -> None:
@@ -411,17 +422,28 @@ class Tracker:
         self._next_id += 1
         return state
 
-    def _assign(self, positions: np.ndarray, now: float) -> tuple[np.ndarray, np.ndarray]:
+    def _assign(
+        self, positions: np.ndarray, noise: np.ndarray, now: float
+    ) -> tuple[np.ndarray, np.ndarray]:
         empty = np.zeros(0, dtype=int)
         if not self._tracks or not len(positions):
             return empty, empty
         predicted = np.stack([tr.motion.mean[:2] for tr in self._tracks])
-        dist = np.linalg.norm(predicted[:, None, :] - positions[None, :, :], axis=2)
+        nu = positions[None, :, :] - predicted[:, None, :]  # [T, P, 2]
+        dist = np.linalg.norm(nu, axis=2)
         missing = np.array([now - tr.last_seen for tr in self._tracks])
         gate = self.gate_m + self.gate_growth_mps * missing
+        admit = dist <= gate[:, None]
+        cost = dist
+        if self.assign_cost == "likelihood":
+            # -2 log N(z; predicted, P + R) up to a constant: a lone view's long range error
+            # costs little along its line of sight, much across it (module docstring).
+            s = np.stack([tr.motion.cov[:2, :2] for tr in self._tracks])[:, None] + noise[None]
+            d2 = np.einsum("tpi,tpij,tpj->tp", nu, np.linalg.inv(s), nu)
+            cost = d2 + np.log(np.linalg.det(s))
         # Tentative tracks lose ties to confirmed ones: a small penalty keeps ids stable.
         penalty = np.array([0.0 if tr.confirmed else 0.05 for tr in self._tracks])
-        cost = np.where(dist <= gate[:, None], dist + penalty[:, None], _UNASSIGNED)
+        cost = np.where(admit, cost + penalty[:, None], _UNASSIGNED)
         rows, cols = linear_sum_assignment(cost)
         ok = cost[rows, cols] < _UNASSIGNED
         return rows[ok], cols[ok]
