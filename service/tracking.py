@@ -109,10 +109,11 @@ RECOMMENDED: dict[str, Any] = {
     "accel_std": 1.0,
     "confirm_single_s": 1.0,
     "ghost_s": 0.5,
-    "robust_chi2": 9.0,
+    "robust_chi2": 16.0,
     "multi_view_s": 0.1,
     "serve_coast_s": 0.5,
     "gate_m": 1.5,
+    "gate_growth_mps": 0.5,
     "assign_cost": "likelihood",
     "doubt_outside": True,
 }
