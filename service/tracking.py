@@ -12,8 +12,12 @@ Every update:
 
 1. all tracks are predicted to time ``t``;
 2. detections are assigned to tracks with the Hungarian algorithm (``scipy``) on the Euclidean
-   distance between the predicted and measured position; a pair farther apart than the gate is
-   never assigned. The gate is ``gate_m`` plus ``gate_growth_mps`` per second the track has been
+   distance between the predicted and measured position (``assign_cost="euclidean"``) or, in
+   ``RECOMMENDED``, on ``-2 log`` of the measurement's likelihood under the track
+   (``"likelihood"``: ``d² + log det S`` with ``S = P + R``, the predicted position covariance
+   plus the measurement's), so a lone view's box, whose range is poorly known, is paired along
+   its camera's line of sight and not across it; a pair farther apart than the gate is never
+   assigned. The gate is ``gate_m`` plus ``gate_growth_mps`` per second the track has been
    unseen, because a coasting track's prediction drifts from where the person really went;
 3. matched tracks are corrected with the measurement's own covariance when the localizer gives
    one (``covariances``: the floor prior's GLS covariance, long along a lone camera's line of
@@ -37,9 +41,13 @@ Output policy (documented for API users):
   but reports nothing is not reported: a person is seen by a second camera sooner or later, a
   false positive at a fixed place never is;
 - while a person is unseen (occlusion, detector miss) the track *coasts* on its prediction and is
-  still reported, with ``coasting=True`` and a confidence that falls linearly to 0 at
-  ``max_missing_s``; the id is kept if the person reappears within the (growing) gate, so a 1 s
-  occlusion does not change the id;
+  still reported for ``serve_coast_s`` (0.5 s in ``RECOMMENDED``), with ``coasting=True`` and a
+  confidence that falls linearly to 0 at ``max_missing_s``; after that it is held but not
+  reported until ``max_missing_s``, and the id is kept if the person reappears within the
+  (growing) gate, so a 1 s occlusion does not change the id;
+- with ``doubt_outside`` the ghost check also doubts a single-view track whose own camera
+  should *not* see it where it is (``coverage``): a box localized where the camera that
+  reported it cannot see a person is a false box localized from its odd size and place;
 - ``confidence`` is a running detection rate (exponential average of seen / unseen frames) times
   the coasting factor, in 0..1.
 
@@ -78,6 +86,40 @@ covariance is ~3× overconfident in std on these boxes) 56.9 % / 2.87 cm, ×9 65
 66.1 % / 3.60 cm, with ``stand_s`` 10: 67.0 % / 3.61 cm. No filter setting approaches the 1 cm
 jitter target: it is made of jumps when a second camera comes or goes (the lone view's range
 bias, ~10 % of the box height for 0.4 s at a time in the nanodet profile), not of noise.
+
+Issue-14 MOTA work, 2026-12-02 (``bench/stream_breakdown.py`` attributes every FP, FN and id
+switch at 0.5 m to a cause; stream bench, its model, indoor-2cam, 3 people, nanodet, seeds
+7-10 × 600 frames unless said, MOTA / id switches / standing jitter). The former
+``RECOMMENDED``: 62.3 % / 34 / 5.89 cm; now 72.3 % / 25 / 3.48 cm (precision 80.5 → 89.3 %,
+recall 82.7 → 82.5 %). On seeds 7 8 (57.1 → 69.9 %) coasting tracks > 0.5 m off were the
+largest cause before, 10.8 FP points (382 of 739 FPs) and 5.2 FN points. Per change, in order:
+
+- ``serve_coast_s`` 0.5 s: seeds 7 8 57.1 → 62.6 % (seeds 7-10: 67.6 % / 35 / 3.76 cm). Coasting walkers are mostly > 0.5 m
+  off after ~0.5 s (diagnostic: prediction error > 0.5 m in 19 % of coasting frames 1-3 frames
+  after the last measurement, 34 % at 4-7, 58 % at 8-14, 90 % beyond), and a served position
+  that far off costs a FP *and* a FN where not serving it costs the FN only. 0.2 s 61.7 %,
+  0.33 s 62.5 %, 0.8 s 61.2 %; rejected: serving while the predicted position's largest std is
+  below 0.15 / 0.25 / 0.35 / 0.5 m (58.4 / 59.9 / 61.0 / 59.8 %: a single-view track's
+  covariance is long along the line of sight from the start, so it hides good tracks early);
+- ``doubt_outside``: 67.6 → 68.9 % (precision 86.6 → 87.9 %, recall unchanged); 39 % of the
+  ghost frames were single-view tracks where the coverage function says *no* camera sees them;
+- ``assign_cost="likelihood"`` with ``gate_m`` 1.5: 68.9 → 70.1 %, id switches 35 → 25 (jitter
+  3.76 → 3.95 cm). The gate alone at 1.5 m (Euclidean cost) gained 2.9 points on seeds 7 8 but
+  lost 4.5 on seeds 9 10 (tracks taking other people's boxes: duplicates 4 → 88 FP frames);
+  rejected: ``sqrt(d²)`` as the cost (68.4 %, jitter 4.79 cm), a Mahalanobis gate
+  (d² ≤ 9.21 or 13.8 beside the 1 m gate: 61.3 / 62.1 % on seeds 7 8 against 62.6 %), gate 2 m;
+- ``gate_growth_mps`` 0.5 (was 1.0) and ``robust_chi2`` 16 (was 9): 70.1 → 72.3 %, jitter
+  3.95 → 3.48 cm (growth 0.5 alone 71.3 %, 0.25 70.6 %, 0 70.5 %; robust_chi2 16 alone 70.7 %,
+  25 with growth 0.5 71.3 %).
+
+Re-tried with the new settings and not kept: ``confirm_single_s`` 0.6 / 0.8 s (68.7 / 69.4
+against 70.1 %), ``ghost_s`` 0.3 / 0.8 s (70.0 / 70.2 %), ``serve_coast_s`` 0.33 s (69.2 %),
+``max_missing_s`` 1.0 / 2.5 s (69.6 / 67.5 %). Other scenes, seeds 7 8, former → new
+``RECOMMENDED``: indoor-2cam with 1 person 56.2 → 69.6 %, with 5 people 49.2 → 57.7 % (there
+jitter 5.7 → 7.0 cm). What is left (``bench/results/stream_breakdown.md``): people no detector
+reports and no served track covers (5.9 FN points), the single-view confirmation delay (3.2),
+coasting and single-view range errors (a lone view's range bias lasts 0.4 s at a time), real
+people hidden by the ghost check while the other camera misses them (1.9).
 
 ``meta`` (one dict per detection) is passed through: ``cameras`` is copied onto the track and the
 whole dict is kept as ``Track.meta``.
