@@ -31,17 +31,20 @@ RECORDED = {  # gate 0.5 m, nanodet profile, service.tracking.RECOMMENDED fed th
     # (its box geometry differs from the simulator's boxes scored here), and again when
     # multi_view_s = 0.1 joined RECOMMENDED (recall 71.36 -> 71.29, precision 67.89 -> 67.92).
     # Before the retraining: MOTA 43.77, recall 78.19, precision 69.85, 9 switches, mean 0.1691,
-    # Acc@0.3 85.77, single 0.185, jitter 0.0475, lag 0.024. In brackets: the tracker before
-    # issue 14 on the former model.
-    "mota": 36.80,  # 10.3
-    "recall": 71.29,  # 71.2
-    "precision": 67.92,  # 54.3
-    "id_switches": 11,  # 13
-    "mean": 0.1694,  # 0.205
-    "acc@0.3": 85.22,  # 76.0
-    "single_mean": 0.185,  # 0.240
-    "jitter_m": 0.0560,  # 0.090
-    "lag_s": 0.036,  # 0.018
+    # Acc@0.3 85.77, single 0.185, jitter 0.0475, lag 0.024. Re-recorded 2026-12-02 for the
+    # issue-14 MOTA work (RECOMMENDED: serve_coast_s 0.5, likelihood assignment with gate 1.5 m +
+    # 0.5 m/s, robust_chi2 16, doubt_outside; service/tracking.py). In brackets: before it.
+    # Worse here: id switches 11 -> 14, Acc@0.3 85.22 -> 84.29, mean 0.1694 -> 0.1704, single
+    # 0.185 -> 0.188 (on the bench's 4 seeds id switches fell 34 -> 25).
+    "mota": 46.37,  # 36.80
+    "recall": 72.70,  # 71.29
+    "precision": 74.19,  # 67.92
+    "id_switches": 14,  # 11
+    "mean": 0.1704,  # 0.1694
+    "acc@0.3": 84.29,  # 85.22
+    "single_mean": 0.188,  # 0.185
+    "jitter_m": 0.0554,  # 0.0560
+    "lag_s": 0.029,  # 0.036
 }
 
 
@@ -89,6 +92,7 @@ def test_matched_errors(scores):
 
 def test_jitter_and_lag(scores):
     m = scores[0.5]
-    assert m["jitter_n"] > 80 and m["lag_n"] > 500
+    # 74 standing pairs since coasting tracks are served for 0.5 s only (was > 80 at 1.5 s)
+    assert m["jitter_n"] > 60 and m["lag_n"] > 500
     assert m["jitter_m"] <= RECORDED["jitter_m"] + 0.002, m["jitter_m"]
     assert abs(m["lag_s"] - RECORDED["lag_s"]) <= 0.02, m["lag_s"]
