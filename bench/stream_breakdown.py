@@ -45,16 +45,17 @@ import numpy as np
 
 from bench.stream_accuracy import RESULTS, train_cached, variant
 from models.mom_runtime import MomRuntime
-from models.simulate import Scene
+from models.simulate import FrameObservation, Scene
 from models.stream_metrics import StreamScorer
+from service.stages import Association
 from service.stream_eval import MIN_VISIBLE_FRACTION, in_view, run_stream, scene_config
-from service.tracking import Tracker
+from service.tracking import Track, Tracker
 
 GATE_M = 0.5
 FALSE = -1  # label of a detector false positive
 
 
-def box_labels(association, obs) -> list[int]:
+def box_labels(association: Association, obs: FrameObservation) -> list[int]:
     """Per seen camera of ``association``: the person whose detected box it is, or FALSE."""
     out = []
     for k in association.cameras:
@@ -91,7 +92,7 @@ class Breakdown:
         self.source: dict[int, list[int]] = {}  # track id -> labels of its last measurement
         self.last: dict[int, int] = {}  # truth id -> served id last matched
 
-    def __call__(self, i: int, associations: list, tracks: list) -> None:
+    def __call__(self, i: int, associations: list[Association], tracks: list[Track]) -> None:
         obs = self.scene.observe(i)
         want = in_view(obs.true_boxes, self.scene.image_sizes, MIN_VISIBLE_FRACTION)
         ids = obs.track[want]
@@ -101,10 +102,13 @@ class Breakdown:
         by_key = {(a.cost, tuple(a.cameras)): a for a in associations}
         labels = {id(a): box_labels(a, obs) for a in associations}
 
-        def measured(track):  # this frame's association of a track, or None (coasting)
+        def measured(
+            track: Track,
+        ) -> Association | None:  # this frame's association of a track, or None (coasting)
             if track.coasting:
                 return None
-            return by_key.get((track.meta.get("cost"), tuple(track.meta.get("cameras", []))))
+            key = (float(track.meta.get("cost", np.nan)), tuple(track.meta.get("cameras", [])))
+            return by_key.get(key)
 
         for tr in tracks:
             a = measured(tr)
@@ -132,7 +136,7 @@ class Breakdown:
             if cause not in ("ghost", "duplicate") and people:
                 off.setdefault(people[0], cause)
 
-        hidden = {}
+        hidden: dict[int, str] = {}
         for tr, why in self.tracker.hidden():
             a = measured(tr)
             for p in labels[id(a)] if a is not None else []:
@@ -159,7 +163,14 @@ class Breakdown:
         people = [p for p in labels if p != FALSE]
         return people[0] if people and len(set(labels)) == 1 else None
 
-    def _fp_cause(self, tr, a, labels, truth, matched_truth) -> str:
+    def _fp_cause(
+        self,
+        tr: Track,
+        a: Association | None,
+        labels: dict[int, list[int]],
+        truth: dict[int, np.ndarray],
+        matched_truth: dict[int, int],
+    ) -> str:
         source = self.source.get(tr.id, [FALSE])
         if all(p == FALSE for p in source):
             return "ghost"
@@ -171,11 +182,19 @@ class Breakdown:
         return measurement_cause(labels[id(a)], np.asarray(a.world, float), truth)
 
 
-def run(runtime, preset: str, people: int, profile, frames: int, seeds, spec: str) -> dict:
+def run(
+    runtime: MomRuntime,
+    preset: str,
+    people: int,
+    profile: str | None,
+    frames: int,
+    seeds: list[int],
+    spec: str,
+) -> dict:
     """Breakdown and stream metrics pooled over ``seeds``."""
     config = scene_config(preset, people, profile)
     options, use_cov = variant(spec)
-    total = {"fp": Counter(), "fn": Counter(), "switches": Counter()}
+    total: dict[str, Counter[str]] = {"fp": Counter(), "fn": Counter(), "switches": Counter()}
     metrics = {"gt": 0, "tp": 0, "fp": 0, "fn": 0, "id_switches": 0}
     for seed in seeds:
         tracker = Tracker(fps_hint=config.fps, **options)

@@ -94,13 +94,14 @@ switch at 0.5 m to a cause; stream bench, its model, indoor-2cam, 3 people, nano
 recall 82.7 → 82.5 %). On seeds 7 8 (57.1 → 69.9 %) coasting tracks > 0.5 m off were the
 largest cause before, 10.8 FP points (382 of 739 FPs) and 5.2 FN points. Per change, in order:
 
-- ``serve_coast_s`` 0.5 s: seeds 7 8 57.1 → 62.6 % (seeds 7-10: 67.6 % / 35 / 3.76 cm). Coasting walkers are mostly > 0.5 m
-  off after ~0.5 s (diagnostic: prediction error > 0.5 m in 19 % of coasting frames 1-3 frames
-  after the last measurement, 34 % at 4-7, 58 % at 8-14, 90 % beyond), and a served position
-  that far off costs a FP *and* a FN where not serving it costs the FN only. 0.2 s 61.7 %,
-  0.33 s 62.5 %, 0.8 s 61.2 %; rejected: serving while the predicted position's largest std is
-  below 0.15 / 0.25 / 0.35 / 0.5 m (58.4 / 59.9 / 61.0 / 59.8 %: a single-view track's
-  covariance is long along the line of sight from the start, so it hides good tracks early);
+- ``serve_coast_s`` 0.5 s: seeds 7 8 57.1 → 62.6 % (seeds 7-10: 67.6 % / 35 / 3.76 cm). Coasting
+  walkers are mostly > 0.5 m off after ~0.5 s (diagnostic: prediction error > 0.5 m in 19 % of
+  coasting frames 1-3 frames after the last measurement, 34 % at 4-7, 58 % at 8-14, 90 %
+  beyond), and a served position that far off costs a FP *and* a FN where not serving it costs
+  the FN only. 0.2 s 61.7 %, 0.33 s 62.5 %, 0.8 s 61.2 %; rejected: serving while the predicted
+  position's largest std is below 0.15 / 0.25 / 0.35 / 0.5 m (58.4 / 59.9 / 61.0 / 59.8 %: a
+  single-view track's covariance is long along the line of sight from the start, so it hides
+  good tracks early);
 - ``doubt_outside``: 67.6 → 68.9 % (precision 86.6 → 87.9 %, recall unchanged); 39 % of the
   ghost frames were single-view tracks where the coverage function says *no* camera sees them;
 - ``assign_cost="likelihood"`` with ``gate_m`` 1.5: 68.9 → 70.1 %, id switches 35 → 25 (jitter
