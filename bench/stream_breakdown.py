@@ -38,7 +38,9 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import os
 from collections import Counter
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -257,8 +259,9 @@ def main(argv: list[str] | None = None) -> int:
     text = (
         f"# Streamed MOTA breakdown\n\n`python -m bench.stream_breakdown --profile "
         f"{args.profile} --seeds {' '.join(map(str, args.seeds))} --frames {args.frames} "
-        f"--scene {args.scene} --variant {args.variant}` (gate {GATE_M} m; MOTA points: count "
-        "per 100 truth person-frames).\n\n" + table(result)
+        f"--scene {args.scene} --variant {args.variant}` on {datetime.now(UTC):%Y-%m-%d %H:%M} "
+        f"UTC, {os.cpu_count()} cores shared (gate {GATE_M} m; MOTA points: count per 100 truth "
+        "person-frames).\n\n" + table(result)
     )
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(text)
