@@ -79,6 +79,18 @@ VARIANTS: dict[str, tuple[dict, bool]] = {  # name -> (Tracker options, use the 
     "imm+cov": ({**BEFORE, "motion": "imm"}, True),
     "default": (RECOMMENDED, True),  # service.tracking.RECOMMENDED, fed the covariances
     "default-nocov": (RECOMMENDED, False),  # the same without them
+    "12-01": (  # RECOMMENDED before the MOTA work of 2026-12-02 (service/tracking.py)
+        {
+            **RECOMMENDED,
+            "serve_coast_s": 1.5,
+            "gate_m": 1.0,
+            "gate_growth_mps": 1.0,
+            "robust_chi2": 9.0,
+            "assign_cost": "euclidean",
+            "doubt_outside": False,
+        },
+        True,
+    ),
 }
 
 
@@ -247,7 +259,8 @@ NOTES = (
     "tracker before issue 14 (constant velocity, 2 m/s², isotropic 0.12 m, 0.3 s confirmation); "
     "`default` `service.tracking.RECOMMENDED` fed the localizer's covariances and the cameras' "
     "coverage; "
-    "`default-nocov` the same without the covariances.\n"
+    "`default-nocov` the same without the covariances; `12-01` `RECOMMENDED` before the MOTA "
+    "work of 2026-12-02 (coasting served 1.5 s, Euclidean assignment, 1 m gate).\n"
 )
 
 
