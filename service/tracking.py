@@ -119,7 +119,9 @@ against 70.1 %), ``ghost_s`` 0.3 / 0.8 s (70.0 / 70.2 %), ``serve_coast_s`` 0.33
 ``confirm_s`` 0.15 s 71.8 %, ``multi_view_s`` 0.2 s 71.8 %, ``accel_std`` 0.7 70.7 %, the
 ghost doubt reset by any two-camera frame or decaying while no camera contradicts the track
 72.5 % each (ghost-suppressed real people are the other camera's plain detector misses, not
-occlusion: no cheap tell). Other scenes, seeds 7 8, former → new
+occlusion: no cheap tell), confirming a single-view track after ``confirm_s`` once it has
+moved 0.3 / 0.5 / 0.8 m from where it was born (71.5 / 71.6 / 71.9 %: a false box's
+single-view range noise moves it as much as a walk). Other scenes, seeds 7 8, former → new
 ``RECOMMENDED``: indoor-2cam with 1 person 56.2 → 69.6 %, with 5 people 49.2 → 57.7 % (there
 jitter 5.7 → 7.0 cm). What is left (``bench/results/stream_breakdown.md``): people no detector
 reports and no served track covers (5.9 FN points), the single-view confirmation delay (3.2),
