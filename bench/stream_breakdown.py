@@ -195,7 +195,7 @@ def run(
 ) -> dict:
     """Breakdown and stream metrics pooled over ``seeds``."""
     config = scene_config(preset, people, profile)
-    options, use_cov = variant(spec)
+    options, use_cov, use_bias = variant(spec)
     total: dict[str, Counter[str]] = {"fp": Counter(), "fn": Counter(), "switches": Counter()}
     metrics = {"gt": 0, "tp": 0, "fp": 0, "fn": 0, "id_switches": 0}
     for seed in seeds:
@@ -208,6 +208,7 @@ def run(
             frames,
             tracker=tracker,
             use_covariance=use_cov,
+            view_bias=use_bias,
             on_frame=tap,
             gates=(GATE_M,),
         )[GATE_M]
