@@ -89,7 +89,9 @@ bias, ~10 % of the box height for 0.4 s at a time in the nanodet profile), not o
 
 Issue-14 MOTA work, 2026-12-02 (``bench/stream_breakdown.py`` attributes every FP, FN and id
 switch at 0.5 m to a cause; stream bench, its model, indoor-2cam, 3 people, nanodet, seeds
-7-10 × 600 frames unless said, MOTA / id switches / standing jitter). The former
+7-10 × 600 frames unless said, MOTA / id switches / standing jitter; measured before the
+lone-view correction, ``service.view_bias``, was merged: with it the former settings give
+65.0 % / 18 / 5.86 cm and these 71.0 % / 25 / 4.26 cm). The former
 ``RECOMMENDED``: 62.3 % / 34 / 5.89 cm; now 72.3 % / 25 / 3.48 cm (precision 80.5 → 89.3 %,
 recall 82.7 → 82.5 %). On seeds 7 8 (57.1 → 69.9 %) coasting tracks > 0.5 m off were the
 largest cause before, 10.8 FP points (382 of 739 FPs) and 5.2 FN points. Per change, in order:
