@@ -81,6 +81,19 @@ VARIANTS: dict[str, tuple[dict, bool, bool]] = {
     "default": (RECOMMENDED, True, True),  # what the daemon runs
     "default-nocov": (RECOMMENDED, False, True),  # the same without the covariances
     "default-nobias": (RECOMMENDED, True, False),  # the same without the lone-view correction
+    "12-01": (  # RECOMMENDED before the MOTA work of 2026-12-02 (service/tracking.py)
+        {
+            **RECOMMENDED,
+            "serve_coast_s": 1.5,
+            "gate_m": 1.0,
+            "gate_growth_mps": 1.0,
+            "robust_chi2": 9.0,
+            "assign_cost": "euclidean",
+            "doubt_outside": False,
+        },
+        True,
+        True,
+    ),
 }
 
 
@@ -91,7 +104,10 @@ def variant(spec: str) -> tuple[dict, bool, bool]:
     options = dict(options)
     for pair in pairs:
         key, value = pair.split("=")
-        options[key] = float(value)
+        try:
+            options[key] = float(value)
+        except ValueError:  # a named choice (e.g. assign_cost=likelihood)
+            options[key] = value
     return options, use_cov, use_bias
 
 
@@ -249,7 +265,8 @@ NOTES = (
     "coverage, single-view positions corrected by their track's lone-view offset "
     "(`service.view_bias`), as the daemon runs it; "
     "`default-nocov` the same without the covariances, `default-nobias` without the "
-    "correction.\n"
+    "correction; `12-01` `RECOMMENDED` before the MOTA work of 2026-12-02 (coasting served "
+    "1.5 s, Euclidean assignment, 1 m gate), with the correction.\n"
 )
 
 
