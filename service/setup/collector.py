@@ -20,8 +20,9 @@ Nothing is lost: rows are appended to the output file by rewriting it atomically
 fsync, rename) every couple of seconds and after every step, so a crash or Ctrl-C keeps all but
 the last moments (a mark's rows wait for the end of its record step, where the still-person rule
 judges them together; Ctrl-C and Stop judge and write what the mark has so far, a hard kill loses
-that mark's rows, which would be recorded again anyway: the mark is not complete). Re-running on the same file resumes: existing rows stay, marks already recorded
-are left out of the plan (:meth:`DatasetAppender.has_mark`), and new marks extend the data set.
+that mark's rows, which would be recorded again anyway: the mark is not complete). Re-running
+on the same file resumes: existing rows stay, marks already recorded are left out of the plan
+(:meth:`DatasetAppender.has_mark`), and new marks extend the data set.
 
 A mark counts as recorded only when its ``record`` step ran to the end (and kept a row): rows
 alone do not say that, since a crash in the middle of a mark leaves some. Completed marks are
