@@ -61,6 +61,7 @@ bench-service: $(VENV)/.stamp-dev
 bench-setup: $(VENV)/.stamp-dev
 	$(PY) -m bench.floor_prior_study
 	$(PY) -m bench.setup_study
+	$(PY) -m bench.setup_stream
 
 # mediapipe pins numpy<2, so its keypoint tests run in an environment of their own.
 KP_VENV := .venv-keypoints

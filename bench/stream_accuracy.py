@@ -73,30 +73,48 @@ def train_cached(preset: str, profile: str | None, frames: int, epochs: int) -> 
 
 
 BEFORE = {"motion": "cv", "accel_std": 2.0, "confirm_single_s": 0.3, "ghost_s": 0.0}
-VARIANTS: dict[str, tuple[dict, bool]] = {  # name -> (Tracker options, use the covariances)
-    "before": (BEFORE, False),  # the tracker before issue 14
-    "cv+cov": (BEFORE, True),
-    "imm+cov": ({**BEFORE, "motion": "imm"}, True),
-    "default": (RECOMMENDED, True),  # service.tracking.RECOMMENDED, fed the covariances
-    "default-nocov": (RECOMMENDED, False),  # the same without them
+# name -> (Tracker options, use the covariances, correct lone views: service.view_bias)
+VARIANTS: dict[str, tuple[dict, bool, bool]] = {
+    "before": (BEFORE, False, False),  # the tracker before issue 14
+    "cv+cov": (BEFORE, True, False),
+    "imm+cov": ({**BEFORE, "motion": "imm"}, True, False),
+    "default": (RECOMMENDED, True, True),  # what the daemon runs
+    "default-nocov": (RECOMMENDED, False, True),  # the same without the covariances
+    "default-nobias": (RECOMMENDED, True, False),  # the same without the lone-view correction
+    "12-01": (  # RECOMMENDED before the MOTA work of 2026-12-02 (service/tracking.py)
+        {
+            **RECOMMENDED,
+            "serve_coast_s": 1.5,
+            "gate_m": 1.0,
+            "gate_growth_mps": 1.0,
+            "robust_chi2": 9.0,
+            "assign_cost": "euclidean",
+            "doubt_outside": False,
+        },
+        True,
+        True,
+    ),
 }
 
 
-def variant(spec: str) -> tuple[dict, bool]:
+def variant(spec: str) -> tuple[dict, bool, bool]:
     """A named variant, or ``name,key=value,...`` overriding Tracker options (sweeps)."""
     name, *pairs = spec.split(",")
-    options, use_cov = VARIANTS[name]
+    options, use_cov, use_bias = VARIANTS[name]
     options = dict(options)
     for pair in pairs:
         key, value = pair.split("=")
-        options[key] = float(value)
-    return options, use_cov
+        try:
+            options[key] = float(value)
+        except ValueError:  # a named choice (e.g. assign_cost=likelihood)
+            options[key] = value
+    return options, use_cov, use_bias
 
 
 def pooled(runtime, preset: str, people: int, profile, frames: int, seeds, spec: str) -> dict:
     """Stream metrics pooled over seeds: counts summed, errors weighted by their count."""
     config = scene_config(preset, people, profile)
-    options, use_cov = variant(spec)
+    options, use_cov, use_bias = variant(spec)
     runs = [
         run_stream(
             runtime,
@@ -105,6 +123,7 @@ def pooled(runtime, preset: str, people: int, profile, frames: int, seeds, spec:
             frames,
             tracker=Tracker(fps_hint=config.fps, **options),
             use_covariance=use_cov,
+            view_bias=use_bias,
         )
         for s in seeds
     ]
@@ -243,8 +262,11 @@ NOTES = (
     "Seeds pooled per row (counts summed, errors match-weighted). *Variants*: `before` is the "
     "tracker before issue 14 (constant velocity, 2 m/s², isotropic 0.12 m, 0.3 s confirmation); "
     "`default` `service.tracking.RECOMMENDED` fed the localizer's covariances and the cameras' "
-    "coverage; "
-    "`default-nocov` the same without the covariances.\n"
+    "coverage, single-view positions corrected by their track's lone-view offset "
+    "(`service.view_bias`), as the daemon runs it; "
+    "`default-nocov` the same without the covariances, `default-nobias` without the "
+    "correction; `12-01` `RECOMMENDED` before the MOTA work of 2026-12-02 (coasting served "
+    "1.5 s, Euclidean assignment, 1 m gate), with the correction.\n"
 )
 
 

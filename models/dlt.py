@@ -68,6 +68,8 @@ def fit_dlt(src: np.ndarray, dst: np.ndarray, what: str = "DLT fit") -> np.ndarr
             np.concatenate([zero, x, -u[:, 1:2] * x], axis=1),
         ]
     )
+    if len(rows) < rows.shape[1]:  # minimal pairs (4 for H): square up so vt holds the null vector
+        rows = np.concatenate([rows, np.zeros((rows.shape[1] - len(rows), rows.shape[1]))])
     _, singular, vt = np.linalg.svd(rows, full_matrices=False)
     if singular[-2] < DEGENERATE_RATIO * singular[0]:
         shape = "collinear" if src.shape[1] == 2 else "coplanar or collinear"

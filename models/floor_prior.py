@@ -12,7 +12,7 @@ Model, per camera k and image point p in ``points`` ("foot", "centre", "ankle"; 
 centre, the default for box-only detectors; "all" = the three):
 
 * ``G_kp`` pixel → floor, fitted on the training rows: the rows of each mark reduced to their
-  median pixel, then a robust floor → pixel homography (:mod:`models.homography`), inverted.
+  median pixel, then a robust floor → pixel homography (:mod:`models.mark_fit`), inverted.
 * Error model: the residuals of the training rows, mapped back to pixels and divided by the box
   height (detector noise grows with box size), give a pixel covariance ``S_k`` per unit box
   height over all the camera's points jointly (the foot and the centre share the box's bottom
@@ -48,12 +48,8 @@ import numpy as np
 from models.baseline import box_points, truncated
 from models.dataset import MomDataset
 from models.errors import MomlocError
-from models.homography import (
-    apply_homography,
-    degenerate_reason,
-    fit_plane_to_image,
-    homography_jacobian,
-)
+from models.homography import apply_homography, homography_jacobian
+from models.mark_fit import degenerate_reason, fit_plane_to_image
 
 POINTS = ("foot", "centre", "ankle")
 SETS = {"both": ("foot", "centre"), "all": POINTS}

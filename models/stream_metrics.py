@@ -112,10 +112,11 @@ class StreamScorer:
         served_ids: Sequence[int] | np.ndarray,
         served_xy: np.ndarray,
         views: Sequence[int] | np.ndarray | None = None,
-    ) -> None:
+    ) -> list[tuple[int, int]]:
         """One frame at time ``t`` (seconds, increasing): the people who should be served
         (ids, [P, 2] metres, optionally how many cameras' detectors report each) and what was
-        served (ids, [Q, 2] metres)."""
+        served (ids, [Q, 2] metres). Returns the frame's matches as (truth row, served row)
+        pairs, for diagnostics that attribute the misses (``bench/stream_breakdown.py``)."""
         truth_ids = [int(i) for i in np.asarray(truth_ids).reshape(-1)]
         served_ids = [int(i) for i in np.asarray(served_ids).reshape(-1)]
         truth_xy = np.asarray(truth_xy, dtype=np.float64).reshape(-1, 2)
@@ -151,6 +152,7 @@ class StreamScorer:
         self._gt += len(truth_ids)
         self._tp += len(pairs)
         self._fp += len(served_ids) - len(pairs)
+        return pairs
 
     def _match(
         self,

@@ -23,7 +23,15 @@ missing views) and two clusters are merged only if their own positions are withi
 each camera from two different people far apart can have a small reprojection error (the
 encoder's compromise point splits it between the cameras); this gate removes those merges. A
 model that cannot localize one view alone (NaN) disables it. Defaults (100 px at reference height,
-2 m) come from the gate sweep in ``bench/association.py``.
+2 m) come from the gate sweep in ``bench/association.py``. On the served stream (2026-12-02,
+``bench/stream_accuracy.py``'s model, indoor-2cam, nanodet, ``service.tracking.RECOMMENDED``,
+MOTA at 0.5 m, 3 people seeds 7-10 × 600 frames) the view gap is what binds: ``max_error_px``
+80, 100 or 130 give the very same 72.3 %; gaps of 1.0 / 1.25 / 1.5 / 1.75 / 2.0 / 2.5 m give
+57.9 / 63.8 / 72.7 / 73.9 / 72.3 / 65.3 % (5 people, seeds 7 8: 1.75 m 61.3 against 57.7 %;
+1 person: equal). Not changed: the optimum sits between two cliffs (a lone view's range error
+splits true pairs below 1.5 m, wrong pairs merge above 2 m) whose places depend on the
+detector's bottom-edge noise, so a gain of ~2 points on one simulated profile is no reason to
+move a default every deployment uses.
 
 Solver: when exactly two cameras have detections, the optimal gated bipartite assignment
 (``scipy.optimize.linear_sum_assignment`` on the pairwise cost matrix, one batched model call),

@@ -60,6 +60,7 @@ from service.stages import (
     Track,
     TrackStage,
 )
+from service.view_bias import ViewBias
 
 log = logging.getLogger("momloc.pipeline")
 
@@ -125,6 +126,7 @@ class Pipeline:
         self.tracker, self.associate, self.max_error_px = tracker, associate, max_error_px
         self._load_runtime = load_runtime or _load_mom_runtime
         self.runtime, self.model_dir = runtime, model_dir
+        self.view_bias = ViewBias()  # lone-view offsets per track and camera (new per model)
         self.image_sizes: list[tuple[int, int] | None] = [None] * num_cameras
         self.error: str | None = None
         self._seq = 0
@@ -288,13 +290,16 @@ class Pipeline:
             {"cameras": [int(c) for c in a.cameras], "frame": self._seq, "association": i}
             for i, a in enumerate(associations)
         ]
-        positions = np.array([np.asarray(a.world, float)[:2] for a in associations]).reshape(-1, 2)
         # the tracker weighs each position by its covariance (a lone view is trusted across its
         # line of sight, hardly along it) and drops single-view ghosts where another camera that
-        # delivered a frame should see the person (service.measurements)
-        return self.tracker.update(
+        # delivered a frame should see the person (service.measurements); a single-view position
+        # is first corrected by its track's lone-view offset (service.view_bias), the same call
+        # as service.stream_eval.run_stream
+        return self.view_bias.update(
+            self.tracker,
             t,
-            positions,
+            associations,
+            runtime,
             meta,
             covariances=measurement_covariances(associations, runtime),
             coverage=coverage_function(runtime, delivered),
@@ -341,6 +346,7 @@ class Pipeline:
         if problem is not None:
             raise MomlocError(f"{path}: {problem}; keeping the current model")
         self.runtime, self.model_dir = runtime, path
+        self.view_bias = ViewBias()  # offsets of the former model's localizer do not carry over
         if self.error and self.error.startswith("model"):
             self.error = None
         log.info("model loaded from %s", path)

@@ -38,6 +38,7 @@ from service.association import (
 )
 from service.measurements import coverage_function, measurement_covariances
 from service.tracking import RECOMMENDED, Tracker
+from service.view_bias import ViewBias
 
 MIN_VISIBLE_FRACTION = 0.5
 GATES = (0.5, 1.0)
@@ -86,6 +87,7 @@ def run_stream(
     max_view_gap_m: float = DEFAULT_MAX_VIEW_GAP_M,
     min_visible_fraction: float = MIN_VISIBLE_FRACTION,
     use_covariance: bool = True,
+    view_bias: ViewBias | bool = True,
     on_frame: Callable[[int, list, list], None] | None = None,
 ) -> dict[float, dict]:
     """Stream metrics per gate (metres → :meth:`StreamScorer.result`) of one scene run.
@@ -93,6 +95,9 @@ def run_stream(
     ``tracker`` defaults to ``Tracker(fps_hint=scene fps, **RECOMMENDED)``; ``use_covariance``
     hands the associations' covariances to the tracker as its measurement noise, the same way
     the live pipeline does (:func:`service.measurements.measurement_covariances`);
+    ``view_bias`` corrects single-view positions by their track's lone-view offset as the
+    pipeline does (:class:`service.view_bias.ViewBias`; ``True``: the default one, ``False``:
+    none);
     ``on_frame(i, associations, tracks)`` taps every frame (diagnostics, other scorers).
     """
     scene = Scene(config, seed=seed)
@@ -100,20 +105,20 @@ def run_stream(
     rng = np.random.default_rng([seed, 77])
     scorers = {float(g): StreamScorer(g) for g in gates}
     coverage = coverage_function(runtime, [True] * int(runtime.num_cameras))
+    bias = ViewBias() if view_bias is True else view_bias or None
     for i in range(frames):
         obs = scene.observe(i)
         t = i / scene.fps
         result = associate(frame_detections(obs, rng), runtime, max_error_px, max_view_gap_m)
-        positions = np.array([a.world for a in result]).reshape(-1, 2)
-        meta = [{"cameras": a.cameras, "cost": a.cost} for a in result]
-        covariances = measurement_covariances(result, runtime)
-        tracks = tracker.update(
-            t,
-            positions,
-            meta,
-            covariances=covariances if use_covariance else None,
-            coverage=coverage,
-        )
+        meta = [
+            {"cameras": a.cameras, "cost": a.cost, "association": j} for j, a in enumerate(result)
+        ]
+        covariances = measurement_covariances(result, runtime) if use_covariance else None
+        if bias is not None:
+            tracks = bias.update(tracker, t, result, runtime, meta, covariances, coverage)
+        else:
+            positions = np.array([a.world for a in result]).reshape(-1, 2)
+            tracks = tracker.update(t, positions, meta, covariances=covariances, coverage=coverage)
         if on_frame is not None:
             on_frame(i, result, tracks)
         want = in_view(obs.true_boxes, scene.image_sizes, min_visible_fraction)

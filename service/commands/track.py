@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 from models.errors import MomlocError
+from service.fixed_lag import DEFAULT_HALF_WINDOW_S
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -47,6 +48,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "simulator's)",
     )  # fmt: skip
     parser.add_argument("--seed", type=int, default=0, help="seed of the per-camera shuffling")
+    parser.add_argument(
+        "--smooth-s", type=float, default=DEFAULT_HALF_WINDOW_S, metavar="SECONDS",
+        help="fixed-lag smoothing: each position from a straight-line fit over its id's "
+        f"positions within +-SECONDS (default {DEFAULT_HALF_WINDOW_S}; 0: as tracked live)",
+    )  # fmt: skip
     parser.set_defaults(func=run)
 
 
@@ -60,6 +66,8 @@ def run(args: argparse.Namespace) -> int:
         raise MomlocError("give either RECORDING_DIR or --detections DATA.npz")
     if args.json and args.truth is None:
         raise MomlocError("--json needs --truth DATA.npz")
+    if not args.smooth_s >= 0:
+        raise MomlocError(f"--smooth-s {args.smooth_s}: must be 0 (off) or positive seconds")
     runtime = MomRuntime.load(args.model)
     truth = None if args.truth is None else MomDataset.load(args.truth)
     if args.detections is not None:
@@ -73,7 +81,9 @@ def run(args: argparse.Namespace) -> int:
         feed = offline.recording_feed(recording, settings)
     pipeline = offline.offline_pipeline(settings, runtime, feed, args.model)
     score = None if truth is None else TruthScore(truth, feed.num_cameras, feed.total)
-    summary = offline.run_track(pipeline, feed, args.out, as_csv=args.csv, score=score)
+    summary = offline.run_track(
+        pipeline, feed, args.out, as_csv=args.csv, score=score, smooth_s=args.smooth_s
+    )
     print(
         f"{args.out}: {summary.frame_sets} frame sets in {summary.seconds:.1f} s "
         f"({summary.rate:.1f} sets/s), {summary.positions} positions, {summary.ids} ids",

@@ -21,9 +21,11 @@ together at the end of its record step (:func:`keep_mask`); judging each frame a
 median was rejected: the first frames of a mark would be judged on a handful of boxes.
 
 What it cannot do: when false boxes are most of one camera's boxes at a mark (the person is out
-of that camera's view and one spot fires in most frames), the median is the false box. Nothing
-but the other cameras' geometry could tell, which a set-up without calibration does not have;
-the per-mark quality shows the camera's count, and the check step shows a poor mark.
+of that camera's view and one spot fires in most frames), the median is the false box: one mark
+alone cannot tell. Across marks it can (a box place one camera repeats at marks far apart, or a
+mark off the floor map the others agree on), which the floor-map fit does
+(:mod:`models.mark_fit`); the per-mark quality shows the camera's count, and the check step
+shows a poor mark.
 """
 
 from __future__ import annotations

@@ -239,6 +239,7 @@ def test_bad_inputs_are_one_line_and_exit_2(tmp_path, capsys):
         (["track", rec, "--model", DEMO_MODEL_DIR, "--out", out, "--truth", three],
          "the file has 3 cameras"),
         (["track", rec, "--model", DEMO_MODEL_DIR, "--out", out, "--json"], "--json needs"),
+        (["track", rec, "--model", DEMO_MODEL_DIR, "--out", out, "--smooth-s", -1], "--smooth-s"),
         (["track", "--model", DEMO_MODEL_DIR, "--out", out], "either RECORDING_DIR"),
         (["record", "--config", tmp_path / "none.yaml", "--out", tmp_path / "r2"],
          "cannot read settings file"),

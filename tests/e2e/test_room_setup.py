@@ -92,11 +92,12 @@ def test_collect_train_hot_reload_stream(tmp_path: Path) -> None:
         assert health["model_reload"]["ok"] and health["model"]["path"] == str(live)
         assert server.daemon.pipeline.runtime.policy == "prior"
         errors = matched_errors(after[30:], server.daemon.pipeline.rig)
-        # What a user gets with the measured default detector profile (nanodet): median
-        # 0.94 m and 1.21 m, 23 % within 0.5 m, in two runs on 2026-12-01 (the gate was 0.3 m
-        # under the former kind noise). False boxes recorded as the person at the marks are
-        # most of it (see tests/models/test_prior_policy.py): a collector gap, not a test one.
-        assert errors.size > 50 and np.median(errors) < 1.5, np.median(errors)
+        # What a user gets with the measured default detector profile (nanodet), 6 s per mark:
+        # median 0.62 and 0.58 m, 45 % within 0.5 m, in two runs on 2026-12-02 (0.94 and 1.52 m,
+        # 23 % before the floor prior left out boxes that are not the person at a mark: static
+        # false positives and feet cut at the border, models/mark_fit.py).
+        assert errors.size > 50 and np.median(errors) < 0.9, np.median(errors)
+        assert np.mean(errors < 0.5) > 0.3, np.mean(errors < 0.5)
 
 
 def test_setup_page_collects_from_the_running_daemon(tmp_path: Path) -> None:

@@ -39,6 +39,17 @@ def test_recovers_a_homography_from_2d_points() -> None:
     np.testing.assert_allclose(np.linalg.norm(fitted), 1.0)
 
 
+def test_minimal_pairs_fix_the_map_exactly() -> None:
+    # 4 pairs give 8 equations for 9 unknowns: the answer is the null vector the SVD must hold
+    # (a thin SVD of the 8 x 9 system drops it; that fit was metres off).
+    h = np.array([[80.0, 12.0, 300.0], [-4.0, 30.0, 420.0], [0.01, 0.12, 1.0]])
+    floor = np.array([[0.0, 0.0], [4.0, 0.5], [3.5, 5.0], [0.5, 4.0]])
+    np.testing.assert_allclose(_unit(fit_dlt(floor, _map(h, floor))), _unit(h), atol=1e-9)
+    square = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 4.0]])
+    with pytest.raises(MomlocError, match="degenerate"):  # three of four on a line
+        fit_dlt(np.r_[square, [[2.0, 0.0]]], np.r_[square, [[1.0, 0.0]]] * 50)
+
+
 def test_refuses_too_few_or_degenerate_points() -> None:
     floor = np.random.default_rng(2).uniform(0, 8, (12, 2))
     with pytest.raises(MomlocError, match=r"^marks: need >= 4 matched points, got 3"):

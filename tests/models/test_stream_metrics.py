@@ -172,3 +172,11 @@ def test_bad_input_is_refused():
         scorer.add(2.0, [0, 0], [[0.0, 0.0], [1.0, 1.0]], [], np.zeros((0, 2)))
     with pytest.raises(MomlocError, match="gate"):
         StreamScorer(gate_m=0.0)
+
+
+def test_add_returns_the_frames_matches():
+    """(truth row, served row) pairs within the gate, for diagnostics (bench/stream_breakdown)."""
+    scorer = StreamScorer(0.5)
+    pairs = scorer.add(0.0, [4, 5], [[0.0, 0.0], [3.0, 0.0]], [9, 8], [[3.1, 0.0], [5.0, 5.0]])
+    assert pairs == [(1, 0)]
+    assert scorer.add(0.1, [4], [[0.0, 0.0]], [], np.zeros((0, 2))) == []

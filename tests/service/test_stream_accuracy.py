@@ -4,7 +4,8 @@ The shipped demo model (indoor-2cam), with a floor prior fitted and weighed as `
 does it, serves 3 people walking in the ``indoor-2cam`` preset (seed 3, 450 frames = 30 s at
 15 fps, detections shuffled per camera, frame timestamps), scored by
 :func:`service.stream_eval.run_stream` with ``service.tracking.RECOMMENDED`` fed the
-localizer's covariances (``service.measurements``), as the daemon runs it. Deterministic (seeded
+localizer's covariances (``service.measurements``) and single-view positions corrected by their
+track's lone-view offset (``service.view_bias``), as the daemon runs it. Deterministic (seeded
 scene, fixed model, numpy fits), so the bounds sit at the recorded figures with a small margin
 for onnxruntime / BLAS rounding across machines. Recorded figures are in ``RECORDED``;
 bench/stream_accuracy.py has the full table.
@@ -32,16 +33,25 @@ RECORDED = {  # gate 0.5 m, nanodet profile, service.tracking.RECOMMENDED fed th
     # multi_view_s = 0.1 joined RECOMMENDED (recall 71.36 -> 71.29, precision 67.89 -> 67.92).
     # Before the retraining: MOTA 43.77, recall 78.19, precision 69.85, 9 switches, mean 0.1691,
     # Acc@0.3 85.77, single 0.185, jitter 0.0475, lag 0.024. In brackets: the tracker before
-    # issue 14 on the former model.
-    "mota": 36.80,  # 10.3
-    "recall": 71.29,  # 71.2
-    "precision": 67.92,  # 54.3
+    # issue 14 on the former model. Re-recorded 2026-12-02 when run_stream (and the pipeline)
+    # began correcting single-view positions by their track's lone-view offset
+    # (service.view_bias); without it: MOTA 36.80, recall 71.29, precision 67.92, 11 switches,
+    # mean 0.1694, Acc@0.3 85.22, single 0.185, jitter 0.0560, lag 0.036. Re-recorded the same
+    # day for the MOTA work (RECOMMENDED: coasting served 0.5 s, likelihood assignment, gate
+    # 1.5 m + 0.5 m/s, robust_chi2 16, doubt_outside; service/tracking.py); with the settings
+    # before it (bench variant 12-01) this code gives MOTA 41.17, recall 72.18, precision 70.35,
+    # 8 switches, mean 0.1619, Acc@0.3 88.69, single 0.182, jitter 0.0448, lag 0.045. Worse now
+    # here: 11 switches (8), Acc@0.3 87.77 (88.69), jitter 0.0534 (0.0448); on the bench's 4
+    # seeds MOTA 65.0 -> 71.0 %, id switches 18 -> 25, jitter 5.86 -> 4.26 cm.
+    "mota": 51.63,  # 10.3
+    "recall": 72.18,  # 71.2
+    "precision": 78.53,  # 54.3
     "id_switches": 11,  # 13
-    "mean": 0.1694,  # 0.205
-    "acc@0.3": 85.22,  # 76.0
-    "single_mean": 0.185,  # 0.240
-    "jitter_m": 0.0560,  # 0.090
-    "lag_s": 0.036,  # 0.018
+    "mean": 0.1636,  # 0.205
+    "acc@0.3": 87.77,  # 76.0
+    "single_mean": 0.182,  # 0.240
+    "jitter_m": 0.0534,  # 0.090
+    "lag_s": 0.024,  # 0.018
 }
 
 
@@ -89,6 +99,7 @@ def test_matched_errors(scores):
 
 def test_jitter_and_lag(scores):
     m = scores[0.5]
-    assert m["jitter_n"] > 80 and m["lag_n"] > 500
+    # 76 standing pairs since coasting tracks are served for 0.5 s only (83 at 1.5 s)
+    assert m["jitter_n"] > 60 and m["lag_n"] > 500
     assert m["jitter_m"] <= RECORDED["jitter_m"] + 0.002, m["jitter_m"]
     assert abs(m["lag_s"] - RECORDED["lag_s"]) <= 0.02, m["lag_s"]

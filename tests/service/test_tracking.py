@@ -172,3 +172,71 @@ def test_measurement_covariance_is_used_and_checked() -> None:
         steered.update(5.0, np.zeros((1, 2)), None, covariances=[])
     # None or NaN covariances fall back to the isotropic default.
     steered.update(5.1, np.array([[3.0, 3.0]]), None, covariances=[np.full((2, 2), np.nan)])
+
+
+def test_coasting_is_served_for_serve_coast_s_then_held_with_its_id() -> None:
+    """After ``serve_coast_s`` unseen the track is no longer reported (``hidden`` says
+    "coasting"); it keeps its id when the person reappears before ``max_missing_s``."""
+    tracker = Tracker(fps_hint=FPS, serve_coast_s=0.5, max_missing_s=1.5)
+    served, why = [], []
+    for i in range(90):
+        hidden = 30 <= i < 60  # 1 s unseen
+        pos = np.zeros((0, 2)) if hidden else np.array([[2.0, 2.0]])
+        tracks = tracker.update(i / FPS, pos, [{"cameras": [0, 1]}] * len(pos))
+        if hidden:
+            served.append(bool(tracks))
+            why.append([w for _, w in tracker.hidden()])
+    assert served == [True] * 15 + [False] * 15  # 0.5 s at 30 fps
+    assert why[-1] == ["coasting"] and why[0] == []
+    assert [t.id for t in tracks] == [1]
+    assert [w for _, w in Tracker(fps_hint=FPS).hidden()] == []
+
+
+def test_hidden_names_tentative_and_ghost_tracks() -> None:
+    both = lambda xy: np.ones((len(xy), 2), dtype=bool)  # noqa: E731
+    tracker = Tracker(fps_hint=FPS, ghost_s=0.5, confirm_single_s=0.3)
+    tracker.update(0.0, np.array([[2.0, 2.0]]), [{"cameras": [0]}], coverage=both)
+    assert [w for _, w in tracker.hidden()] == ["tentative"]
+    for i in range(1, 30):
+        tracks = tracker.update(i / FPS, np.array([[2.0, 2.0]]), [{"cameras": [0]}], coverage=both)
+    assert tracks == [] and [w for _, w in tracker.hidden()] == ["ghost"]
+
+
+def test_box_its_own_camera_cannot_see_there_is_doubted() -> None:
+    """``doubt_outside``: a single-view position the reporting camera does not cover (a false
+    box localized out of its view) is a ghost; one it covers, alone, is not."""
+    nobody = lambda xy: np.zeros((len(xy), 2), dtype=bool)  # noqa: E731
+    only_one = lambda xy: np.c_[np.zeros(len(xy), bool), np.ones(len(xy), bool)]  # noqa: E731
+    for doubt, reported in ((True, False), (False, True)):
+        tracker = Tracker(fps_hint=FPS, ghost_s=0.5, doubt_outside=doubt)
+        for i in range(45):
+            meta = [{"cameras": [0]}]
+            tracks = tracker.update(i / FPS, np.array([[2.0, 2.0]]), meta, coverage=nobody)
+        assert bool(tracks) == reported
+    tracker = Tracker(fps_hint=FPS, ghost_s=0.5, doubt_outside=True)
+    for i in range(45):
+        meta = [{"cameras": [1]}]
+        tracks = tracker.update(i / FPS, np.array([[2.0, 2.0]]), meta, coverage=only_one)
+    assert len(tracks) == 1
+
+
+def test_likelihood_cost_pairs_a_lone_view_along_its_line_of_sight() -> None:
+    """Two people 0.75 m apart; a lone view of the first, 0.6 m off along its line of sight (x)
+    and so nearer the second in metres, goes to the first by likelihood, to the second by
+    Euclidean distance."""
+    sight = np.diag([0.6**2, 0.05**2])  # long along x
+    a, b = np.array([2.0, 2.0]), np.array([2.6, 2.45])
+    owner = {}
+    for cost in ("euclidean", "likelihood"):
+        tracker = Tracker(fps_hint=FPS, gate_m=1.5, assign_cost=cost, robust_chi2=0.0)
+        precise = [np.eye(2) * 0.05**2] * 2
+        for i in range(30):
+            tracks = tracker.update(i / FPS, np.stack([a, b]), None, covariances=precise)
+        first = min(tracks, key=lambda t: np.hypot(t.x - a[0], t.y - a[1])).id
+        z = a + np.array([0.6, 0.0])
+        tracks = tracker.update(30 / FPS, z[None], None, covariances=[sight])
+        moved = [t for t in tracks if not t.coasting]
+        owner[cost] = moved[0].id == first
+    assert owner == {"euclidean": False, "likelihood": True}
+    with pytest.raises(ValueError, match="assign_cost"):
+        Tracker(assign_cost="cosine")
