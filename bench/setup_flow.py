@@ -5,9 +5,11 @@ The daemon runs as ``momloc serve`` would on a first run (no model: set-up mode)
 (``synthetic.follow_setup``), and is driven through the same HTTP calls the /setup page makes:
 Start (a R x C grid, S seconds per mark, the page's default move and countdown times), Train
 (the adaptive schedule unless ``--epochs``), then the check step on four of the marks. Reported:
-recording, training and Start-to-positions times, training epochs and validation error, the
-check's median error, and for comparison ``momloc eval`` of the same model on a recording of the
-same person standing on the same marks (``momloc collect --source synthetic``, same scene).
+recording, training and Start-to-positions times (positions appear with the quick first model;
+``start_to_final_model_s`` is when the final one is loaded), training epochs and validation
+error, the check's median error (the check runs on the final model), and for comparison
+``momloc eval`` of the final and the first model (``model.first``) on a recording of the same
+person standing on the same marks (``momloc collect --source synthetic``, same scene).
 
     .venv/bin/python -m bench.setup_flow [--grid 3x3] [--seconds 20] [--epochs N]
 
@@ -72,13 +74,28 @@ def main() -> None:
         t_recorded = time.time()
         body = {} if args.epochs is None else {"epochs": args.epochs}
         httpx.post(base + "/v1/setup/train", json=body, timeout=30).raise_for_status()
-        trained = wait(lambda: status()["training"], lambda t: t["state"] != "running", 3600)
+        seen: dict[str, float] = {}
+
+        def training() -> dict[str, Any]:
+            """The training state; notes when positions first appear and the first model."""
+            state = status()["training"]
+            if state.get("first_model") and "first" not in seen:
+                seen["first"] = time.time()
+            if "positions" not in seen and httpx.get(base + "/v1/positions").json()["people"]:
+                seen["positions"] = time.time()
+            return state
+
+        trained = wait(training, lambda t: t["state"] != "running", 3600)
         t_trained = time.time()
         wait(lambda: httpx.get(base + "/v1/positions").json()["people"], bool, 60)
-        t_positions = time.time()
+        t_positions = seen.get("positions", time.time())
         httpx.post(base + "/v1/setup/verify", json={}, timeout=30).raise_for_status()
         check = wait(lambda: status()["verify"], lambda v: v["state"] != "running", 600)
-        evaluated = eval_at(check.get("marks") or [], data_dir, settings.synthetic, args.profile)
+        marks = check.get("marks") or []
+        evaluated = eval_at(marks, data_dir, settings.synthetic, args.profile, "model")
+        first_eval = None
+        if (data_dir / "model.first").is_dir():
+            first_eval = eval_at(marks, data_dir, settings.synthetic, args.profile, "model.first")
         print(
             json.dumps(
                 {
@@ -92,41 +109,49 @@ def main() -> None:
                     "training_s": round(t_trained - t_recorded, 1),
                     "epochs": trained["epoch"],
                     "val_error_m": trained["val_error_m"],
+                    "first_model": trained.get("first_model"),
+                    "first_model_s": round(seen["first"] - t_recorded, 1) if seen else None,
                     "start_to_positions_s": round(t_positions - t0, 1),
+                    "start_to_final_model_s": round(t_trained - t0, 1),
                     "check": (check.get("summary") or {}).get("text"),
                     "check_marks": check.get("marks"),
                     "eval_same_marks": evaluated,
+                    "first_model_eval_same_marks": first_eval,
                 }
             )
         )
     finally:
         server.stop()
-        daemon.training.cancel()
+        if daemon.training is not None:
+            daemon.training.cancel()
 
 
-def eval_at(marks: list[dict], data_dir: Path, synthetic: Any, profile: str) -> dict | None:
-    """``momloc eval`` of the served model on a synthetic recording at the checked marks."""
+def eval_at(
+    marks: list[dict], data_dir: Path, synthetic: Any, profile: str, model: str
+) -> dict | None:
+    """``momloc eval`` of ``data_dir/model`` on a synthetic recording at the checked marks."""
     if not marks:
         return None
     listed = "\n".join(f"  - {{name: {m['name']}, x: {m['x']}, y: {m['y']}}}" for m in marks)
     (data_dir / "check-marks.yaml").write_text("marks:\n" + listed + "\n")
     cli = [sys.executable, "-m", "service.cli"]
     out = data_dir / "check.npz"
-    subprocess.run(
-        [*cli, "collect", "--source", "synthetic", "--preset", synthetic.preset,
-         "--seed", str(synthetic.seed), "--profile", profile,
-         "--marks", str(data_dir / "check-marks.yaml"), "--seconds", "5", "--out", str(out)],
-        check=True, capture_output=True,
-    )  # fmt: skip
+    if not out.exists():
+        subprocess.run(
+            [*cli, "collect", "--source", "synthetic", "--preset", synthetic.preset,
+             "--seed", str(synthetic.seed), "--profile", profile,
+             "--marks", str(data_dir / "check-marks.yaml"), "--seconds", "5", "--out", str(out)],
+            check=True, capture_output=True,
+        )  # fmt: skip
     result = subprocess.run(
-        [*cli, "eval", str(data_dir / "model"), str(out), "--json"],
+        [*cli, "eval", str(data_dir / model), str(out), "--json"],
         check=True, capture_output=True, text=True,
     )  # fmt: skip
     metrics = json.loads(result.stdout)
-    return {**{k: metrics[k] for k in ("n", "mean", "median")}, **per_mark(data_dir, out)}
+    return {**{k: metrics[k] for k in ("n", "mean", "median")}, **per_mark(data_dir / model, out)}
 
 
-def per_mark(data_dir: Path, recording: Path) -> dict[str, Any]:
+def per_mark(model_dir: Path, recording: Path) -> dict[str, Any]:
     """The check's statistic on the offline recording: median error per mark, then the median
     over marks (``momloc eval`` pools the rows, so marks with more kept rows weigh more)."""
     from models.dataset import MomDataset
@@ -134,7 +159,7 @@ def per_mark(data_dir: Path, recording: Path) -> dict[str, Any]:
     from models.mom_runtime import MomRuntime
 
     data = MomDataset.load(recording)
-    runtime = MomRuntime.load(data_dir / "model")
+    runtime = MomRuntime.load(model_dir)
     errors = np.linalg.norm(predict(runtime, data) - data.world[:, :2], axis=1)
     labels = np.round(data.world[:, :2], 3)
     medians = {

@@ -68,16 +68,19 @@ def atomic_write_json(
     return atomic_write_text(path, json.dumps(value, indent=indent), mode)
 
 
-def replace_folder(staging: str | os.PathLike[str], final: str | os.PathLike[str]) -> Path:
+def replace_folder(
+    staging: str | os.PathLike[str], final: str | os.PathLike[str], keep_as: str = ".previous"
+) -> Path:
     """Put a completely written folder (a new model) at ``final``; the old one becomes
-    ``<final>.previous``.
+    ``<final><keep_as>`` (``.previous`` unless told: the set-up's two-stage training keeps
+    its first model as ``.first`` so that ``.previous`` stays the model from before).
 
     Two renames, not one: POSIX cannot swap a non-empty folder atomically. Between them there
     is briefly no ``final``; the model watcher then keeps serving the model it has loaded, so a
     reader sees the old model or the new one, never a mixture of their files.
     """
     staging, final = Path(staging), Path(final)
-    previous = final.with_name(final.name + ".previous")
+    previous = final.with_name(final.name + keep_as)
     if final.exists():
         shutil.rmtree(previous, ignore_errors=True)
         os.replace(final, previous)

@@ -34,6 +34,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--epochs", type=int, default=None, help="maximum epochs (default: adaptive)"
     )
+    parser.add_argument(
+        "--time-budget",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="stop after this many seconds of training, keeping the best epoch so far "
+        "(default: the adaptive schedule's safety net, 540 s; none with --epochs)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument(
@@ -47,8 +55,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from models.dataset import MomDataset
+    from models.errors import MomlocError
     from models.train import train_model
 
+    if args.time_budget is not None and not args.time_budget > 0:
+        raise MomlocError(f"--time-budget {args.time_budget:g}: must be positive seconds")
     data = MomDataset.load(args.data)
     if not args.quiet:
         print(f"momloc train: {args.data}: {data.summary()}")
@@ -60,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
         epochs=args.epochs,
         seed=args.seed,
         progress=not args.quiet,
+        tuning=None if args.time_budget is None else {"time_budget_s": args.time_budget},
         on_epoch=_print_epoch if args.progress_json else None,
     )
     summary = {k: v for k, v in metrics.items() if k != "val_history"}

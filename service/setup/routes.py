@@ -2,7 +2,8 @@
 
 - ``POST /v1/setup/start`` / ``stop``: a guided collection at floor marks;
   ``POST /v1/setup/record-again`` ``{"mark": "B2"}``: forget one mark's rows and record it alone.
-- ``POST /v1/setup/train`` (202) / ``train/cancel``: ``momloc train`` in a child process.
+- ``POST /v1/setup/train`` (202) / ``train/cancel``: ``momloc train`` in a child process (with
+  the adaptive schedule a quick first model is loaded first, then the final one).
 - ``POST /v1/setup/verify`` / ``verify/stop``: the check step (live error at a few marks).
 - ``GET /v1/setup/status``: all of it, plus what each camera's detector sees now.
 """
@@ -71,6 +72,11 @@ class TrainRequest(BaseModel):
     )
     epochs: int | None = Field(
         None, ge=1, le=2000, description="Maximum epochs (default: adaptive, a few minutes)."
+    )
+    first_model: bool | None = Field(
+        None,
+        description="Train and load a quick first model (seconds) before the final one; "
+        "default: yes with the adaptive schedule, no with explicit epochs.",
     )
 
 
@@ -166,7 +172,8 @@ def create_setup_router(
         else:
             recording = session.data_dir / "setup.npz"
         try:
-            return JSONResponse(training.start(Path(recording), body.epochs), status_code=202)
+            started = training.start(Path(recording), body.epochs, body.first_model)
+            return JSONResponse(started, status_code=202)
         except MomlocError as error:
             raise HTTPException(409 if "already" in str(error) else 422, str(error)) from None
 

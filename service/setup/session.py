@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from models.errors import MomlocError
+from service.setup.arrival import Arrival
 from service.setup.collector import (
     DatasetAppender,
     FeedFrame,
@@ -59,8 +60,11 @@ class DetectionTap:
         """People follow the page's instructions; nothing to script."""
 
     def frames(self, step: Step) -> Iterator[FeedFrame]:
+        """The frame sets of ``step``; a move step ends once the person has arrived
+        (:mod:`service.setup.arrival`), its planned length is the maximum wait."""
         end = time.monotonic() + step.seconds
         last: FeedFrame | None = None
+        arrival = Arrival(len(self.image_sizes)) if step.kind == "move" else None
         while time.monotonic() < end:
             if self.cancelled.is_set():
                 raise Cancelled
@@ -70,6 +74,8 @@ class DetectionTap:
             if frame is not None and frame is not last:
                 last = frame
                 yield frame
+                if arrival is not None and arrival.update(frame.t, frame.boxes):
+                    return
 
     def _changed_since(self, seen: FeedFrame | None) -> bool:
         """Whether a frame set newer than ``seen`` arrived (called holding ``_new``)."""

@@ -14,6 +14,14 @@ model being served, and the watcher never sees a half-written directory. ``momlo
 ``model_dir`` loads ``data_dir/model`` at the next start. Once in place, ``on_model(path)`` swaps
 it into the running pipeline (``Pipeline.reload_model``).
 
+Two stages (:class:`TrainingJob`): the adaptive schedule takes minutes (200-400 epochs, 2.5-6 min
+measured on 2 loaded cores), which kept "Start to live positions" over the issue's 5 minutes on
+its own. So the first stage trains for ``FIRST_MODEL_S`` seconds and is hot-loaded at once, and
+the final model follows in the same job. Rejected: serving the floor prior alone as the first
+model (the model directory and the runtime need an encoder; a second model format for seconds of
+service is not worth it), and one child that writes an intermediate model (a model directory
+written by a process that is still training is what the staging rename exists to avoid).
+
 A failure's reason is the child's last ``momloc train: error: ...`` line (the CLI's one-line
 errors), or a line that says what is missing (torch not installed).
 """
@@ -26,6 +34,7 @@ import shutil
 import subprocess
 import sys
 import threading
+import time
 from collections import deque
 from collections.abc import Callable
 from pathlib import Path
@@ -37,6 +46,12 @@ from models.errors import MomlocError, shorten
 log = logging.getLogger("momloc.setup.training")
 NICE = 10
 STOP_GRACE_S = 5.0
+# The first model's training time. Measured 2026-12-02 on a 3 x 3 x 20 s nanodet recording
+# (2 cores, loaded): 10 s of epochs took 16 s wall with start-up and export, validation 0.12 m
+# (91 epochs; 3 s / 10 epochs: 0.44 m). Marks recordings serve the floor-mark geometry
+# (models.prior_policy), which the first model fits in full, so its positions there are the
+# final model's; the final training improves the encoder (the dense-data and fallback localizer).
+FIRST_MODEL_S = 10.0
 
 
 def model_path(data_dir: Path) -> Path:
@@ -46,59 +61,94 @@ def model_path(data_dir: Path) -> Path:
 
 
 class TrainingJob:
-    """At most one training run; ``status()`` is the ``training`` object of /v1/setup/status."""
+    """At most one training run; ``status()`` is the ``training`` object of /v1/setup/status.
+
+    A run has one or two stages, each a ``momloc train`` child run in turn by one follower
+    thread: with the adaptive schedule (no ``epochs``), first a quick model (``first_model``:
+    ``FIRST_MODEL_S`` seconds of training) that is installed and hot-loaded at once, so
+    positions are live while the final model trains; then the final model, installed over it
+    (the first kept as ``model.first``, ``model.previous`` stays the model from before the run).
+    ``state`` is ``running`` until the final stage ends; ``stage`` says which one runs and
+    ``first_model`` what the first one gave.
+    """
 
     def __init__(self, data_dir: Callable[[], Path], on_model: Callable[[Path], Any]) -> None:
         self._data_dir = data_dir
         self._on_model = on_model
         self._lock = threading.Lock()
+        self._thread: threading.Thread | None = None
         self._process: subprocess.Popen[str] | None = None
         self._cancelled = False
         self._state: dict[str, Any] = _idle()
 
-    def start(self, recording: Path, epochs: int | None = None) -> dict[str, Any]:
-        """Start ``momloc train recording``; MomlocError when one runs or the file is missing."""
+    def start(
+        self, recording: Path, epochs: int | None = None, first_model: bool | None = None
+    ) -> dict[str, Any]:
+        """Start training on ``recording``; MomlocError when one runs or the file is missing.
+        ``first_model`` (default: only with the adaptive schedule) adds the quick first stage."""
         with self._lock:
-            if self._process is not None and self._process.poll() is None:
+            if self._thread is not None and self._thread.is_alive():
                 raise MomlocError("training is already running; cancel it first")
             if not recording.is_file():
                 raise MomlocError(f"recording: {recording.name} does not exist; record marks first")
             final = model_path(self._data_dir())
-            staging = final.with_name(final.name + ".training")
-            shutil.rmtree(staging, ignore_errors=True)
-            command = [
-                sys.executable, "-m", "service.cli", "train", str(recording),
-                "--out", str(staging), "--quiet", "--progress-json",
-            ]  # fmt: skip
-            if epochs is not None:
-                command += ["--epochs", str(epochs)]
-            nice = shutil.which("nice")  # exec's the command: same pid, so cancel still works
-            if nice is not None:
-                command = [nice, "-n", str(NICE), *command]
-            self._process = subprocess.Popen(
-                command,
-                stdout=subprocess.PIPE,
-                stderr=subprocess.PIPE,
-                stdin=subprocess.DEVNULL,
-                text=True,
-            )
+            stages: list[tuple[str, list[str]]] = []
+            if epochs is None if first_model is None else first_model:
+                stages.append(("first", ["--time-budget", f"{FIRST_MODEL_S:g}"]))
+            stages.append(("final", [] if epochs is None else ["--epochs", str(epochs)]))
             self._cancelled = False
             self._state = {
                 **_idle(),
                 "state": "running",
+                "stage": stages[0][0],
+                "stages": [name for name, _ in stages],
+                "first_model": None,
                 "recording": str(recording),
                 "max_epochs": epochs,
                 "model_dir": str(final.resolve()),
             }
-            threading.Thread(
-                target=self._follow,
-                args=(self._process, staging, final),
+            self._thread = threading.Thread(
+                target=self._run,
+                args=(recording, stages, final),
                 name="momloc-train-follow",
                 daemon=True,
-            ).start()
+            )
+            self._thread.start()
         return self.status()
 
-    def _follow(self, process: subprocess.Popen[str], staging: Path, final: Path) -> None:
+    def _run(self, recording: Path, stages: list[tuple[str, list[str]]], final: Path) -> None:
+        first_loaded = False
+        for name, options in stages:
+            with self._lock:
+                if self._cancelled:
+                    break
+                self._state.update(stage=name, epoch=None, val_error_m=None)
+                staging = final.with_name(final.name + ".training")
+                shutil.rmtree(staging, ignore_errors=True)
+                process = _spawn(recording, staging, options)
+                self._process = process
+                started = time.monotonic()
+            outcome = self._follow(process, staging, final, ".first" if first_loaded else None)
+            if outcome is None:
+                return  # failed or cancelled; the state says why
+            if name == "first" and len(stages) > 1:
+                first_loaded = True
+                self._state["first_model"] = {
+                    "val_error_m": self._state.get("val_error_m"),
+                    "epochs": self._state.get("epoch"),
+                    "seconds": round(time.monotonic() - started, 1),
+                    "model": outcome,
+                }
+                log.info("first model loaded; final training continues")
+                continue
+            self._finish("done", model=outcome)
+            return
+        self._finish("failed", error="training cancelled")
+
+    def _follow(
+        self, process: subprocess.Popen[str], staging: Path, final: Path, keep_as: str | None
+    ) -> Any:
+        """Follow one stage to its end; the loaded model's info, or None after a failure."""
         errors: deque[str] = deque(maxlen=40)
         reader = threading.Thread(target=_drain, args=(process.stderr, errors), daemon=True)
         reader.start()
@@ -107,19 +157,21 @@ class TrainingJob:
             self._progress(line)
         code = process.wait()
         reader.join(timeout=5)
-        if self._cancelled:
-            self._finish("failed", error="training cancelled")
-        elif code != 0:
-            self._finish("failed", error=failure_reason(list(errors), code))
-        else:
+        try:
+            if self._cancelled:
+                self._finish("failed", error="training cancelled")
+                return None
+            if code != 0:
+                self._finish("failed", error=failure_reason(list(errors), code))
+                return None
             try:
-                _install(staging, final)
-                info = self._on_model(final)
+                _install(staging, final, keep_as or ".previous")
+                return self._on_model(final)
             except (MomlocError, OSError) as error:
                 self._finish("failed", error=shorten(f"new model not loaded: {error}", 300))
-                return
-            self._finish("done", model=info)
-        shutil.rmtree(staging, ignore_errors=True)
+                return None
+        finally:
+            shutil.rmtree(staging, ignore_errors=True)
 
     def _progress(self, line: str) -> None:
         try:
@@ -144,25 +196,50 @@ class TrainingJob:
     def _finish(self, state: str, **fields: Any) -> None:
         self._state.update(state=state, **fields)
         if state == "failed":
-            log.warning("training failed: %s", fields.get("error"))
+            if self._state.get("first_model") is not None:
+                self._state["error"] = f"{self._state['error']} (the first model stays loaded)"
+            log.warning("training failed: %s", self._state.get("error"))
         else:
             log.info("training done: model in %s", self._state["model_dir"])
 
     def cancel(self) -> dict[str, Any]:
         """Stop the running training (SIGTERM, SIGKILL after a grace period); no-op otherwise."""
-        process = self._process
+        with self._lock:
+            thread = self._thread
+            if thread is None or not thread.is_alive():
+                return self.status()
+            self._cancelled = True  # no further stage starts
+            process = self._process
         if process is not None and process.poll() is None:
-            self._cancelled = True
             process.terminate()
             try:
                 process.wait(STOP_GRACE_S)
             except subprocess.TimeoutExpired:
                 process.kill()
                 process.wait()
+        thread.join(timeout=STOP_GRACE_S)
         return self.status()
 
     def status(self) -> dict[str, Any]:
         return dict(self._state)
+
+
+def _spawn(recording: Path, staging: Path, options: list[str]) -> subprocess.Popen[str]:
+    """``momloc train recording --out staging`` at low priority, progress as JSON lines."""
+    command = [
+        sys.executable, "-m", "service.cli", "train", str(recording),
+        "--out", str(staging), "--quiet", "--progress-json", *options,
+    ]  # fmt: skip
+    nice = shutil.which("nice")  # exec's the command: same pid, so cancel still works
+    if nice is not None:
+        command = [nice, "-n", str(NICE), *command]
+    return subprocess.Popen(
+        command,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+        text=True,
+    )
 
 
 def _idle() -> dict[str, Any]:
@@ -189,8 +266,9 @@ def failure_reason(stderr: list[str], code: int) -> str:
     return f"momloc train exited with code {code}"
 
 
-def _install(staging: Path, final: Path) -> None:
-    """Put the new model in place: two directory renames, the old model kept as .previous."""
+def _install(staging: Path, final: Path, keep_as: str) -> None:
+    """Put the new model in place: two directory renames, the old model kept as
+    ``final + keep_as``."""
     if not (staging / "encoder.onnx").is_file() or not (staging / "model.json").is_file():
         raise MomlocError(f"{staging}: momloc train wrote no model")
-    replace_folder(staging, final)
+    replace_folder(staging, final, keep_as)

@@ -150,12 +150,17 @@ function drawPlan() {
 }
 
 // -- record: per-mark quality, with "record again" --
+// boxes the still-person rule dropped (not where the camera saw the person stand on the mark)
+function dropped(q) {
+  const n = q.dropped_per_camera || [];
+  return n.some((d) => d > 0) ? ` <span class="dropped" title="boxes away from where you stood (a false detection or someone else): not recorded">(dropped ${n.map((d, k) => `cam ${k}: ${d}`).join(", ")})</span>` : "";
+}
 function renderQuality(quality, running) {
   $("quality-panel").hidden = !quality.length;
   $("quality").querySelector("tbody").replaceChildren(...quality.map((q) => {
     const tr = document.createElement("tr");
     const low = q.per_camera.map((n) => n < 0.3 * q.frames);
-    tr.innerHTML = `<td>${q.mark}</td><td>${q.frames}</td><td>${q.per_camera.map((n, k) => `<span class="${low[k] ? "low" : ""}">cam ${k}: ${n}</span>`).join(" · ")}</td>`;
+    tr.innerHTML = `<td>${q.mark}</td><td>${q.frames}</td><td>${q.per_camera.map((n, k) => `<span class="${low[k] ? "low" : ""}">cam ${k}: ${n}</span>`).join(" · ")}${dropped(q)}</td>`;
     const td = document.createElement("td");
     const again = document.createElement("button");
     again.textContent = "record this mark again"; again.dataset.again = q.mark; again.disabled = running;
@@ -175,7 +180,9 @@ function renderTraining(t, recorded) {
   $("train-cancel").disabled = !running;
   $("train-progress").value = t.epoch && t.max_epochs ? t.epoch / t.max_epochs : t.state === "done" ? 1 : 0;
   const progress = t.epoch ? `epoch ${t.epoch}${t.max_epochs ? " of " + t.max_epochs : ""}, validation error ${t.val_error_m.toFixed(3)} m` : "";
-  $("train-state").textContent = running ? `training… ${progress}`
+  const first = t.first_model ? `first model loaded (${t.first_model.epochs} epochs in ${t.first_model.seconds} s, validation error ${t.first_model.val_error_m.toFixed(3)} m): positions are on the live map; ` : "";
+  const stage = t.stage === "first" && (t.stages || []).length > 1 ? "training a quick first model…" : first ? "final model training…" : "training…";
+  $("train-state").textContent = running ? `${first}${stage} ${progress}`
     : t.state === "done" ? `trained (${progress}); model loaded from ${t.model_dir}: positions are on the live map`
     : t.state === "failed" ? `training failed: ${t.error}` : "";
   $("train-state").className = t.state === "failed" ? "warn" : "hint";

@@ -171,23 +171,33 @@ def test_first_run_to_live_positions_through_the_api(tmp_path: Path) -> None:
         assert {q["mark"] for q in again["quality"]} == {"A1", "A2", "B2", "B1"}
         assert abs(MomDataset.load(tmp_path / "data" / "room.npz").n - before) < 0.5 * before
 
-        # Train in a child process; follow the epochs; the model is hot-loaded when done
-        started = post(base, "/v1/setup/train", {"epochs": 12}, status=202)
-        assert started["state"] == "running"
+        # Train in a child process; follow the epochs; a quick first model is hot-loaded while
+        # the final one trains, then the final one replaces it
+        started = post(base, "/v1/setup/train", {"epochs": 12, "first_model": True}, status=202)
+        assert started["state"] == "running" and started["stages"] == ["first", "final"]
         assert httpx.post(base + "/v1/setup/train", json={}).status_code == 409  # one at a time
         seen_epochs: set[int] = set()
+        first_loaded: list[dict[str, Any]] = []
 
         def training() -> dict[str, Any]:
             state = get("/v1/setup/status")["training"]
-            if state["epoch"] is not None:
+            if state["stage"] == "final" and state["epoch"] is not None:
                 seen_epochs.add(state["epoch"])
+            if state["state"] == "running" and state["first_model"] is not None:
+                first_loaded.append(get("/v1/health")["model"])
             return state
 
         trained = wait_for(training, lambda t: t["state"] != "running", 300, "training")
         assert trained["state"] == "done", trained
         assert trained["epoch"] == 12 and trained["val_error_m"] > 0 and len(seen_epochs) >= 2
+        first = trained["first_model"]
+        assert first["epochs"] >= 1 and first["val_error_m"] > 0, first
         model_dir = Path(trained["model_dir"])
         assert model_dir == (tmp_path / "data" / "model").resolve()
+        # the first model was served while the final one trained, and is kept next to it
+        assert first_loaded and first_loaded[0]["loaded"], first_loaded
+        assert Path(first_loaded[0]["path"]).resolve() == model_dir
+        assert (model_dir.parent / "model.first" / "model.json").is_file()
         health = get("/v1/health")
         assert health["setup_mode"] is False and health["model"]["loaded"]
         assert Path(health["model"]["path"]).resolve() == model_dir
