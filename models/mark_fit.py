@@ -156,23 +156,69 @@ def consensus(
     else:
         rng = np.random.default_rng(0)
         tried = np.array([rng.choice(m, 4, replace=False) for _ in range(samples)])
-    best, best_key = everything, (0, np.inf)
+    # Looser when nothing agrees: a short recording's medians are noisier, and a 4-point map
+    # of noisy points has a distorted scale for the height check.
+    for tol, spread in ((tolerance, height_spread), (2 * tolerance, height_spread),
+                        (2 * tolerance, np.inf)):  # fmt: skip
+        best, count = _best_subset(world, pixels, height, tried, tol, spread)
+        if count >= 4:
+            break
+    else:
+        return everything
+    for _ in range(2):  # judge every mark again against the map fitted to the consensus
+        try:
+            h = fit_homography(world[best], pixels[best], weights=1.0 / height[best])
+        except MomlocError:
+            break
+        again = _agreeing(h, world, pixels, height, tol, spread)
+        if again.sum() < 4 or (again == best).all():
+            break
+        best = again
+    return best
+
+
+def _agreeing(
+    h: np.ndarray,
+    world: np.ndarray,
+    pixels: np.ndarray,
+    height: np.ndarray,
+    tolerance: float,
+    height_spread: float,
+) -> np.ndarray:
+    """[M] bool: the points map ``h`` puts within ``tolerance`` box heights of their pixel and
+    whose box height agrees with its scale (see :func:`consensus`)."""
+    with np.errstate(all="ignore"):
+        error = np.linalg.norm(apply_homography(h, world) - pixels, axis=1) / height
+        size = np.log(height / lateral_scale(homography_jacobian(h, world)))
+    inliers = np.nan_to_num(error, nan=np.inf) <= tolerance
+    if inliers.sum() >= 4:  # one person: box height / (pixels per metre) is their height
+        off = np.abs(size - np.median(size[inliers]))
+        inliers &= np.nan_to_num(off, nan=np.inf) <= height_spread
+    return inliers
+
+
+def _best_subset(
+    world: np.ndarray,
+    pixels: np.ndarray,
+    height: np.ndarray,
+    tried: np.ndarray,
+    tolerance: float,
+    height_spread: float,
+) -> tuple[np.ndarray, int]:
+    """The largest agreeing set over the 4-point maps of ``tried`` (ties: smaller error)."""
+    best, best_key = np.ones(len(world), dtype=bool), (0, np.inf)
     for subset in tried:
         try:
             h = fit_dlt(world[subset], pixels[subset], what="homography")
         except MomlocError:  # three of the four on a line
             continue
+        inliers = _agreeing(h, world, pixels, height, tolerance, height_spread)
         with np.errstate(all="ignore"):
             error = np.linalg.norm(apply_homography(h, world) - pixels, axis=1) / height
-            size = np.log(height / lateral_scale(homography_jacobian(h, world)))
-        inliers = np.nan_to_num(error, nan=np.inf) <= tolerance
-        if inliers.sum() >= 4:  # one person: box height / (pixels per metre) is their height
-            off = np.abs(size - np.median(size[inliers]))
-            inliers &= np.nan_to_num(off, nan=np.inf) <= height_spread
         key = (int(inliers.sum()), float(error[inliers].sum()))
         if key[0] > best_key[0] or (key[0] == best_key[0] and key[1] < best_key[1]):
             best, best_key = inliers, key
-    return best if best_key[0] >= 4 else everything
+    return best, best_key[0]
 
 
 def degenerate_reason(
