@@ -162,7 +162,12 @@ def _fit_camera(
     reasons = []
     for name in points:
         ok = seen & ~truncated(boxes[:, None], size[None], CUT_EDGES[name])[:, 0]
-        ok &= ~_cut_marks(world, boxes, seen, size, CUT_EDGES[name])
+        whole = ok & ~_cut_marks(world, boxes, seen, size, CUT_EDGES[name])
+        if (
+            whole.sum() >= MIN_ROWS
+            and degenerate_reason(world[whole], DISTINCT_M, COLLINEAR) is None
+        ):
+            ok = whole  # else the cut marks stay: without them no map at all (e.g. 2x2 marks)
         ok &= np.isfinite(pixels[name]).all(axis=-1)
         if ok.sum() < MIN_ROWS:
             reasons.append(f"{name}: {ok.sum()} uncut rows")
