@@ -130,8 +130,6 @@ def run(args: argparse.Namespace) -> int:
         bar.close()
         kept = writer.existing_rows + writer.new_rows
         print(f"{args.out}: {writer.new_rows} new rows, {kept} in total")
-        if writer.dropped_boxes:
-            print(f"dropped {writer.dropped_boxes} box(es) away from where the person stood")
     return 0
 
 

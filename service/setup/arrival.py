@@ -19,8 +19,8 @@ is the share thresholds: a measured detector misses 20-50 % of frames and shows 
 per frame (the ``nanodet`` profile), so requiring every frame to be clean would always wait the
 maximum.
 
-A premature start costs little: the countdown follows, and the still-person rule of the
-recording (:mod:`service.setup.keep_rule`) drops boxes not where the person then stands.
+A premature start costs little: the countdown follows, and the floor-map fit
+(:mod:`models.mark_fit`) leaves out a mark whose boxes are not where the person stands.
 """
 
 from __future__ import annotations

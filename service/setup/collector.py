@@ -9,20 +9,12 @@ mark (or the interpolated point).
 Frame filter: a frame is kept when no camera sees more than one person and at least one camera
 sees exactly one (``require_all_cameras`` asks for exactly one in *every* camera). Keeping frames
 where a camera sees nobody is deliberate: marks outside one camera's view still teach the model,
-and real missed detections are the missing views the model must cope with. At the end of each
-mark's record step the still-person rule (:mod:`service.setup.keep_rule`) drops every box that is
-not where that camera saw the person stand over the mark's frames (a false box shown while the
-person was missed); a frame left with no camera (or, with ``require_all_cameras``, missing one)
-is not kept. The web set-up and ``momloc collect`` both record through :func:`collect`, so they
-share both rules, and so does the recording ``momloc eval`` scores a check against.
+and real missed detections are the missing views the model must cope with.
 
 Nothing is lost: rows are appended to the output file by rewriting it atomically (temporary file,
 fsync, rename) every couple of seconds and after every step, so a crash or Ctrl-C keeps all but
-the last moments (a mark's rows wait for the end of its record step, where the still-person rule
-judges them together; Ctrl-C and Stop judge and write what the mark has so far, a hard kill loses
-that mark's rows, which would be recorded again anyway: the mark is not complete). Re-running
-on the same file resumes: existing rows stay, marks already recorded are left out of the plan
-(:meth:`DatasetAppender.has_mark`), and new marks extend the data set.
+the last moments. Re-running on the same file resumes: existing rows stay, marks already recorded
+are left out of the plan (:meth:`DatasetAppender.has_mark`), and new marks extend the data set.
 
 A mark counts as recorded only when its ``record`` step ran to the end (and kept a row): rows
 alone do not say that, since a crash in the middle of a mark leaves some. Completed marks are
@@ -47,7 +39,6 @@ from numpy.typing import ArrayLike
 from models.atomic import atomic_write_json
 from models.dataset import MomDataset
 from models.errors import MomlocError
-from service.setup.keep_rule import keep_mask
 from service.setup.marks import FloorMark
 
 StepKind = Literal["move", "countdown", "record", "walk"]
@@ -179,7 +170,6 @@ class DatasetAppender:
     _rows: dict[str, list] = field(default_factory=lambda: {k: [] for k in _ROW_KEYS})
     next_frame: int = 0
     next_track: int = 0
-    dropped_boxes: int = 0  # boxes the still-person rule dropped in this run
     _done: list[dict] = field(default_factory=list)  # completed marks (progress file)
     _row_keys: set[tuple[int, int]] = field(default_factory=set)  # labels of all rows, in cm
     _legacy_keys: set[tuple[int, int]] = field(default_factory=set)  # rows older than progress
@@ -224,10 +214,6 @@ class DatasetAppender:
         """Whether this mark's recording completed in an earlier run (see the module doc)."""
         key = mark_key(mark.x, mark.y)
         return key in self._legacy_keys or key in self._done_keys
-
-    def dropped(self, world: ArrayLike, per_camera: np.ndarray) -> None:
-        """Boxes at ``world`` that the still-person rule dropped, per camera."""
-        self.dropped_boxes += int(np.sum(per_camera))
 
     def mark_done(self, mark: FloorMark) -> None:
         """Record that ``mark`` completed; written with the next :meth:`flush`."""
@@ -359,8 +345,6 @@ class RowWriter(Protocol):
         self, world: ArrayLike, boxes: np.ndarray, keypoints: np.ndarray | None, track: int
     ) -> None: ...
 
-    def dropped(self, world: ArrayLike, per_camera: np.ndarray) -> None: ...
-
     def mark_done(self, mark: FloorMark) -> None: ...
 
     def flush(self) -> None: ...
@@ -378,7 +362,6 @@ def collect(
     on_progress: Callable[[Progress], None] | None = None,
 ) -> Writer:
     """Run the plan, appending kept frames through ``writer``; flushes on every exit path."""
-    mark = _MarkRows(writer, require_all_cameras)
     try:
         for index, step in enumerate(steps):
             recording = step.kind in RECORDING
@@ -389,61 +372,19 @@ def collect(
                 first_t = frame.t if first_t is None else first_t
                 fraction = (frame.t - first_t) / step.seconds
                 row = frame_row(frame, require_all_cameras) if recording else None
-                if row is not None and step.kind == "record":
-                    mark.add(step.position(fraction), row[0], row[1], track)
-                elif row is not None:  # a walk: the person moves, no still-person rule
+                if row is not None:
                     writer.add(step.position(fraction), row[0], row[1], track)
                 if recording and (last_flush is None or frame.t - last_flush >= FLUSH_EVERY_S):
                     writer.flush()
                     last_flush = frame.t
                 if on_progress is not None:
                     seeing = [len(b) for b in frame.boxes]
-                    kept = writer.new_rows + mark.pending
-                    on_progress(Progress(index, len(steps), step, fraction, seeing, kept))
-            mark.judge()
+                    on_progress(
+                        Progress(index, len(steps), step, fraction, seeing, writer.new_rows)
+                    )
             if step.kind == "record" and step.mark is not None and writer.new_rows > kept_before:
                 writer.mark_done(step.mark)  # the step ran to its end: the mark is complete
             writer.flush()
     finally:
-        mark.judge()
         writer.flush()
     return writer
-
-
-class _MarkRows:
-    """The rows of the record step under way, held until :meth:`judge` applies the
-    still-person rule to all of them and writes the rows that keep a camera."""
-
-    def __init__(self, writer: RowWriter, require_all_cameras: bool) -> None:
-        self._writer, self._require_all = writer, require_all_cameras
-        self._rows: list[tuple[tuple[float, float], np.ndarray, np.ndarray | None, int]] = []
-
-    @property
-    def pending(self) -> int:
-        return len(self._rows)
-
-    def add(
-        self,
-        world: tuple[float, float],
-        boxes: np.ndarray,
-        keypoints: np.ndarray | None,
-        track: int,
-    ) -> None:
-        self._rows.append((world, boxes, keypoints, track))
-
-    def judge(self) -> None:
-        rows, self._rows = self._rows, []
-        if not rows:
-            return
-        boxes = np.stack([r[1] for r in rows])
-        seen = np.isfinite(boxes).all(axis=2)
-        keep = keep_mask(boxes)
-        self._writer.dropped(rows[0][0], (seen & ~keep).sum(axis=0))
-        for (world, row_boxes, keypoints, track), cameras in zip(rows, keep, strict=True):
-            if not cameras.any() or (self._require_all and not cameras.all()):
-                continue
-            row_boxes = np.where(cameras[:, None], row_boxes, np.nan).astype(np.float32)
-            if keypoints is not None:
-                keypoints = np.where(cameras[:, None, None], keypoints, np.nan)
-                keypoints = keypoints.astype(np.float32)
-            self._writer.add(world, row_boxes, keypoints, track)

@@ -6,9 +6,6 @@ user can fix it at once: move the camera, or record the mark again while nobody 
 The warning threshold is a judgement, not a measurement: a camera that kept fewer than
 ``MIN_SHARE`` of the frame sets offered on a mark is named. A mark outside a camera's view is
 warned about too; that can be intended (the page says which camera, the user decides).
-Boxes the still-person rule dropped (:mod:`service.setup.keep_rule`: not where the camera saw the
-person stand, e.g. a false box while the person was missed) are counted per camera
-(``dropped_per_camera``); they are not in ``per_camera``.
 """
 
 from __future__ import annotations
@@ -32,7 +29,6 @@ class MarkQuality:
         self._offered = dict.fromkeys(self._marks, 0)
         self._kept = {name: np.zeros(num_cameras, int) for name in self._marks}
         self._rows = dict.fromkeys(self._marks, 0)
-        self._dropped = {name: np.zeros(num_cameras, int) for name in self._marks}
         self._recording: str | None = None
         self.finished: list[str] = []  # marks whose record step is over, in order
 
@@ -61,11 +57,6 @@ class MarkQuality:
             self._rows[name] += 1
             self._kept[name] += np.isfinite(np.asarray(boxes)).all(axis=1)
 
-    def _drop(self, world: Any, per_camera: np.ndarray) -> None:
-        name = self._by_key.get(mark_key(float(world[0]), float(world[1])))
-        if name is not None:
-            self._dropped[name] += np.asarray(per_camera, int)
-
     def report(self) -> list[dict[str, Any]]:
         """Finished marks: frames offered and kept per camera, with warnings naming the camera."""
         out = []
@@ -83,7 +74,6 @@ class MarkQuality:
                     "frames": offered,
                     "kept": self._rows[name],
                     "per_camera": [int(n) for n in kept],
-                    "dropped_per_camera": [int(n) for n in self._dropped[name]],
                     "warnings": warnings,
                 }
             )
@@ -109,10 +99,6 @@ class _CountingWriter:
     def add(self, world: Any, boxes: np.ndarray, keypoints: np.ndarray | None, track: int) -> None:
         self._quality._row(world, boxes)
         self._writer.add(world, boxes, keypoints, track)
-
-    def dropped(self, world: Any, per_camera: np.ndarray) -> None:
-        self._quality._drop(world, per_camera)
-        self._writer.dropped(world, per_camera)
 
     def mark_done(self, mark: FloorMark) -> None:
         self._writer.mark_done(mark)

@@ -150,17 +150,12 @@ function drawPlan() {
 }
 
 // -- record: per-mark quality, with "record again" --
-// boxes the still-person rule dropped (not where the camera saw the person stand on the mark)
-function dropped(q) {
-  const n = q.dropped_per_camera || [];
-  return n.some((d) => d > 0) ? ` <span class="dropped" title="boxes away from where you stood (a false detection or someone else): not recorded">(dropped ${n.map((d, k) => `cam ${k}: ${d}`).join(", ")})</span>` : "";
-}
 function renderQuality(quality, running) {
   $("quality-panel").hidden = !quality.length;
   $("quality").querySelector("tbody").replaceChildren(...quality.map((q) => {
     const tr = document.createElement("tr");
     const low = q.per_camera.map((n) => n < 0.3 * q.frames);
-    tr.innerHTML = `<td>${q.mark}</td><td>${q.frames}</td><td>${q.per_camera.map((n, k) => `<span class="${low[k] ? "low" : ""}">cam ${k}: ${n}</span>`).join(" · ")}${dropped(q)}</td>`;
+    tr.innerHTML = `<td>${q.mark}</td><td>${q.frames}</td><td>${q.per_camera.map((n, k) => `<span class="${low[k] ? "low" : ""}">cam ${k}: ${n}</span>`).join(" · ")}</td>`;
     const td = document.createElement("td");
     const again = document.createElement("button");
     again.textContent = "record this mark again"; again.dataset.again = q.mark; again.disabled = running;
