@@ -165,7 +165,9 @@ def consensus(
             break
     else:
         return everything
-    for _ in range(2):  # judge every mark again against the map fitted to the consensus
+    # Judge every mark again against the map fitted to the consensus (marks only: dense rows are
+    # many, and the minimal sets' consensus is kept as it is there).
+    for _ in range(2 if m <= MAX_MARKS else 0):
         try:
             h = fit_homography(world[best], pixels[best], weights=1.0 / height[best])
         except MomlocError:
