@@ -172,7 +172,7 @@ def consensus(
             h = fit_homography(world[best], pixels[best], weights=1.0 / height[best])
         except MomlocError:
             break
-        again = _agreeing(h, world, pixels, height, tol, spread)
+        again, _ = _agreeing(h, world, pixels, height, tol, spread)
         if again.sum() < 4 or (again == best).all():
             break
         best = again
@@ -186,9 +186,10 @@ def _agreeing(
     height: np.ndarray,
     tolerance: float,
     height_spread: float,
-) -> np.ndarray:
+) -> tuple[np.ndarray, np.ndarray]:
     """[M] bool: the points map ``h`` puts within ``tolerance`` box heights of their pixel and
-    whose box height agrees with its scale (see :func:`consensus`)."""
+    whose box height agrees with its scale (see :func:`consensus`); and [M] those transfer
+    errors in box heights."""
     with np.errstate(all="ignore"):
         error = np.linalg.norm(apply_homography(h, world) - pixels, axis=1) / height
         size = np.log(height / lateral_scale(homography_jacobian(h, world)))
@@ -196,7 +197,7 @@ def _agreeing(
     if inliers.sum() >= 4:  # one person: box height / (pixels per metre) is their height
         off = np.abs(size - np.median(size[inliers]))
         inliers &= np.nan_to_num(off, nan=np.inf) <= height_spread
-    return inliers
+    return inliers, error
 
 
 def _best_subset(
@@ -214,9 +215,7 @@ def _best_subset(
             h = fit_dlt(world[subset], pixels[subset], what="homography")
         except MomlocError:  # three of the four on a line
             continue
-        inliers = _agreeing(h, world, pixels, height, tolerance, height_spread)
-        with np.errstate(all="ignore"):
-            error = np.linalg.norm(apply_homography(h, world) - pixels, axis=1) / height
+        inliers, error = _agreeing(h, world, pixels, height, tolerance, height_spread)
         key = (int(inliers.sum()), float(error[inliers].sum()))
         if key[0] > best_key[0] or (key[0] == best_key[0] and key[1] < best_key[1]):
             best, best_key = inliers, key
