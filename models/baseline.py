@@ -96,21 +96,27 @@ def floor_backproject(
     return out
 
 
-def truncated(boxes: np.ndarray, image_size: np.ndarray | None, edges: str = "ltrb") -> np.ndarray:
-    """Bool [N, K]: the box touches one of the image ``edges`` (l, t, r, b) within 2 px."""
+def truncated(
+    boxes: np.ndarray,
+    image_size: np.ndarray | None,
+    edges: str = "ltrb",
+    margin: float | np.ndarray = _BORDER_PX,
+) -> np.ndarray:
+    """Bool [N, K]: the box touches one of the image ``edges`` (l, t, r, b) within ``margin``
+    pixels (2 px, or one margin per box [N, K])."""
     if image_size is None:
         return np.zeros(boxes.shape[:2], dtype=bool)
     size = np.asarray(image_size, dtype=np.float64)  # [K, 2]
     near = np.zeros(boxes.shape[:2], dtype=bool)
     with np.errstate(invalid="ignore"):
         if "l" in edges:
-            near |= boxes[..., 0] <= _BORDER_PX
+            near |= boxes[..., 0] <= margin
         if "t" in edges:
-            near |= boxes[..., 1] <= _BORDER_PX
+            near |= boxes[..., 1] <= margin
         if "r" in edges:
-            near |= boxes[..., 2] >= size[:, 0] - _BORDER_PX
+            near |= boxes[..., 2] >= size[:, 0] - margin
         if "b" in edges:
-            near |= boxes[..., 3] >= size[:, 1] - _BORDER_PX
+            near |= boxes[..., 3] >= size[:, 1] - margin
     return near
 
 

@@ -135,21 +135,13 @@ def _cut_marks(
     keys = np.round(world / DISTINCT_M).astype(np.int64)
     _, mark = np.unique(keys, axis=0, return_inverse=True)
     mark = mark.ravel()
-    out = np.zeros(len(world), dtype=bool)
-    if mark.max(initial=-1) + 1 > MAX_MARKS:  # dense data: the per-box border test alone
-        return out
-    for m in np.unique(mark[seen]):
-        rows = (mark == m) & seen
-        box = np.median(boxes[rows], axis=0)
-        margin = CUT_MARGIN * max(float(box[3] - box[1]), 1.0)
-        near = {
-            "l": box[0] <= margin,
-            "t": box[1] <= margin,
-            "r": box[2] >= size[0] - margin,
-            "b": box[3] >= size[1] - margin,
-        }
-        out[mark == m] = any(near[e] for e in edges)
-    return out
+    marks = np.unique(mark[seen])
+    if not len(marks) or mark.max() + 1 > MAX_MARKS:  # dense data: the per-box test alone
+        return np.zeros(len(world), dtype=bool)
+    median = np.stack([np.median(boxes[(mark == m) & seen], axis=0) for m in marks])
+    margin = CUT_MARGIN * np.maximum(median[:, 3] - median[:, 1], 1.0)
+    cut = truncated(median[:, None], size[None], edges, margin[:, None])[:, 0]
+    return np.isin(mark, marks[cut])
 
 
 def _fit_camera(
