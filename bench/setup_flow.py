@@ -9,7 +9,8 @@ recording, training and Start-to-positions times (positions appear with the quic
 ``start_to_final_model_s`` is when the final one is loaded), training epochs and validation
 error, the check's median error (the check runs on the final model), and for comparison
 ``momloc eval`` of the final and the first model (``model.first``) on a recording of the same
-person standing on the same marks (``momloc collect --source synthetic``, same scene).
+person standing on the same marks (``momloc collect --source synthetic``, same scene): per row,
+and ``--served`` (scored as the check scores the live stream: the figure the check must match).
 
     .venv/bin/python -m bench.setup_flow [--grid 3x3] [--seconds 20] [--epochs N]
 
@@ -148,7 +149,15 @@ def eval_at(
         check=True, capture_output=True, text=True,
     )  # fmt: skip
     metrics = json.loads(result.stdout)
-    return {**{k: metrics[k] for k in ("n", "mean", "median")}, **per_mark(data_dir / model, out)}
+    served = subprocess.run(
+        [*cli, "eval", str(data_dir / model), str(out), "--served", "--json"],
+        check=True, capture_output=True, text=True,
+    )  # fmt: skip
+    return {
+        **{k: metrics[k] for k in ("n", "mean", "median")},
+        **per_mark(data_dir / model, out),
+        "served": json.loads(served.stdout),
+    }
 
 
 def per_mark(model_dir: Path, recording: Path) -> dict[str, Any]:

@@ -1,9 +1,16 @@
-"""`momloc eval MODEL_DIR DATA.npz [--json]`: accuracy of a trained model on a dataset file.
+"""`momloc eval MODEL_DIR DATA.npz [--json] [--served]`: accuracy of a trained model on a
+dataset file.
 
 Prints a readable table, or with ``--json`` exactly one JSON object on stdout whose keys are
 ``n, mean, median, std, ate, rpe, acc@0.2, acc@0.3, acc@0.4, acc@0.5`` (metres, percent; an
 undefined RPE is ``null``). Metric definitions: :mod:`models.metrics`. Notes (skipped rows) go to
 stderr so stdout stays machine-readable.
+
+``--served`` scores a floor-mark recording as the set-up page's check step does: what the
+daemon serves (association and tracking, :mod:`service.served_marks`), the nearest served person
+per frame, the median per mark and over marks. With ``--json`` the object is the check's summary
+(``median_m, mean_m, marks, unmeasured, per_mark, text``; each mark ``name, x, y, error_m,
+samples, rows``).
 """
 
 from __future__ import annotations
@@ -27,6 +34,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("model_dir", metavar="MODEL_DIR", help="directory written by momloc train")
     parser.add_argument("data", metavar="DATA.npz", help="MoM dataset v1 file with ground truth")
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    parser.add_argument(
+        "--served", action="store_true",
+        help="score a floor-mark recording as the set-up check does: the positions the daemon "
+        "serves (association + tracking), median error per mark and over marks",
+    )  # fmt: skip
+    parser.add_argument(
+        "--fps", type=float, default=15.0,
+        help="with --served: frame rate of the dataset's frame index (default 15)",
+    )  # fmt: skip
     parser.set_defaults(func=run)
 
 
@@ -43,6 +59,8 @@ def run(args: argparse.Namespace) -> int:
     model_dir = Path(args.model_dir)
     if not model_dir.is_dir():
         raise MomlocError(f"model directory {model_dir}: not found")
+    if args.served:
+        return _run_served(model_dir, Path(args.data), args.fps, args.json)
     runtime = MomRuntime.load(model_dir)
     data = MomDataset.load(args.data)
     result = evaluate(runtime, data, name=str(args.data))
@@ -59,4 +77,21 @@ def run(args: argparse.Namespace) -> int:
             f"localizer {runtime.policy}, floor-prior weight per 1/2/3+ views: {weights})"
         )
         print(format_table(result.metrics))
+    return 0
+
+
+def _run_served(model_dir: Path, data: Path, fps: float, as_json: bool) -> int:
+    from service.served_marks import served_at_marks
+
+    summary = served_at_marks(model_dir, data, fps=fps)
+    if as_json:
+        print(json.dumps(summary, allow_nan=False))
+        return 0
+    print(f"{data}: served at {len(summary['per_mark'])} marks, {summary['text']}")
+    for mark in summary["per_mark"]:
+        error = "nobody served" if mark["error_m"] is None else f"{mark['error_m']:.3f} m"
+        print(
+            f"  {mark['name']:>8} ({mark['x']:.2f}, {mark['y']:.2f}): {error} "
+            f"({mark['samples']} of {mark['rows']} frames)"
+        )
     return 0

@@ -296,6 +296,13 @@ def mark_key(x: float, y: float) -> tuple[int, int]:
     return round(x / MARK_TOLERANCE_M), round(y / MARK_TOLERANCE_M)
 
 
+def mark_names(path: Path) -> dict[tuple[int, int], str]:
+    """The names of dataset ``path``'s completed marks by :func:`mark_key` (none without a
+    progress file)."""
+    done, _ = _read_progress(progress_path(path)) or ([], 0)
+    return {mark_key(d["x"], d["y"]): d["name"] for d in done}
+
+
 def _read_progress(path: Path) -> tuple[list[dict], int] | None:
     """Completed marks and legacy row count from a progress file; None when there is none."""
     try:

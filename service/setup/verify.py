@@ -7,26 +7,23 @@ mark, live, and a summary ("median 0.09 m over 4 marks"). The summary is stored 
 number stays with the model it describes.
 
 How a mark is measured: after the move and countdown, the published snapshots of ``seconds`` are
-read (the hub's newest, polled at 10 Hz: the verifier must never slow the pipeline); in each, the
-person nearest to the mark counts (someone else in the room is further away). The mark's error is
-the median of those distances (a median, so a moment of a wrong association does not dominate);
-with nobody seen, the mark has no error and the summary says how many marks had none.
+read (the hub's newest, polled at 10 Hz: the verifier must never slow the pipeline) and scored by
+:mod:`service.setup.check_score` (nearest served person, median per mark, median over marks),
+the statistic ``momloc eval --served`` computes offline on a recording of the same marks.
 """
 
 from __future__ import annotations
 
 import json
-import math
 import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from models.atomic import atomic_write_json
 from models.errors import MomlocError
+from service.setup.check_score import mark_error, nearest_error, summarise
 from service.setup.marks import FloorMark
 
 POLL_S = 0.1
@@ -85,7 +82,7 @@ class Verifier:
                 errors = self._measure(mark, seconds)
                 entry = self._state["marks"][i]
                 entry["samples"] = len(errors)
-                entry["error_m"] = round(float(np.median(errors)), 3) if errors else None
+                entry["error_m"] = mark_error(errors)
             summary = summarise(self._state["marks"])
             self._state["summary"] = summary
             self._state["stored_in"] = self._store(summary)
@@ -109,9 +106,9 @@ class Verifier:
         while (left := end - time.monotonic()) > 0:
             self._state["remaining_s"] = round(left, 1)
             snapshot = self._latest()
-            if snapshot.seq != seen and snapshot.people:
+            error = nearest_error(snapshot.people, mark.x, mark.y)
+            if snapshot.seq != seen and error is not None:
                 seen = snapshot.seq
-                error = min(math.dist((p["x"], p["y"]), (mark.x, mark.y)) for p in snapshot.people)
                 errors.append(error)
                 self._state["live_error_m"] = round(error, 3)
             if self._stop.wait(min(POLL_S, left)):
@@ -142,35 +139,6 @@ class Verifier:
 
     def status(self) -> dict[str, Any]:
         return json.loads(json.dumps(self._state))  # a deep copy: the thread keeps writing
-
-
-def summarise(marks: list[dict[str, Any]]) -> dict[str, Any]:
-    """Median and mean error over the marks that were measured, and the line the page shows."""
-    errors = [m["error_m"] for m in marks if m["error_m"] is not None]
-    missing = len(marks) - len(errors)
-    if not errors:
-        return {
-            "median_m": None,
-            "mean_m": None,
-            "marks": 0,
-            "unmeasured": missing,
-            "time": time.time(),
-            "per_mark": marks,
-            "text": f"nobody was seen on any of the {len(marks)} marks",
-        }
-    median = float(np.median(errors))
-    text = f"median {median:.2f} m over {len(errors)} mark{'s' if len(errors) > 1 else ''}"
-    if missing:
-        text += f" ({missing} not measured: nobody seen)"
-    return {
-        "median_m": round(median, 3),
-        "mean_m": round(float(np.mean(errors)), 3),
-        "marks": len(errors),
-        "unmeasured": missing,
-        "time": time.time(),
-        "per_mark": marks,
-        "text": text,
-    }
 
 
 _read_cache: dict[Path, tuple[int, dict[str, Any] | None]] = {}

@@ -126,7 +126,8 @@ def post(base: str, path: str, body: Any = None, status: int = 200) -> dict[str,
 
 
 def test_first_run_to_live_positions_through_the_api(tmp_path: Path) -> None:
-    daemon = build_daemon(setup_settings(tmp_path))
+    settings = setup_settings(tmp_path)
+    daemon = build_daemon(settings)
     server = serve_in_thread(daemon)
     base = f"http://127.0.0.1:{server.port}"
     get = lambda path: httpx.get(base + path, timeout=30).json()  # noqa: E731
@@ -233,9 +234,36 @@ def test_first_run_to_live_positions_through_the_api(tmp_path: Path) -> None:
             lambda: get("/v1/health")["model"]["verification"], bool, 10, "verification in health"
         )
         assert shown["text"] == summary["text"]
+
+        # The check's figure is what `momloc eval --served` gives offline for a recording of
+        # the same person on the same marks (issue target: within 0.05 m)
+        served = served_at_checked_marks(check["marks"], model_dir, settings.synthetic)
+        assert [m["name"] for m in served["per_mark"]] == ["A2", "M"]
+        assert abs(served["median_m"] - summary["median_m"]) <= 0.05, (served, summary)
     finally:
         server.stop()
         daemon.training.cancel()
+
+
+def served_at_checked_marks(marks: list[dict], model_dir: Path, synthetic: Any) -> dict:
+    """``momloc collect`` of the simulated person on the checked marks, then ``momloc eval
+    --served --json`` of the model on it."""
+    folder = model_dir.parent
+    listed = "".join(f"  - {{name: {m['name']}, x: {m['x']}, y: {m['y']}}}\n" for m in marks)
+    (folder / "check-marks.yaml").write_text("marks:\n" + listed)
+    cli = [sys.executable, "-m", "service.cli"]
+    out = folder / "check.npz"
+    collect = [
+        "collect", "--source", "synthetic", "--preset", synthetic.preset,
+        "--seed", str(synthetic.seed), "--profile", synthetic.detector_profile,
+        "--marks", str(folder / "check-marks.yaml"), "--seconds", "3", "--out", str(out),
+    ]  # fmt: skip
+    done = subprocess.run([*cli, *collect], capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stderr[-2000:]
+    evaluate = [*cli, "eval", str(model_dir), str(out), "--served", "--json"]
+    done = subprocess.run(evaluate, capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stderr[-2000:]
+    return json.loads(done.stdout)
 
 
 def test_training_failure_and_cancel_through_the_api(tmp_path: Path) -> None:

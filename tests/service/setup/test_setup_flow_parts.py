@@ -12,6 +12,7 @@ import pytest
 from models.dataset import MomDataset
 from models.simulate import get_config
 from models.simulate.following import SPEED_MPS, install_follower
+from service.setup.check_score import summarise
 from service.setup.collector import (
     DatasetAppender,
     FeedFrame,
@@ -24,7 +25,6 @@ from service.setup.collector import (
 from service.setup.marks import FloorMark
 from service.setup.quality import MarkQuality
 from service.setup.training import failure_reason
-from service.setup.verify import summarise
 
 SIZES = np.array([[640, 480], [640, 480]], np.int32)
 BOX = np.array([[100.0, 50.0, 160.0, 250.0]], np.float32)
