@@ -30,14 +30,7 @@ from service.setup.collector import mark_key, mark_names
 MIN_MARK_ROWS = 5  # a floor position held this many rows is a mark (a walk's labels move on)
 
 
-def served_at_marks(
-    model_dir: Path,
-    data_path: Path,
-    *,
-    fps: float = 15.0,
-    seed: int = 0,
-    config: Path | None = None,
-) -> dict[str, Any]:
+def served_at_marks(model_dir: Path, data_path: Path, *, fps: float = 15.0) -> dict[str, Any]:
     """The check's summary (:func:`service.setup.check_score.summarise`) of what the daemon
     serves on the recording ``data_path`` with the model in ``model_dir``."""
     from models.mom_runtime import MomRuntime
@@ -58,8 +51,8 @@ def served_at_marks(
     for row, frame in enumerate(data.frame):
         rows_of_frame[int(frame)].append(row)
     runtime = MomRuntime.load(model_dir)
-    feed = offline.detections_feed(data_path, fps, seed)
-    settings = offline.offline_settings(config, [str(data_path)] * feed.num_cameras)
+    feed = offline.detections_feed(data_path, fps)
+    settings = offline.offline_settings(None, [str(data_path)] * feed.num_cameras)
     pipeline = offline.offline_pipeline(settings, runtime, feed, model_dir)
     errors: dict[tuple[int, int], list[float]] = defaultdict(list)
     try:
