@@ -56,6 +56,7 @@ bench-service: $(VENV)/.stamp-dev
 	$(PY) -m bench.mqtt_fanout
 	$(PY) -m bench.realtime
 	$(PY) -m bench.stream_accuracy
+	$(PY) -m bench.stream_bound
 	$(PY) -m bench.offline_track
 
 bench-setup: $(VENV)/.stamp-dev
