@@ -1,28 +1,27 @@
-"""What the detector alone allows the served stream: an oracle tracker's scores (writes
+"""What the detector's reports allow the served stream: an oracle tracker's scores (writes
 bench/results/stream_bound.md).
 
-The oracle knows who is who and where everyone stands whenever at least one camera's detector
-reports them (the simulated detector's true boxes of that frame, after its misses): it serves
-the true position then, exactly, with no delay. Where no camera reports a person it can only
-hold or extrapolate, as any tracker must:
+The oracle knows who is who. Where at least one camera's detector reports a person (after the
+simulated detector's misses) it serves, per ``MODES`` entry (reports, filter, coasting):
 
-- ``hold``: the last reported position, for at most ``--coast-s`` seconds (then nothing);
-- ``extrapolate``: the last reported position moved on at the last reported velocity (over the
-  previous ``VELOCITY_S``), for at most ``--coast-s`` seconds.
+- reports ``truth``: the true position, exactly, with no delay; ``model``: what the stream
+  bench's MoM model (:func:`bench.stream_accuracy.train_cached`) makes of that person's own
+  boxes (no false boxes, no association errors); ``calibrated``: the same with a calibrated
+  localizer and the true cameras (:func:`models.baseline.localize`: triangulated box centres
+  where two cameras see whole boxes, else the foot point);
+- filter ``none`` (that frame's report), ``causal`` (the median of the person's reports over the
+  last ``WINDOW_S``) or ``centred`` (within ``± WINDOW_S``, offline only).
 
-``localized`` keeps the oracle's association (each person's own detected boxes, no false boxes)
-but serves what the localizer (the stream bench's model, :func:`bench.stream_accuracy.train_cached`)
-makes of those boxes that frame, held like ``hold`` where no camera reports the person: the
-bound of a tracker that associates perfectly and adds nothing over time. ``calibrated`` does the
-same with a calibrated localizer, the true cameras (:func:`models.baseline.localize`,
-triangulated box centres where two cameras see whole boxes, else the foot point): what the
-boxes allow a method that knows the cameras exactly.
+Where no camera reports the person it holds the last report (``hold``) or moves it on at the
+last reported velocity over ``VELOCITY_S`` (``extrapolate``), for at most ``--coast-s`` seconds.
 
 Scored by :class:`models.stream_metrics.StreamScorer` on the same truth as
 :func:`service.stream_eval.run_stream` (people *in view*, whether or not the detector reports
-them). These are upper bounds for MOTA and recall of any tracker on these detections, and show
-how much of the gap to the issue-14 targets is the detector profile (people no camera reports)
-rather than the localizer or tracker.
+them). The ``truth`` rows bound MOTA and recall of any tracker that holds or extrapolates through
+the misses; the ``model`` and ``calibrated`` rows are not bounds (a tracker that weighs each
+report by its covariance does better) but show what one frame's boxes say, with association
+taken out: together they tell how much of the gap to the issue-14 targets is the misses and how
+much the boxes.
 
 Usage::
 

@@ -106,8 +106,9 @@ class Verifier:
         while (left := end - time.monotonic()) > 0:
             self._state["remaining_s"] = round(left, 1)
             snapshot = self._latest()
-            error = nearest_error(snapshot.people, mark.x, mark.y)
-            if snapshot.seq != seen and error is not None:
+            if snapshot.seq != seen and (
+                (error := nearest_error(snapshot.people, mark.x, mark.y)) is not None
+            ):
                 seen = snapshot.seq
                 errors.append(error)
                 self._state["live_error_m"] = round(error, 3)
