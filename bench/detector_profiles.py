@@ -94,7 +94,7 @@ _COMMON: dict[str, Any] = {
     "reference_height_px": 480,
     "min_height_px": 16,
     "occlusion_shrink": {"above": 0.15, "blend": [0.5, 1.0]},
-    "keypoints": {"sigma": 0.015, "pixels": 1.0},
+    "keypoints": {"sigma": 0.015, "pixels": 1.0, "correlation_s": ASSUMED["edge_correlation_s"]},
 }
 
 
@@ -168,6 +168,7 @@ IDEAL: dict[str, Any] = {
     "over 0.2 s, misses independent per frame, no false positives; occlusion >= 70 % or a "
     "visible area < 30 % is missed); kinder than every measured detector",
     **_COMMON,
+    "keypoints": {**_COMMON["keypoints"], "correlation_s": 0.0},  # independent, as it was
     "miss": {
         "height_px": [0],
         "probability": [0.03],
@@ -321,8 +322,8 @@ def build(name: str, sources: list[Source]) -> tuple[dict[str, Any], list[list[s
         f"truncation ({extra['truncation']}) per bench/results/detector_profiles.md. Assumed, "
         f"not measured: recall falls to 0 at {a['zero_recall_px']:g} px, side-edge sigma "
         f"{a['side_sigma']}, scale sigma {a['scale_sigma']}, correlation times (misses "
-        f"{a['miss_correlation_s']} s, edges {a['edge_correlation_s']} s, false positives "
-        f"{a['fp_persistence_s']} s), false-positive sizes and places. Built by "
+        f"{a['miss_correlation_s']} s, edges and keypoints {a['edge_correlation_s']} s, false "
+        f"positives {a['fp_persistence_s']} s), false-positive sizes and places. Built by "
         "bench/detector_profiles.py",
         **_COMMON,
         "miss": {

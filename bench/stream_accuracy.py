@@ -59,16 +59,20 @@ def profile_key(profile: str | None) -> str:
     return f"{getattr(loaded, 'name', 'profile')}-{digest}"
 
 
-def train_cached(preset: str, profile: str | None, frames: int, epochs: int) -> Path:
-    """A model trained on ``frames`` frames of ``preset`` (seed 1000) with the same profile."""
+def train_cached(
+    preset: str, profile: str | None, frames: int, epochs: int, observation: str = "bbox"
+) -> Path:
+    """A model trained on ``frames`` frames of ``preset`` (seed 1000) with the same profile,
+    reading boxes or (``observation="keypoints"``) the simulated keypoints."""
     from models.simulate import simulate
     from models.train import train_model
 
-    name = f"stream-{preset}-{profile_key(profile)}-{frames}f-{epochs}e"
+    kind = "" if observation == "bbox" else f"-{observation}"
+    name = f"stream-{preset}-{profile_key(profile)}-{frames}f-{epochs}e{kind}"
     out = Path(tempfile.gettempdir()) / "momloc-bench-cache" / name
     if not (out / "model.json").is_file():
         data = simulate(scene_config(preset, profile=profile), frames=frames, seed=1000).dataset
-        train_model(data, out, epochs=epochs, seed=0, progress=True)
+        train_model(data, out, observation=observation, epochs=epochs, seed=0, progress=True)
     return out
 
 
@@ -171,7 +175,8 @@ def per_frame(runtime, preset: str, people: int, profile, frames: int, seeds) ->
     errors, views = [], []
     for seed in seeds:
         data = simulate(config, frames=frames, seed=seed).dataset
-        xy = np.asarray(runtime.localize(data.boxes), dtype=np.float64)
+        keypoints = data.keypoints if runtime.observation == "keypoints" else None
+        xy = np.asarray(runtime.localize(data.boxes, keypoints), dtype=np.float64)
         errors.append(np.linalg.norm(xy - data.world[:, :2], axis=1))
         views.append(np.isfinite(data.boxes).all(axis=2).sum(axis=1))
     error, view = np.concatenate(errors), np.concatenate(views)
@@ -281,6 +286,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--scenes", nargs="+", default=None, help="preset:people entries")
     parser.add_argument("--out", type=Path, default=RESULTS / "stream_accuracy.md")
     parser.add_argument("--quick", action="store_true", help="300 frames, 1 seed, small model")
+    parser.add_argument(
+        "--observation",
+        choices=("bbox", "keypoints"),
+        default="bbox",
+        help="what the models read: the detector's boxes or the simulated keypoints",
+    )
     args = parser.parse_args(argv)
     if args.quick:
         args.frames, args.seeds, args.train_frames, args.epochs = 300, args.seeds[:1], 800, 40
@@ -289,7 +300,9 @@ def main(argv: list[str] | None = None) -> int:
         scenes = tuple((s.split(":")[0], int(s.split(":")[1])) for s in args.scenes)
     body, frame_body, headline, headline_name = "", "", None, ""
     for preset, people in scenes:
-        model_dir = train_cached(preset, args.profile, args.train_frames, args.epochs)
+        model_dir = train_cached(
+            preset, args.profile, args.train_frames, args.epochs, args.observation
+        )
         runtime = MomRuntime.load(model_dir)
         split = per_frame(runtime, preset, people, args.profile, args.frames, args.seeds)
         frame_body += per_frame_row(preset, people, split)

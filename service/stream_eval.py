@@ -28,6 +28,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from models.detector.base import Detections
 from models.simulate import FrameObservation, Scene, SceneConfig, get_config
 from models.stream_metrics import StreamScorer
 from service.association import (
@@ -61,17 +62,33 @@ def in_view(true_boxes: np.ndarray, image_sizes: np.ndarray, min_fraction: float
     return np.any(np.nan_to_num(fraction) >= min_fraction, axis=1)
 
 
-def frame_detections(obs: FrameObservation, rng: np.random.Generator) -> list[np.ndarray]:
-    """Per camera the detector's boxes [M, 4] (people and false positives), shuffled."""
+def frame_detections(
+    obs: FrameObservation, rng: np.random.Generator, keypoints: bool = False
+) -> list[Detections]:
+    """Per camera the detector's report (people and false positives), shuffled.
+
+    With ``keypoints`` every box carries its COCO-17 keypoints (a keypoint model's input) and a
+    false box carries NaN ones, as the live simulated detector gives them
+    (:class:`service.simulated_detections.SimulatedDetections`: a pose estimator finding no body
+    in the box)."""
     false = obs.false_boxes
+    joints = obs.keypoints.shape[2]
     out = []
     for k in range(obs.boxes.shape[1]):
-        boxes = obs.boxes[:, k]
-        boxes = boxes[np.isfinite(boxes).all(axis=1)]
+        seen = np.isfinite(obs.boxes[:, k]).all(axis=1)
+        boxes, points = obs.boxes[seen, k], obs.keypoints[seen, k]
         if len(false):
-            extra = false[k]
-            boxes = np.concatenate([boxes, extra[np.isfinite(extra).all(axis=1)]])
-        out.append(boxes[rng.permutation(len(boxes))].astype(np.float32).reshape(-1, 4))
+            extra = false[k][np.isfinite(false[k]).all(axis=1)]
+            boxes = np.concatenate([boxes, extra])
+            points = np.concatenate([points, np.full((len(extra), joints, 3), np.nan)])
+        order = rng.permutation(len(boxes))
+        out.append(
+            Detections(
+                boxes[order].astype(np.float32).reshape(-1, 4),
+                np.ones(len(order), np.float32),
+                points[order].astype(np.float32) if keypoints else None,
+            )
+        )
     return out
 
 
@@ -106,10 +123,12 @@ def run_stream(
     scorers = {float(g): StreamScorer(g) for g in gates}
     coverage = coverage_function(runtime, [True] * int(runtime.num_cameras))
     bias = ViewBias() if view_bias is True else view_bias or None
+    with_keypoints = getattr(runtime, "observation", "bbox") == "keypoints"
     for i in range(frames):
         obs = scene.observe(i)
         t = i / scene.fps
-        result = associate(frame_detections(obs, rng), runtime, max_error_px, max_view_gap_m)
+        detections = frame_detections(obs, rng, with_keypoints)
+        result = associate(detections, runtime, max_error_px, max_view_gap_m)
         meta = [
             {"cameras": a.cameras, "cost": a.cost, "association": j} for j, a in enumerate(result)
         ]

@@ -33,7 +33,10 @@ latent AR(1) normal ``z`` with ``miss.correlation_s``, and the person is missed 
 changes from frame to frame with size and occlusion, and the copula keeps *exactly* the profile's
 miss probability in every frame while making misses come in runs (lag-1 correlation of the miss
 indicator > 0, growing with the correlation time). A correlation time of 0 gives independent
-draws. Occlusion blending and keypoint noise are drawn independently per frame.
+draws. Keypoint noise is, per camera, person, joint and axis, an AR(1) sequence with
+``keypoints.correlation_s`` (a pose estimator misplaces an ankle the same way while the pose and
+the crop stay the same; with 0 the draws are independent per frame). Occlusion blending is drawn
+independently per frame.
 
 Keypoints (COCO-17) are the projected joints plus ``N(0, keypoint_sigma · h + keypoint_pixels)``
 pixel noise, with confidence U(0.55, 0.95). A joint inside a nearer person's body region, or a
@@ -120,12 +123,14 @@ def detect(
     rng: np.random.Generator,
     normals: np.ndarray | None = None,
     miss_latent: np.ndarray | None = None,
+    keypoint_normals: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Noisy boxes [F,K,P,4] and keypoints [F,K,P,17,3] from the true geometry.
 
     ``normals`` [F,K,P,5]: standard normal draws for the scale error and the four edge errors,
-    ``miss_latent`` [F,K,P]: the latent normals of the miss decision (temporally correlated ones
-    from :func:`correlated_normals`); both drawn i.i.d. when None.
+    ``miss_latent`` [F,K,P]: the latent normals of the miss decision, ``keypoint_normals``
+    [F,K,P,17,2]: those of the keypoint noise (temporally correlated ones from
+    :func:`correlated_normals`); each drawn i.i.d. when None.
 
     ``true_boxes`` [F,K,P,4] unclipped (NaN: behind the camera), ``depth`` [F,K,P] of the mid-hip,
     ``joints`` [F,K,P,17,2] projected joints (NaN behind the camera), ``face_away`` [F,K,P,17]
@@ -202,7 +207,16 @@ def detect(
     boxes = np.where(found[..., None], boxes, np.nan)
 
     keypoints = _keypoints(
-        joints, face_away, regions, nearer, height, found, image_size, profile, rng
+        joints,
+        face_away,
+        regions,
+        nearer,
+        height,
+        found,
+        image_size,
+        profile,
+        rng,
+        keypoint_normals,
     )
     return boxes, keypoints
 
@@ -217,12 +231,15 @@ def _keypoints(
     image_size: np.ndarray,
     profile: DetectorProfile,
     rng: np.random.Generator,
+    normals: np.ndarray | None,
 ) -> np.ndarray:
     f, k, p, j, _ = joints.shape
     occluded = _covered(joints, regions, nearer) | face_away
     sigma = profile.keypoint_sigma * height[..., None] + profile.keypoint_pixels
     sigma = np.where(occluded, 3.0 * sigma, sigma)
-    noisy = joints + rng.normal(0.0, 1.0, (f, k, p, j, 2)) * sigma[..., None]
+    if normals is None:
+        normals = rng.normal(0.0, 1.0, (f, k, p, j, 2))
+    noisy = joints + normals * sigma[..., None]
     confidence = np.where(
         occluded, rng.uniform(0.05, 0.35, (f, k, p, j)), rng.uniform(0.55, 0.95, (f, k, p, j))
     )

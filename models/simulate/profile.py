@@ -32,7 +32,8 @@ of the box height unless said otherwise; tables are piecewise linear over their 
                          "hotspots": 3, "hotspot_share": 0.6,  # furniture-like fixed places
                          "bottom": [0.45, 1.0],  # others: bottom edge in this band of the image
                          "jitter": 0.02},        # per-frame edge jitter of a persisting box
-     "keypoints": {"sigma": 0.015, "pixels": 1.0}}
+     "keypoints": {"sigma": 0.015, "pixels": 1.0,  # N(0, sigma * h + pixels) px per joint
+                   "correlation_s": 0.4}}          # AR(1) correlation time of that noise
 
 Example::
 
@@ -126,6 +127,7 @@ class DetectorProfile:
     false_positives: FalsePositiveModel
     keypoint_sigma: float
     keypoint_pixels: float
+    keypoint_correlation_s: float
 
     @classmethod
     def exact(cls) -> DetectorProfile:
@@ -219,7 +221,7 @@ def parse_profile(data: Any, where: str = "<profile>") -> DetectorProfile:
     edges = r.keys(top["edges"], "edges", _EDGES)
     edge_nodes = r.nodes(edges["height_px"], "edges.height_px", low=0.0)
     fp = r.keys(top["false_positives"], "false_positives", _FALSE)
-    kp = r.keys(top["keypoints"], "keypoints", ("sigma", "pixels"))
+    kp = r.keys(top["keypoints"], "keypoints", ("sigma", "pixels", "correlation_s"))
 
     def probs(values: Any, key: str, nodes: tuple[float, ...]) -> Table:
         return Table(nodes, r.values(values, key, len(nodes), 0.0, 1.0))
@@ -268,6 +270,7 @@ def parse_profile(data: Any, where: str = "<profile>") -> DetectorProfile:
         ),
         keypoint_sigma=r.number(kp["sigma"], "keypoints.sigma", 0.0, 1.0),
         keypoint_pixels=r.number(kp["pixels"], "keypoints.pixels", 0.0, 1e3),
+        keypoint_correlation_s=r.number(kp["correlation_s"], "keypoints.correlation_s", 0.0, 60.0),
     )
 
 

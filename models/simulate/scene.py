@@ -276,6 +276,7 @@ class Scene:
             rng,
             self._correlated(3, block, (*shape, 5), self.profile.edges.correlation_s),
             self._correlated(6, block, shape, self.profile.miss.correlation_s),
+            self._keypoint_normals(block, shape),
         )
         return {
             "world": states.position,
@@ -296,6 +297,14 @@ class Scene:
             self.config.fps,
             correlation_s,
         )
+
+    def _keypoint_normals(self, block: int, shape: tuple[int, ...]) -> np.ndarray | None:
+        """Correlated keypoint noise draws [F, K, P, 17, 2], or None (i.i.d. from the block's
+        own generator, as before keypoint noise had a correlation time) when it has none."""
+        correlation_s = self.profile.keypoint_correlation_s
+        if correlation_s <= 0:
+            return None
+        return self._correlated(9, block, (*shape, 17, 2), correlation_s)
 
     def _false_boxes(self, block: int) -> np.ndarray:
         """False positives visible in ``block``: [F, K, Q, 4] (see :mod:`false_positives`)."""

@@ -361,3 +361,26 @@ def test_shipped_profiles_are_what_the_bench_script_builds(tmp_path: Path) -> No
     for name in ("ideal", "ssdlite", "nanodet"):
         assert json.loads((tmp_path / f"{name}.json").read_text()) == _raw(name), name
     assert "less kind" in (tmp_path / "record.md").read_text()
+
+
+def _keypoint_errors(name: str) -> tuple[Scene, np.ndarray]:
+    """Per frame the x error (px) of the simulated left ankle against its projected joint,
+    one walker seen by one camera (NaN where the ankle is missing)."""
+    scene, obs = _walk(name, blocks=20)
+    world = np.concatenate([obs["joints"][:, 0], np.ones((len(obs["joints"]), 17, 1))], -1)
+    pixels = world @ scene.projection_matrices()[0].T
+    projected = pixels[..., :2] / pixels[..., 2:]
+    return scene, obs["keypoints"][:, 0, 0, 15, 0] - projected[:, 15, 0]
+
+
+def test_keypoint_noise_is_correlated_over_time_as_specified() -> None:
+    scene, err = _keypoint_errors("nanodet")
+    pairs = np.isfinite(err[1:]) & np.isfinite(err[:-1])
+    rho = np.exp(-1 / (scene.fps * scene.profile.keypoint_correlation_s))
+    assert pairs.sum() > 400 and scene.profile.keypoint_correlation_s > 0
+    assert abs(np.corrcoef(err[1:][pairs], err[:-1][pairs])[0, 1] - rho) < 0.1
+
+    scene, err = _keypoint_errors("ideal")  # the former model: independent per frame
+    pairs = np.isfinite(err[1:]) & np.isfinite(err[:-1])
+    assert scene.profile.keypoint_correlation_s == 0
+    assert abs(np.corrcoef(err[1:][pairs], err[:-1][pairs])[0, 1]) < 0.1
