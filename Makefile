@@ -7,7 +7,7 @@ PIP := $(PY) -m pip install --quiet
 HOST ?= 127.0.0.1
 PORT ?= 8765
 
-.PHONY: demo test lint format bench bench-model bench-detector bench-service bench-setup test-keypoints test-floors test-docker clean
+.PHONY: demo test lint format bench bench-model bench-detector bench-service bench-setup bench-keypoints test-keypoints test-floors test-docker clean
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -38,7 +38,7 @@ format: $(VENV)/.stamp-dev
 	$(VENV)/bin/ruff check --fix .
 	$(VENV)/bin/ruff format .
 
-bench: bench-model bench-detector bench-service bench-setup
+bench: bench-model bench-detector bench-service bench-setup bench-keypoints
 
 bench-model: $(VENV)/.stamp-dev
 	$(PY) -m bench.model_accuracy
@@ -56,6 +56,7 @@ bench-service: $(VENV)/.stamp-dev
 	$(PY) -m bench.mqtt_fanout
 	$(PY) -m bench.realtime
 	$(PY) -m bench.stream_accuracy
+	$(PY) -m bench.stream_accuracy --observation keypoints --out bench/results/stream_accuracy_keypoints.md
 	$(PY) -m bench.stream_bound
 	$(PY) -m bench.offline_track
 
@@ -70,6 +71,9 @@ $(KP_VENV)/.stamp: pyproject.toml
 	$(PYTHON) -m venv $(KP_VENV)
 	$(KP_VENV)/bin/python -m pip install --quiet -e '.[keypoints]' pytest pytest-timeout scikit-image
 	touch $@
+
+bench-keypoints: $(KP_VENV)/.stamp
+	$(KP_VENV)/bin/python -m bench.keypoint_noise
 
 test-keypoints: $(KP_VENV)/.stamp
 	MOMLOC_KEYPOINT_TESTS=1 $(KP_VENV)/bin/python -m pytest -q tests/models/test_keypoints.py

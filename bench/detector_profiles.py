@@ -94,8 +94,57 @@ _COMMON: dict[str, Any] = {
     "reference_height_px": 480,
     "min_height_px": 16,
     "occlusion_shrink": {"above": 0.15, "blend": [0.5, 1.0]},
-    "keypoints": {"sigma": 0.015, "pixels": 1.0, "correlation_s": ASSUMED["edge_correlation_s"]},
 }
+# The keypoints before they were measured (``ideal`` keeps them): independent pixel noise,
+# every pose found, no gross errors.
+ASSUMED_KEYPOINTS: dict[str, Any] = {
+    "sigma": 0.015,
+    "pixels": 1.0,
+    "correlation_s": 0.0,
+    "miss": {"height_px": [0], "probability": [0.0]},
+    "gross": {"head": 0.0, "torso": 0.0, "limbs": 0.0},
+}
+KEYPOINT_MEASUREMENTS = RESULTS / "keypoint_noise.json"
+# keypoints.gross group -> the measured joint group of bench.keypoint_noise standing for it
+# (limbs: the ankles, the only limb joint measured; torso: the hips)
+KEYPOINT_GROUP_SOURCES = {"head": "head", "torso": "hip_x", "limbs": "foot"}
+
+
+def keypoint_model(path: Path) -> tuple[dict[str, Any], str]:
+    """The profile's ``keypoints`` block from ``bench.keypoint_noise``'s measurement of the
+    MediaPipe path (the same for every box detector: it runs on their crops) and the ``source``
+    sentence saying so; the assumed block when the measurement file is absent."""
+    if not path.is_file():
+        block = {**ASSUMED_KEYPOINTS, "correlation_s": ASSUMED["edge_correlation_s"]}
+        return block, "keypoint noise assumed (sigma 0.015, 1 px)"
+    data = json.loads(path.read_text())
+    bins = {b["bin"]: b for b in data["spreads"]}
+    misses = [m for m in data["misses"] if m["bin"] != "all"]
+    fit = data["calibrated"]
+    block = {
+        "sigma": round(fit["sigma"], 4),
+        "pixels": round(fit["pixels"], 2),
+        "correlation_s": ASSUMED["edge_correlation_s"],
+        "miss": {
+            "height_px": [round(bins[m["bin"]]["median_h_px"], 1) for m in misses],
+            "probability": [round(m["no_pose"], 3) for m in misses],
+        },
+        "gross": {
+            group: round(bins["all"][measured]["gross"], 3)
+            for group, measured in KEYPOINT_GROUP_SOURCES.items()
+        },
+    }
+    note = (
+        f"keypoints (MediaPipe on the vtest crops, {_shown(path)}, {data['generated']}): noise "
+        f"{block['sigma']} h + {block['pixels']} px, no pose by height "
+        + ", ".join(
+            f"{h:g} px {p:.2f}"
+            for h, p in zip(block["miss"]["height_px"], block["miss"]["probability"], strict=True)
+        )
+        + ", gross joint errors "
+        + ", ".join(f"{g} {r:.2f}" for g, r in block["gross"].items())
+    )
+    return block, note
 
 
 @dataclass
@@ -168,7 +217,7 @@ IDEAL: dict[str, Any] = {
     "over 0.2 s, misses independent per frame, no false positives; occlusion >= 70 % or a "
     "visible area < 30 % is missed); kinder than every measured detector",
     **_COMMON,
-    "keypoints": {**_COMMON["keypoints"], "correlation_s": 0.0},  # independent, as it was
+    "keypoints": ASSUMED_KEYPOINTS,
     "miss": {
         "height_px": [0],
         "probability": [0.03],
@@ -260,8 +309,11 @@ def own_sigma(total: float) -> float:
     return round(math.sqrt(max(total**2 - (ASSUMED["scale_sigma"] / 2) ** 2, 0.0)), 4)
 
 
-def build(name: str, sources: list[Source]) -> tuple[dict[str, Any], list[list[str]]]:
-    """The less kind profile of ``sources`` and the rows of its record table."""
+def build(
+    name: str, sources: list[Source], keypoints: Path = KEYPOINT_MEASUREMENTS
+) -> tuple[dict[str, Any], list[list[str]]]:
+    """The less kind profile of ``sources`` and the rows of its record table; the keypoint
+    block from ``keypoints`` (:func:`keypoint_model`)."""
     a = ASSUMED
     rows: list[list[str]] = []
     recall = merge(sources, lambda s: s.recall, _less_recall, above=False)
@@ -312,6 +364,8 @@ def build(name: str, sources: list[Source]) -> tuple[dict[str, Any], list[list[s
 
     detector = sources[-1].detector
     cited = "; ".join(dict.fromkeys(s.label for s in sources))
+    keypoint_block, keypoint_note = keypoint_model(keypoints)
+    rows.append([name, "keypoints", "**kept**", keypoint_note])
     profile = {
         "format": FORMAT,
         "name": name,
@@ -319,13 +373,15 @@ def build(name: str, sources: list[Source]) -> tuple[dict[str, Any], list[list[s
         "source": f"less kind of: {cited} (benchmark bins of >= {MIN_BIN} people; score "
         f"{SCORE}, IoU 0.5). Recall by height {_bins(kept)}; false positives {per_frame}/frame; "
         f"edge errors and extra misses for occlusion ({extra['occlusion']} at 40 % covered) and "
-        f"truncation ({extra['truncation']}) per bench/results/detector_profiles.md. Assumed, "
+        f"truncation ({extra['truncation']}) per bench/results/detector_profiles.md; "
+        f"{keypoint_note}. Assumed, "
         f"not measured: recall falls to 0 at {a['zero_recall_px']:g} px, side-edge sigma "
         f"{a['side_sigma']}, scale sigma {a['scale_sigma']}, correlation times (misses "
         f"{a['miss_correlation_s']} s, edges and keypoints {a['edge_correlation_s']} s, false "
         f"positives {a['fp_persistence_s']} s), false-positive sizes and places. Built by "
         "bench/detector_profiles.py",
         **_COMMON,
+        "keypoints": keypoint_block,
         "miss": {
             "height_px": [round(x, 3) for x in xs],
             "probability": ys,

@@ -182,12 +182,14 @@ def per_frame(runtime, preset: str, people: int, profile, frames: int, seeds) ->
     error, view = np.concatenate(errors), np.concatenate(views)
     out = {}
     for name, rows in (("all", view >= 1), ("1", view == 1), ("2", view == 2), ("3+", view >= 3)):
-        e = error[rows & np.isfinite(error)]
         share = 100.0 * rows.sum() / max((view >= 1).sum(), 1)
-        if not e.size:
-            out[name] = (np.nan, np.nan, share)
+        found = error[rows]  # NaN: the model gives no position (a keypoint model, no pose)
+        if not np.isfinite(found).any():
+            out[name] = (np.nan, np.nan, share, np.nan)
             continue
-        out[name] = (float(e.mean()), 100.0 * float(np.mean(e <= 0.3)), share)
+        within = 100.0 * float(np.mean(np.nan_to_num(found, nan=np.inf) <= 0.3))
+        unplaced = 100.0 * float(np.mean(~np.isfinite(found)))
+        out[name] = (float(np.nanmean(found)), within, share, unplaced)
     return out
 
 
@@ -198,14 +200,15 @@ def per_frame_row(preset: str, people: int, split: dict) -> str:
     )
     return (
         f"| {preset} | {people} | {fmt(split['all'][0], '.3f')} | {fmt(split['all'][1], '.1f')} "
-        f"| {cells} |\n"
+        f"| {cells} | {fmt(split['all'][3], '.1f')} |\n"
     )
 
 
 PER_FRAME_HEAD = (
     "| scene | people | mean m | Acc@0.3 % | 1 view: share %, mean m, Acc@0.3 % "
-    "| 2 views: share %, mean m, Acc@0.3 % | 3+ views: share %, mean m, Acc@0.3 % |\n"
-    "|---|---|---|---|---|---|---|\n"
+    "| 2 views: share %, mean m, Acc@0.3 % | 3+ views: share %, mean m, Acc@0.3 % "
+    "| no position % |\n"
+    "|---|---|---|---|---|---|---|---|\n"
 )
 
 

@@ -27,6 +27,16 @@ whatever the number of visible keypoints.
   (below) the sampled points matter far less (1 draw 0.130, 4 draws 0.128, 32 draws 0.128 m), so
   ``D = 4`` keeps the encoder fast.
 
+Keypoint mode leaves a camera out when its box holds no visible keypoint (the pose estimator
+found no pose: MediaPipe on real video in 27-67 % of boxes under 100 px,
+``bench/results/keypoint_noise.md``). Measured and rejected (2026-12-02, stream bench
+``--observation keypoints``, nanodet profile, seeds 7 8 × 600, MOTA on indoor-2cam 1 / 3 / 5
+people, indoor-4cam, living-room): such a camera reading a template pose placed in its box
+(joints at Drillis & Contini's heights), in training and serving alike: 79.4 / 70.4 / 57.6 /
+82.6 / 83.3 % against 74.3 / 65.3 / 57.9 / 87.8 / 89.0 % without (373.3 against 374.3 summed:
+it recovers small people on indoor-2cam, and localizes the pose-less false boxes where people
+are large); only for boxes under 100 px of 480: 71.9 / 66.8 / 61.6 / 84.7 / 88.3 % (373.3).
+
 Point distributions for bbox mode: ``"uniform"`` (uniform in the box, as in the paper) or
 ``"body"`` (a narrower, body-like horizontal spread: x ~ clipped normal around the box centre,
 y uniform). Measured on indoor-2cam over two recordings they tie (mean 0.136 vs 0.133 m and

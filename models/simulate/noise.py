@@ -48,6 +48,8 @@ False positives (boxes where nobody is) are drawn by :mod:`models.simulate.false
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.special import ndtr
 
@@ -123,13 +125,13 @@ def detect(
     rng: np.random.Generator,
     normals: np.ndarray | None = None,
     miss_latent: np.ndarray | None = None,
-    keypoint_normals: np.ndarray | None = None,
+    keypoint_draws: KeypointDraws | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Noisy boxes [F,K,P,4] and keypoints [F,K,P,17,3] from the true geometry.
 
     ``normals`` [F,K,P,5]: standard normal draws for the scale error and the four edge errors,
-    ``miss_latent`` [F,K,P]: the latent normals of the miss decision, ``keypoint_normals``
-    [F,K,P,17,2]: those of the keypoint noise (temporally correlated ones from
+    ``miss_latent`` [F,K,P]: the latent normals of the miss decision, ``keypoint_draws``: those
+    of the keypoint noise and pose misses (temporally correlated ones from
     :func:`correlated_normals`); each drawn i.i.d. when None.
 
     ``true_boxes`` [F,K,P,4] unclipped (NaN: behind the camera), ``depth`` [F,K,P] of the mid-hip,
@@ -206,19 +208,65 @@ def detect(
     boxes[..., 2:] = np.maximum(boxes[..., 2:], boxes[..., :2] + 1.0)
     boxes = np.where(found[..., None], boxes, np.nan)
 
+    posed = found & _pose_found(height, image_size, profile, rng, keypoint_draws)
     keypoints = _keypoints(
         joints,
         face_away,
         regions,
         nearer,
         height,
-        found,
+        posed,
         image_size,
         profile,
         rng,
-        keypoint_normals,
+        None if keypoint_draws is None else keypoint_draws.normals,
     )
-    return boxes, keypoints
+    return boxes, _gross_errors(keypoints, boxes, profile, rng)
+
+
+@dataclass(frozen=True)
+class KeypointDraws:
+    """Standard normals of one block's keypoints: the pixel noise [F,K,P,17,2] and the latent of
+    the pose-miss decision [F,K,P] (None: i.i.d. draws from the block's generator)."""
+
+    normals: np.ndarray | None
+    miss_latent: np.ndarray | None
+
+
+def _pose_found(
+    height: np.ndarray,
+    image_size: np.ndarray,
+    profile: DetectorProfile,
+    rng: np.random.Generator,
+    draws: KeypointDraws | None,
+) -> np.ndarray | bool:
+    """[F,K,P] whether the pose estimator finds a pose in the person's box (the profile's
+    ``keypoints.miss`` by box height, a Gaussian copula as for the box misses)."""
+    model = profile.keypoints
+    if not model.misses:
+        return True
+    ref = profile.reference_height(np.nan_to_num(height), image_size[:, 1, None].astype(float))
+    latent = None if draws is None else draws.miss_latent
+    if latent is None:
+        latent = rng.standard_normal(height.shape)
+    return ndtr(latent) >= model.miss(ref)
+
+
+def _gross_errors(
+    keypoints: np.ndarray, boxes: np.ndarray, profile: DetectorProfile, rng: np.random.Generator
+) -> np.ndarray:
+    """Found joints moved, at the profile's per-joint rate, to a uniform place inside the
+    person's box: a collapsed or swapped pose puts a joint anywhere on the body."""
+    rate = np.asarray(profile.keypoints.gross)
+    if not (rate > 0).any():
+        return keypoints
+    f, k, p, j, _ = keypoints.shape
+    wild = (rng.random((f, k, p, j)) < rate) & np.isfinite(keypoints[..., 0])
+    u = rng.random((f, k, p, j, 2))
+    lo, hi = boxes[..., None, :2], boxes[..., None, 2:]
+    out = keypoints.copy()
+    out[..., :2] = np.where(wild[..., None], lo + u * (hi - lo), keypoints[..., :2])
+    return out
 
 
 def _keypoints(
@@ -235,7 +283,7 @@ def _keypoints(
 ) -> np.ndarray:
     f, k, p, j, _ = joints.shape
     occluded = _covered(joints, regions, nearer) | face_away
-    sigma = profile.keypoint_sigma * height[..., None] + profile.keypoint_pixels
+    sigma = profile.keypoints.sigma * height[..., None] + profile.keypoints.pixels
     sigma = np.where(occluded, 3.0 * sigma, sigma)
     if normals is None:
         normals = rng.normal(0.0, 1.0, (f, k, p, j, 2))

@@ -33,7 +33,10 @@ of the box height unless said otherwise; tables are piecewise linear over their 
                          "bottom": [0.45, 1.0],  # others: bottom edge in this band of the image
                          "jitter": 0.02},        # per-frame edge jitter of a persisting box
      "keypoints": {"sigma": 0.015, "pixels": 1.0,  # N(0, sigma * h + pixels) px per joint
-                   "correlation_s": 0.4}}          # AR(1) correlation time of that noise
+                   "correlation_s": 0.4,           # AR(1) correlation time of noise and misses
+                   "miss": {"height_px": [..], "probability": [..]},  # no pose found in the box
+                   "gross": {"head": 0.05, "torso": 0.01, "limbs": 0.2}}}  # joint anywhere in
+                                                   # the box (a collapsed pose), per found joint
 
 Example::
 
@@ -111,6 +114,29 @@ class FalsePositiveModel:
     jitter: float
 
 
+# COCO-17 joints by group for the keypoints' gross-error rates: face, shoulders and hips, limbs.
+KEYPOINT_GROUPS = {
+    "head": (0, 1, 2, 3, 4),
+    "torso": (5, 6, 11, 12),
+    "limbs": (7, 8, 9, 10, 13, 14, 15, 16),
+}
+
+
+@dataclass(frozen=True)
+class KeypointModel:
+    """Pose-estimator noise: pixel noise, whole-pose misses by box height, gross joint errors."""
+
+    sigma: float
+    pixels: float
+    correlation_s: float
+    miss: Table
+    gross: tuple[float, ...]  # [17] probability per found joint, COCO order
+
+    @property
+    def misses(self) -> bool:
+        return any(y > 0 for y in self.miss.y)
+
+
 @dataclass(frozen=True)
 class DetectorProfile:
     """One detector's behaviour, loaded from JSON by :func:`load_profile`."""
@@ -125,9 +151,7 @@ class DetectorProfile:
     shrink_blend: tuple[float, float]
     edges: EdgeModel
     false_positives: FalsePositiveModel
-    keypoint_sigma: float
-    keypoint_pixels: float
-    keypoint_correlation_s: float
+    keypoints: KeypointModel
 
     @classmethod
     def exact(cls) -> DetectorProfile:
@@ -147,8 +171,7 @@ class DetectorProfile:
                 scale_sigma=0.0,
             ),
             false_positives=dataclasses.replace(ideal.false_positives, per_frame=0.0),
-            keypoint_sigma=0.0,
-            keypoint_pixels=0.0,
+            keypoints=KeypointModel(0.0, 0.0, 0.0, zero, (0.0,) * 17),
         )
 
     def reference_height(self, height_px: np.ndarray, image_height: np.ndarray) -> np.ndarray:
@@ -221,7 +244,15 @@ def parse_profile(data: Any, where: str = "<profile>") -> DetectorProfile:
     edges = r.keys(top["edges"], "edges", _EDGES)
     edge_nodes = r.nodes(edges["height_px"], "edges.height_px", low=0.0)
     fp = r.keys(top["false_positives"], "false_positives", _FALSE)
-    kp = r.keys(top["keypoints"], "keypoints", ("sigma", "pixels", "correlation_s"))
+    kp = r.keys(top["keypoints"], "keypoints", _KEYPOINTS)
+    kp_miss = r.keys(kp["miss"], "keypoints.miss", ("height_px", "probability"))
+    kp_nodes = r.nodes(kp_miss["height_px"], "keypoints.miss.height_px", low=0.0)
+    gross = r.keys(kp["gross"], "keypoints.gross", tuple(KEYPOINT_GROUPS))
+    joint_gross = [0.0] * 17
+    for group, joints in KEYPOINT_GROUPS.items():
+        rate = r.number(gross[group], f"keypoints.gross.{group}", 0.0, 1.0)
+        for j in joints:
+            joint_gross[j] = rate
 
     def probs(values: Any, key: str, nodes: tuple[float, ...]) -> Table:
         return Table(nodes, r.values(values, key, len(nodes), 0.0, 1.0))
@@ -268,9 +299,13 @@ def parse_profile(data: Any, where: str = "<profile>") -> DetectorProfile:
             bottom=r.span(fp["bottom"], "false_positives.bottom", 0.0, 1.0),
             jitter=r.number(fp["jitter"], "false_positives.jitter", 0.0, 1.0),
         ),
-        keypoint_sigma=r.number(kp["sigma"], "keypoints.sigma", 0.0, 1.0),
-        keypoint_pixels=r.number(kp["pixels"], "keypoints.pixels", 0.0, 1e3),
-        keypoint_correlation_s=r.number(kp["correlation_s"], "keypoints.correlation_s", 0.0, 60.0),
+        keypoints=KeypointModel(
+            sigma=r.number(kp["sigma"], "keypoints.sigma", 0.0, 1.0),
+            pixels=r.number(kp["pixels"], "keypoints.pixels", 0.0, 1e3),
+            correlation_s=r.number(kp["correlation_s"], "keypoints.correlation_s", 0.0, 60.0),
+            miss=probs(kp_miss["probability"], "keypoints.miss.probability", kp_nodes),
+            gross=tuple(joint_gross),
+        ),
     )
 
 
@@ -279,6 +314,7 @@ _TOP = (
     "occlusion_shrink", "edges", "false_positives", "keypoints",
 )  # fmt: skip
 _MISS = ("height_px", "probability", "occlusion", "truncation", "correlation_s")
+_KEYPOINTS = ("sigma", "pixels", "correlation_s", "miss", "gross")
 _EDGES = (
     "height_px", "bottom_bias", "bottom_sigma", "top_bias", "top_sigma", "side_sigma",
     "scale_sigma", "scale_clip", "correlation_s",

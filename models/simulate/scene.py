@@ -32,7 +32,7 @@ import numpy as np
 from models.errors import MomlocError
 from models.simulate import false_positives
 from models.simulate.camera import NEAR, PinholeCamera, project_points
-from models.simulate.noise import correlated_normals, detect
+from models.simulate.noise import KeypointDraws, correlated_normals, detect
 from models.simulate.people import Walkers, Walking
 from models.simulate.profile import DEFAULT_PROFILE, DetectorProfile, load_profile
 from models.simulate.skeleton import HEAD, MID_HIP, RADII, body_points
@@ -276,7 +276,7 @@ class Scene:
             rng,
             self._correlated(3, block, (*shape, 5), self.profile.edges.correlation_s),
             self._correlated(6, block, shape, self.profile.miss.correlation_s),
-            self._keypoint_normals(block, shape),
+            self._keypoint_draws(block, shape),
         )
         return {
             "world": states.position,
@@ -298,13 +298,17 @@ class Scene:
             correlation_s,
         )
 
-    def _keypoint_normals(self, block: int, shape: tuple[int, ...]) -> np.ndarray | None:
-        """Correlated keypoint noise draws [F, K, P, 17, 2], or None (i.i.d. from the block's
-        own generator, as before keypoint noise had a correlation time) when it has none."""
-        correlation_s = self.profile.keypoint_correlation_s
+    def _keypoint_draws(self, block: int, shape: tuple[int, ...]) -> KeypointDraws | None:
+        """Keypoint noise [F, K, P, 17, 2] and pose-miss latents [F, K, P] correlated over the
+        profile's ``keypoints.correlation_s``, or None (i.i.d. draws from the block's own
+        generator, as before keypoint noise had a correlation time) when it has none."""
+        correlation_s = self.profile.keypoints.correlation_s
         if correlation_s <= 0:
             return None
-        return self._correlated(9, block, (*shape, 17, 2), correlation_s)
+        return KeypointDraws(
+            self._correlated(9, block, (*shape, 17, 2), correlation_s),
+            self._correlated(10, block, shape, correlation_s),
+        )
 
     def _false_boxes(self, block: int) -> np.ndarray:
         """False positives visible in ``block``: [F, K, Q, 4] (see :mod:`false_positives`)."""

@@ -55,11 +55,15 @@ def test_keypoint_model_streams_positions_from_the_scenes_keypoints(keypoint_mod
         assert server.get("/v1/health").json()["pipeline"]["error"] is None
     errors_m, reported, visible = match_to_truth(rig, messages)
     assert visible > 0 and reported >= 0.8 * visible, (reported, visible)
-    # measured 2026-12-01 on this lock-step run (deterministic: seeded training, scene time):
-    # median 0.166 m, 91.1 % within 0.5 m, 510 people reported for 448 visible (tracks on the
-    # profile's false boxes). Before keypoints reached the model every frame failed: no people.
+    # measured 2026-12-01 on this lock-step run (seeded training, scene time): median 0.166 m,
+    # 91.1 % within 0.5 m, 510 people reported for 448 visible (tracks on the profile's false
+    # boxes). Before keypoints reached the model every frame failed: no people. Since the
+    # profile's keypoints are MediaPipe's measured ones (2026-12-02: 5.4 px noise, no pose in
+    # 11-67 % of boxes by height, gross joint errors; bench/results/keypoint_noise.md), three
+    # runs gave 83.1 / 82.2 / 84.4 % within 0.5 m (medians of the last two 0.150 / 0.140 m;
+    # which frames the client sees varies a little with timing).
     assert np.median(errors_m) < 0.25, np.median(errors_m)
-    assert np.mean(errors_m < 0.5) > 0.85, np.mean(errors_m < 0.5)
+    assert np.mean(errors_m < 0.5) > 0.75, np.mean(errors_m < 0.5)
 
 
 def test_keypoint_model_tracks_offline_from_a_datasets_keypoints(
@@ -79,8 +83,11 @@ def test_keypoint_model_tracks_offline_from_a_datasets_keypoints(
     assert len(lines) == 300 and all("people" in json.loads(line) for line in lines)
     # measured 2026-12-01 (deterministic: seeded data, training and shuffle): recall 94.8 %,
     # precision 86.7 %, MOTA 80.3 %, 0 id switches, matched mean 0.143 m (one view 0.176 m,
-    # two views 0.089 m). Before the feed carried keypoints, every frame set failed.
-    assert metrics["recall"] > 85.0 and metrics["mota"] > 60.0, metrics
+    # two views 0.089 m). Before the feed carried keypoints, every frame set failed. With the
+    # measured MediaPipe keypoints in the profile (2026-12-02; poses missing in many boxes):
+    # recall 77.2 %, precision 80.2 %, MOTA 57.8 %, 3 id switches, matched mean 0.135 m (one
+    # view 0.159 m, two views 0.105 m).
+    assert metrics["recall"] > 72.0 and metrics["mota"] > 50.0, metrics
     assert metrics["mean"] < 0.25 and metrics["by_views"]["2"]["mean"] < 0.15, metrics
 
 

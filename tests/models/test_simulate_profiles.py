@@ -363,10 +363,10 @@ def test_shipped_profiles_are_what_the_bench_script_builds(tmp_path: Path) -> No
     assert "less kind" in (tmp_path / "record.md").read_text()
 
 
-def _keypoint_errors(name: str) -> tuple[Scene, np.ndarray]:
+def _keypoint_errors(profile) -> tuple[Scene, np.ndarray]:
     """Per frame the x error (px) of the simulated left ankle against its projected joint,
     one walker seen by one camera (NaN where the ankle is missing)."""
-    scene, obs = _walk(name, blocks=20)
+    scene, obs = _walk(profile, blocks=20)
     world = np.concatenate([obs["joints"][:, 0], np.ones((len(obs["joints"]), 17, 1))], -1)
     pixels = world @ scene.projection_matrices()[0].T
     projected = pixels[..., :2] / pixels[..., 2:]
@@ -374,13 +374,53 @@ def _keypoint_errors(name: str) -> tuple[Scene, np.ndarray]:
 
 
 def test_keypoint_noise_is_correlated_over_time_as_specified() -> None:
-    scene, err = _keypoint_errors("nanodet")
+    scene, err = _keypoint_errors(_profile("nanodet", **{"keypoints.gross.limbs": 0.0}))
     pairs = np.isfinite(err[1:]) & np.isfinite(err[:-1])
-    rho = np.exp(-1 / (scene.fps * scene.profile.keypoint_correlation_s))
-    assert pairs.sum() > 400 and scene.profile.keypoint_correlation_s > 0
+    rho = np.exp(-1 / (scene.fps * scene.profile.keypoints.correlation_s))
+    assert pairs.sum() > 300 and scene.profile.keypoints.correlation_s > 0
     assert abs(np.corrcoef(err[1:][pairs], err[:-1][pairs])[0, 1] - rho) < 0.1
 
     scene, err = _keypoint_errors("ideal")  # the former model: independent per frame
     pairs = np.isfinite(err[1:]) & np.isfinite(err[:-1])
-    assert scene.profile.keypoint_correlation_s == 0
+    assert scene.profile.keypoints.correlation_s == 0
     assert abs(np.corrcoef(err[1:][pairs], err[:-1][pairs])[0, 1]) < 0.1
+
+
+def _isolated_keypoints(heights: np.ndarray, profile, seed: int = 0):
+    """Keypoints [F, 17, 3] of the one person of :func:`_isolated` (joints at the box centre)."""
+    h = np.asarray(heights, float)
+    true = np.stack([320 - 0.2 * h, 240 - h / 2, 320 + 0.2 * h, 240 + h / 2], -1)
+    f = len(h)
+    boxes, keypoints = detect(
+        true[:, None, None, :], np.full((f, 1, 1), 4.0), np.full((f, 1, 1, 17, 2), [320.0, 240.0]),
+        np.zeros((f, 1, 1, 17), bool), SIZE, profile, np.random.default_rng(seed),
+    )  # fmt: skip
+    return boxes[:, 0, 0], keypoints[:, 0, 0]
+
+
+def test_pose_misses_follow_the_keypoint_height_table() -> None:
+    profile = _profile("nanodet", **NO_MISSES)
+    model = profile.keypoints
+    for height in (40.0, 70.8, 200.0):
+        boxes, keypoints = _isolated_keypoints(np.full(20000, height), profile)
+        found = np.isfinite(boxes).all(-1)
+        no_pose = np.isnan(keypoints[found]).all(axis=(1, 2))
+        assert found.all() and abs(no_pose.mean() - model.miss(np.array(height))) < 0.015
+    assert model.miss(np.array(40.0)) > 0.5 > model.miss(np.array(200.0)) > 0  # measured
+
+
+def test_gross_errors_move_joints_into_the_box_at_the_group_rates() -> None:
+    exact_noise = {"keypoints.sigma": 0.0, "keypoints.pixels": 0.0}
+    profile = _profile(
+        "nanodet", **NO_MISSES, **exact_noise, **{"keypoints.miss.probability": [0.0] * 3}
+    )
+    boxes, keypoints = _isolated_keypoints(np.full(20000, 150.0), profile)
+    moved = np.linalg.norm(keypoints[..., :2] - [320.0, 240.0], axis=-1) > 1e-6  # [F, 17]
+    rates = np.asarray(profile.keypoints.gross)
+    assert abs(moved[:, 15].mean() - rates[15]) < 0.01 and rates[15] > 0.15  # ankles: measured
+    assert abs(moved[:, 0].mean() - rates[0]) < 0.01 and abs(moved[:, 11].mean() - rates[11]) < 0.01
+    inside = (keypoints[..., 0] >= boxes[:, None, 0]) & (keypoints[..., 0] <= boxes[:, None, 2])
+    inside &= (keypoints[..., 1] >= boxes[:, None, 1]) & (keypoints[..., 1] <= boxes[:, None, 3])
+    assert inside[moved].all()  # a wild joint lands on the person's box
+    ideal = load_profile("ideal").keypoints
+    assert not ideal.misses and not any(ideal.gross)  # the former model: every pose, no outliers

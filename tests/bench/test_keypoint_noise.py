@@ -1,0 +1,156 @@
+"""The keypoint-noise benchmark's statistics on synthetic numbers whose answers are known.
+
+Pure numpy: MediaPipe (own venv, numpy < 2) is imported only inside the benchmark's run.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bench.keypoint_noise import (
+    MAD_TO_SIGMA,
+    People,
+    add_profile_noise,
+    bootstrap_excess,
+    box_statistics,
+    excess_sigma,
+    fit_sigma_pixels,
+    found_flags,
+    gross_rate,
+    robust_spread,
+)
+
+
+def test_robust_spread_of_known_values() -> None:
+    # median 3, absolute deviations 2, 1, 0, 1, 2 → MAD 1.
+    assert robust_spread([1, 2, 3, 4, 5]) == pytest.approx(MAD_TO_SIGMA)
+    assert robust_spread([1, 2, 3, 4, 5, np.nan]) == pytest.approx(MAD_TO_SIGMA)
+    assert math.isnan(robust_spread([1.0]))
+    assert math.isnan(robust_spread([]))
+
+
+def test_robust_spread_recovers_a_normal_sigma_and_ignores_outliers() -> None:
+    rng = np.random.default_rng(0)
+    x = rng.normal(5.0, 2.0, 200_000)
+    assert robust_spread(x) == pytest.approx(2.0, rel=0.01)
+    x[:1000] = 1e6  # 0.5 % wild values barely move it (the standard deviation would explode)
+    assert robust_spread(x) == pytest.approx(2.0, rel=0.02)
+
+
+def test_excess_sigma() -> None:
+    assert excess_sigma(5.0, 3.0) == pytest.approx(4.0)
+    assert excess_sigma(3.0, 5.0) == 0.0
+    assert excess_sigma(2.0, 0.0) == 2.0
+    assert math.isnan(excess_sigma(math.nan, 1.0))
+
+
+def test_excess_of_independent_noise_is_its_sigma() -> None:
+    rng = np.random.default_rng(1)
+    base = rng.normal(0.0, 0.3, 400_000)
+    noisy = base + rng.normal(0.0, 0.4, base.size)
+    assert excess_sigma(robust_spread(noisy), robust_spread(base)) == pytest.approx(0.4, rel=0.02)
+
+
+def test_fit_recovers_sigma_and_pixels() -> None:
+    heights = [40.0, 80.0, 160.0]
+    spreads = [0.02 * h + 1.5 for h in heights]
+    sigma, pixels = fit_sigma_pixels(heights, spreads, [10, 100, 5])
+    assert sigma == pytest.approx(0.02)
+    assert pixels == pytest.approx(1.5)
+    # Two bins solve it exactly; NaN points are left out.
+    sigma, pixels = fit_sigma_pixels([50.0, 100.0, np.nan], [2.0, 3.0, 7.0])
+    assert (sigma, pixels) == pytest.approx((0.02, 1.0))
+
+
+def test_fit_stays_non_negative() -> None:
+    # Spreads falling with height: the unconstrained slope is negative → pixels only (mean).
+    sigma, pixels = fit_sigma_pixels([50.0, 100.0], [5.0, 3.0])
+    assert sigma == 0.0 and pixels == pytest.approx(4.0)
+    # Weighted: the heavier point dominates the constant.
+    sigma, pixels = fit_sigma_pixels([50.0, 100.0], [5.0, 3.0], [3.0, 1.0])
+    assert sigma == 0.0 and pixels == pytest.approx(4.5)
+    # Proportional with a negative intercept → sigma only, through the origin.
+    sigma, pixels = fit_sigma_pixels([50.0, 100.0], [0.5, 2.0])
+    assert pixels == 0.0 and sigma == pytest.approx((50 * 0.5 + 100 * 2.0) / (50**2 + 100**2))
+    # One point: the better of the two one-coefficient fits (both exact: sigma only first).
+    sigma, pixels = fit_sigma_pixels([50.0], [2.0])
+    assert sigma * 50 + pixels == pytest.approx(2.0)
+    assert all(math.isnan(v) for v in fit_sigma_pixels([], []))
+
+
+def _person(box: list[float], joints: dict[int, tuple[float, float, float]]) -> np.ndarray:
+    kp = np.full((17, 3), np.nan)
+    for j, value in joints.items():
+        kp[j] = value
+    return kp
+
+
+def test_box_statistics_in_units_of_height() -> None:
+    box = [10.0, 100.0, 30.0, 200.0]  # h 100, centre x 20
+    kp = _person(
+        box,
+        {0: (21, 108, 0.9), 11: (18, 150, 0.9), 12: (24, 150, 0.8), 15: (15, 195, 0.9),
+         16: (25, 190, 0.9)},
+    )  # fmt: skip
+    stats = box_statistics(np.array([box]), kp[None], 0.05)
+    assert stats["foot"][0] == pytest.approx(0.05)  # lower ankle at 195
+    assert stats["head"][0] == pytest.approx(0.08)
+    assert stats["hip_x"][0] == pytest.approx(0.01)  # mean hip x 21
+
+
+def test_box_statistics_respect_the_confidence_floor() -> None:
+    box = [0.0, 0.0, 10.0, 50.0]
+    kp = _person(box, {0: (5, 4, 0.01), 11: (4, 25, 0.9), 12: (8, 25, 0.02), 15: (5, 45, 0.9),
+                       16: (5, 49, 0.03)})  # fmt: skip
+    stats = box_statistics(np.array([box]), kp[None], 0.05)
+    assert math.isnan(stats["head"][0])  # nose below the floor
+    assert stats["foot"][0] == pytest.approx(0.1)  # only the left ankle counts
+    assert stats["hip_x"][0] == pytest.approx(-0.02)  # only the left hip
+    none = box_statistics(np.array([box]), np.full((1, 17, 3), np.nan), 0.05)
+    assert all(math.isnan(v[0]) for v in none.values())
+
+
+def test_found_flags() -> None:
+    box = [0.0, 0.0, 10.0, 50.0]
+    kp = np.stack(
+        [
+            _person(box, {0: (5, 4, 0.9), 15: (5, 45, 0.9)}),
+            _person(box, {0: (5, 4, 0.9), 15: (5, 45, 0.01)}),
+            np.full((17, 3), np.nan),
+        ]
+    )
+    flags = found_flags(kp, 0.05)
+    assert flags["pose"].tolist() == [True, True, False]
+    assert flags["ankle"].tolist() == [True, False, False]
+    assert flags["nose"].tolist() == [True, True, False]
+    assert flags["both"].tolist() == [True, False, False]
+
+
+def test_gross_rate() -> None:
+    assert gross_rate([0.0, 0.1, 0.5, -0.4, np.nan], 0.0, 0.25) == pytest.approx(0.5)
+    assert math.isnan(gross_rate([np.nan], 0.0, 0.25))
+
+
+def test_bootstrap_interval_brackets_the_excess() -> None:
+    rng = np.random.default_rng(2)
+    values = rng.normal(0.0, 0.05, 400)
+    low, high = bootstrap_excess(values, 0.03, rng, 500)
+    assert low < excess_sigma(robust_spread(values), 0.03) < high
+    assert low == pytest.approx(0.04, abs=0.01) and high == pytest.approx(0.04, abs=0.01)
+    assert all(math.isnan(v) for v in bootstrap_excess(values[:1], 0.03, rng, 10))
+
+
+def test_profile_noise_has_the_simulators_scale() -> None:
+    n = 100_000
+    boxes = np.tile([0.0, 0.0, 40.0, 100.0], (n, 1))  # h 100
+    kp = np.zeros((n, 17, 3))
+    kp[..., 2] = 0.9
+    kp[:, 0, 2] = 0.2  # the nose marked occluded: three times the noise
+    people = People(boxes, kp, tuple(str(i) for i in range(n)), np.zeros(n, bool))
+    noisy = add_profile_noise(people, 0.02, 1.0, np.random.default_rng(3))
+    assert noisy[:, 11, 1].std() == pytest.approx(3.0, rel=0.02)  # 0.02 · 100 + 1
+    assert noisy[:, 0, 0].std() == pytest.approx(9.0, rel=0.02)
+    assert np.array_equal(noisy[..., 2], kp[..., 2])
