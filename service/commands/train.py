@@ -47,8 +47,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--progress-json",
         action="store_true",
-        help='one JSON line per epoch on stdout: {"epoch", "max_epochs", "val_error_m"} '
-        "(for programs following the training, e.g. the /setup page)",
+        help='one JSON line per epoch on stdout: {"epoch", "max_epochs", "val_error_m" (mean), '
+        '"val_median_m"} (for programs following the training, e.g. the /setup page)',
     )
     parser.set_defaults(func=run)
 
@@ -87,6 +87,11 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _print_epoch(epoch: int, max_epochs: int, val_error_m: float) -> None:
-    line = {"epoch": epoch, "max_epochs": max_epochs, "val_error_m": round(val_error_m, 4)}
+def _print_epoch(epoch: int, max_epochs: int, val_error_m: float, val_median_m: float) -> None:
+    line = {
+        "epoch": epoch,
+        "max_epochs": max_epochs,
+        "val_error_m": round(val_error_m, 4),
+        "val_median_m": round(val_median_m, 4),
+    }
     print(json.dumps(line), flush=True)

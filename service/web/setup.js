@@ -174,8 +174,8 @@ function renderTraining(t, recorded) {
   $("train").disabled = running;
   $("train-cancel").disabled = !running;
   $("train-progress").value = t.epoch && t.max_epochs ? t.epoch / t.max_epochs : t.state === "done" ? 1 : 0;
-  const progress = t.epoch ? `epoch ${t.epoch}${t.max_epochs ? " of " + t.max_epochs : ""}, validation error ${t.val_error_m.toFixed(3)} m` : "";
-  const first = t.first_model ? `first model loaded (${t.first_model.epochs} epochs in ${t.first_model.seconds} s, validation error ${t.first_model.val_error_m.toFixed(3)} m): positions are on the live map; ` : "";
+  const progress = t.epoch ? `epoch ${t.epoch}${t.max_epochs ? " of " + t.max_epochs : ""}, median validation error ${t.val_median_m.toFixed(3)} m` : "";
+  const first = t.first_model ? `first model loaded (${t.first_model.epochs} epochs in ${t.first_model.seconds} s, median validation error ${t.first_model.val_median_m.toFixed(3)} m): positions are on the live map; ` : "";
   const stage = t.stage === "first" && (t.stages || []).length > 1 ? "training a quick first model…" : first ? "final model training…" : "training…";
   $("train-state").textContent = running ? `${first}${stage} ${progress}`
     : t.state === "done" ? `trained (${progress}); model loaded from ${t.model_dir}: positions are on the live map`

@@ -110,3 +110,17 @@ def test_each_model_file_is_written_once_complete_and_readable_by_others(tmp_pat
         "model.json",
         "model.pt",
     ]
+
+
+def test_progress_lines_carry_the_validation_mean_and_median(tmp_path, capsys):
+    """The /setup page shows the median: rows whose only box is a false box set the mean."""
+    data, _ = make_dataset(300, seed=6)
+    path = data.save(tmp_path / "data.npz")
+    args = ["train", str(path), "--out", str(tmp_path / "m"), "--epochs", "3", "--quiet"]
+    assert main([*args, "--progress-json"]) == 0
+    lines = [json.loads(line) for line in capsys.readouterr().out.strip().splitlines()]
+    epochs = [line for line in lines if "epoch" in line]
+    assert [line["epoch"] for line in epochs] == [1, 2, 3]
+    assert all(line["val_median_m"] > 0 and line["val_error_m"] > 0 for line in epochs)
+    best = min(epochs, key=lambda line: line["val_error_m"])  # the model kept
+    assert lines[-1]["val_median_m"] == pytest.approx(best["val_median_m"], abs=0.02)
