@@ -38,10 +38,20 @@ draws. Keypoint noise is, per camera, person, joint and axis, an AR(1) sequence 
 the crop stay the same; with 0 the draws are independent per frame). Occlusion blending is drawn
 independently per frame.
 
-Keypoints (COCO-17) are the projected joints plus ``N(0, keypoint_sigma · h + keypoint_pixels)``
-pixel noise, with confidence U(0.55, 0.95). A joint inside a nearer person's body region, or a
-face point turned away from the camera, is occluded: confidence U(0.05, 0.35) and three times the
-noise. Joints outside the image, and every joint of a missed detection, are NaN.
+Keypoints (COCO-17), as a pose estimator on each found box gives them (the profile's
+``keypoints`` block, measured for MediaPipe by ``bench/keypoint_noise.py``):
+
+1. **No pose**: with probability ``keypoints.miss`` by box height (at the reference height) the
+   estimator finds no pose in the box: every joint NaN, the box still reported. A latent AR(1)
+   with ``keypoints.correlation_s`` (a Gaussian copula, as for the box misses).
+2. **Noise**: the projected joints plus ``N(0, sigma · h + pixels)`` pixels, with confidence
+   U(0.55, 0.95). A joint inside a nearer person's body region, or a face point turned away from
+   the camera, is occluded: confidence U(0.05, 0.35) and three times the noise.
+3. **Gross errors**: each found joint, at its group's ``keypoints.gross`` rate (head, torso,
+   limbs), lands anywhere in the box instead (a collapsed or swapped pose; independent per
+   frame), keeping its confidence.
+
+Joints outside the image, and every joint of a missed detection, are NaN.
 
 False positives (boxes where nobody is) are drawn by :mod:`models.simulate.false_positives`.
 """
