@@ -60,23 +60,12 @@ class SimulatedDetections:
                 out.append(Detections.empty())
                 continue
             observation = self.scene.observe(frame.seq)
-            camera = self.cameras[frame.camera]
-            boxes = np.asarray(observation.boxes, np.float32).reshape(-1, self.scene.num_cameras, 4)
-            points = np.asarray(observation.keypoints, np.float32)
-            joints = points.shape[2] if points.ndim == 4 else 17
-            per_camera = boxes[:, camera, :]
-            keypoints = points[:, camera] if points.ndim == 4 else np.zeros((0, joints, 3))
-            false = np.asarray(observation.false_boxes, np.float32)
-            if false.size:
-                extra = false[camera].reshape(-1, 4)
-                per_camera = np.concatenate([per_camera, extra])
-                keypoints = np.concatenate([keypoints, np.full((len(extra), joints, 3), np.nan)])
-            seen = np.all(np.isfinite(per_camera), axis=1)
+            boxes, keypoints = observation.reported(self.cameras[frame.camera])
             out.append(
                 Detections(
-                    per_camera[seen],
-                    np.ones(int(seen.sum()), np.float32),
-                    keypoints[seen].astype(np.float32),
+                    boxes.astype(np.float32),
+                    np.ones(len(boxes), np.float32),
+                    keypoints.astype(np.float32),
                 )
             )
         return out

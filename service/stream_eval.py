@@ -65,22 +65,12 @@ def in_view(true_boxes: np.ndarray, image_sizes: np.ndarray, min_fraction: float
 def frame_detections(
     obs: FrameObservation, rng: np.random.Generator, keypoints: bool = False
 ) -> list[Detections]:
-    """Per camera the detector's report (people and false positives), shuffled.
-
-    With ``keypoints`` every box carries its COCO-17 keypoints (a keypoint model's input) and a
-    false box carries NaN ones, as the live simulated detector gives them
-    (:class:`service.simulated_detections.SimulatedDetections`: a pose estimator finding no body
-    in the box)."""
-    false = obs.false_boxes
-    joints = obs.keypoints.shape[2]
+    """Per camera the detector's report (people and false positives,
+    :meth:`FrameObservation.reported`), shuffled; with ``keypoints`` every box carries its
+    COCO-17 keypoints (a keypoint model's input; NaN for a false box)."""
     out = []
     for k in range(obs.boxes.shape[1]):
-        seen = np.isfinite(obs.boxes[:, k]).all(axis=1)
-        boxes, points = obs.boxes[seen, k], obs.keypoints[seen, k]
-        if len(false):
-            extra = false[k][np.isfinite(false[k]).all(axis=1)]
-            boxes = np.concatenate([boxes, extra])
-            points = np.concatenate([points, np.full((len(extra), joints, 3), np.nan)])
+        boxes, points = obs.reported(k)
         order = rng.permutation(len(boxes))
         out.append(
             Detections(

@@ -119,6 +119,20 @@ class FrameObservation:
     true_boxes: np.ndarray
     false_boxes: np.ndarray
 
+    def reported(self, camera: int) -> tuple[np.ndarray, np.ndarray]:
+        """What camera ``camera``'s detector reports: boxes [M, 4] (the people it found, then
+        its false positives) and their keypoints [M, 17, 3], NaN for a false box (a pose
+        estimator finding no body in it). Shared by every consumer of simulated detections."""
+        seen = np.isfinite(self.boxes[:, camera]).all(axis=-1)
+        false = self.false_boxes[camera]
+        false = false[np.isfinite(false).all(axis=-1)]
+        joints = self.keypoints.shape[2:]
+        boxes = np.concatenate([self.boxes[seen, camera], false])
+        points = np.concatenate(
+            [self.keypoints[seen, camera], np.full((len(false), *joints), np.nan)]
+        )
+        return boxes, points
+
 
 class Scene:
     """Cameras, people and detections of a :class:`SceneConfig`, reproducible from ``seed``."""

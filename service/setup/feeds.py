@@ -51,12 +51,9 @@ class SyntheticFeed:
             boxes: list[np.ndarray] = []
             keypoints: list[np.ndarray | None] = []
             for k in range(scene.num_cameras):
-                seen = np.isfinite(observation.boxes[:, k]).all(axis=-1)
-                false = observation.false_boxes[k]  # the detector's false positives
-                false = false[np.isfinite(false).all(axis=-1)]
-                boxes.append(np.concatenate([observation.boxes[seen, k], false]))
-                nothing = np.full((len(false), *observation.keypoints.shape[2:]), np.nan)
-                keypoints.append(np.concatenate([observation.keypoints[seen, k], nothing]))
+                found, points = observation.reported(k)  # false positives included
+                boxes.append(found)
+                keypoints.append(points)
             yield FeedFrame(index / self._fps, boxes, keypoints)
 
     def close(self) -> None:
