@@ -66,6 +66,7 @@ from typing import Any
 import numpy as np
 
 from bench.report import RESULTS, machine_line, markdown_table
+from models.sampling import keypoint_visible
 
 MAD_TO_SIGMA = 1.4826  # 1.4826 · MAD of N(0, s) is s
 HEIGHT_BINS: tuple[tuple[str, float, float], ...] = (
@@ -132,12 +133,6 @@ def excess_sigma(real: float, simulated: float) -> float:
     return math.sqrt(max(0.0, real * real - simulated * simulated))
 
 
-def visible(keypoints: np.ndarray, min_confidence: float) -> np.ndarray:
-    """Bool [..., 17]: finite and confidence ≥ ``min_confidence`` (as ``models.sampling``)."""
-    finite = np.isfinite(keypoints[..., :2]).all(-1)
-    return finite & (np.nan_to_num(keypoints[..., 2], nan=-1.0) >= min_confidence)
-
-
 def box_statistics(
     boxes: np.ndarray, keypoints: np.ndarray, min_confidence: float
 ) -> dict[str, np.ndarray]:
@@ -148,7 +143,7 @@ def box_statistics(
     """
     boxes = np.asarray(boxes, float).reshape(-1, 4)
     keypoints = np.asarray(keypoints, float).reshape(len(boxes), -1, 3)
-    seen = visible(keypoints, min_confidence)
+    seen = keypoint_visible(keypoints, min_confidence)
     x, y = keypoints[..., 0], keypoints[..., 1]
     height = boxes[:, 3] - boxes[:, 1]
     centre = (boxes[:, 0] + boxes[:, 2]) / 2
@@ -166,7 +161,7 @@ def box_statistics(
 
 def found_flags(keypoints: np.ndarray, min_confidence: float) -> dict[str, np.ndarray]:
     """Per person: a pose at all, an ankle (either), the nose, both (ankle and nose)."""
-    seen = visible(np.asarray(keypoints, float), min_confidence)
+    seen = keypoint_visible(np.asarray(keypoints, float), min_confidence)
     pose = np.isfinite(np.asarray(keypoints, float)[..., :2]).all(-1).any(-1)
     ankle = seen[:, [LEFT_ANKLE, RIGHT_ANKLE]].any(1)
     nose = seen[:, NOSE]

@@ -212,10 +212,13 @@ def keypoint_estimators(keypoints: np.ndarray, image_size: np.ndarray, draws: Dr
     return weights @ xy
 
 
-def keypoint_visible(keypoints: np.ndarray) -> np.ndarray:
-    """Bool [B, K, J]: keypoint finite with confidence above a floor."""
+def keypoint_visible(
+    keypoints: np.ndarray, min_confidence: float = KEYPOINT_MIN_CONFIDENCE
+) -> np.ndarray:
+    """Bool [..., J]: keypoint finite with confidence at least ``min_confidence`` (the models'
+    floor unless given)."""
     finite = np.isfinite(keypoints).all(axis=-1)
-    return finite & (np.nan_to_num(keypoints[..., 2]) >= KEYPOINT_MIN_CONFIDENCE)
+    return finite & (np.nan_to_num(keypoints[..., 2]) >= min_confidence)
 
 
 def observation_mask(
