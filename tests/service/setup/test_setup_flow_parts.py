@@ -122,3 +122,11 @@ def test_training_failure_is_one_line() -> None:
 def test_check_summary(errors: list[float | None], text: str) -> None:
     marks = [{"name": f"m{i}", "error_m": e} for i, e in enumerate(errors)]
     assert summarise(marks)["text"] == text
+
+
+def test_check_summary_text_shows_the_stored_figure() -> None:
+    """The page's line and the stored median are one number (CI saw 'median 0.06 m' beside
+    median_m 0.065: the line was formatted from 0.0645, the figure rounded from it)."""
+    summary = summarise([{"name": "a", "error_m": 0.064}, {"name": "b", "error_m": 0.065}])
+    assert summary["median_m"] == 0.065
+    assert summary["text"] == f"median {summary['median_m']:.2f} m over 2 marks"
