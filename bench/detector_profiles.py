@@ -38,6 +38,7 @@ How a measurement becomes a table:
 from __future__ import annotations
 
 import argparse
+import inspect
 import itertools
 import json
 import math
@@ -48,6 +49,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.report import RESULTS, markdown_table
+from models.detector.nanodet import NanoDetDetector
 from models.simulate.profile import FORMAT, PROFILE_DIR, parse_profile
 
 MEASUREMENTS = RESULTS / "detector_profile_measurements.json"
@@ -381,6 +383,7 @@ def build(
         f"positives {a['fp_persistence_s']} s), false-positive sizes and places. Built by "
         "bench/detector_profiles.py",
         **_COMMON,
+        **detector_input(name),
         "keypoints": keypoint_block,
         "miss": {
             "height_px": [round(x, 3) for x in xs],
@@ -416,6 +419,17 @@ def build(
     }
     parse_profile(profile, where=name)  # never write a profile the simulator would refuse
     return profile, rows
+
+
+def detector_input(name: str) -> dict[str, Any]:
+    """The profile's ``input`` block for a detector whose input grows with tall frames, read off
+    the detector's own defaults (NanoDet's ``input_size`` and ``max_shrink``) so the simulator
+    follows the detector; empty for a fixed input (SSDLite's 300×300)."""
+    if name != "nanodet":
+        return {}
+    defaults = inspect.signature(NanoDetDetector).parameters
+    _, height = defaults["input_size"].default
+    return {"input": {"height_px": height, "max_shrink": defaults["max_shrink"].default}}
 
 
 def _bins(bins: list[tuple]) -> str:

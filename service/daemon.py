@@ -93,6 +93,7 @@ def build_detect_stage(settings: Settings, player: Any) -> Any:
         "model_path": settings.detector.model_path,
         "letterbox": settings.detector.letterbox,
         "input_size": settings.detector.input_size,
+        "max_shrink": settings.detector.max_shrink,
     }
     threads = settings.detector.threads
     explicit = settings.detector.model_fields_set

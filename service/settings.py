@@ -120,6 +120,15 @@ class DetectorSettings(BaseModel):
     letterbox: bool | None = Field(
         None, description="Pad to the model's square input instead of stretching (default: kind's)."
     )
+    max_shrink: float | None = Field(
+        None,
+        ge=1.0,
+        le=100.0,
+        description="nanodet: a frame that would shrink by more than this into input_size gets a "
+        "larger input, the frame shrunk by exactly this much (1920x1080: 640x384 at the default "
+        "3, ~2.3x the CPU), so high-resolution cameras keep their small people; 100 keeps "
+        "input_size for every frame. Default: the kind's.",
+    )
     keypoints: bool = Field(
         False,
         description="Add COCO-17 keypoints to every box (MediaPipe Pose on each person's crop, "

@@ -8,14 +8,19 @@ says how each one was measured); changing the detector means shipping its profil
 noise model. Shipped: ``ideal`` (the simulator's former flat noise, kept for comparison),
 ``ssdlite`` and ``nanodet`` (the default, :data:`DEFAULT_PROFILE`).
 
-Format ``momloc detector profile v1`` (all keys required; unknown keys are refused; fractions are
-of the box height unless said otherwise; tables are piecewise linear over their ``height_px`` or
-``fraction`` nodes, constant beyond the ends, and a repeated node makes a step)::
+Format ``momloc detector profile v1`` (all keys required but ``input``; unknown keys are refused;
+fractions are of the box height unless said otherwise; tables are piecewise linear over their
+``height_px`` or ``fraction`` nodes, constant beyond the ends, and a repeated node makes a
+step)::
 
     {"format": "momloc detector profile v1", "name": str, "detector": str, "source": str,
      "reference_height_px": 480,   # image height the height tables were measured at; a camera of
                                    # another height looks its boxes up at h * 480 / its height
                                    # (the detector resizes the whole frame to its input)
+     "input": {"height_px": 256, "max_shrink": 3.0},  # optional: the detector's input rows
+                                   # grow with taller frames (models.detector.preprocessing.
+                                   # input_side), so their boxes count at h * 480 / its height
+                                   # * its input rows / the reference frame's input rows
      "min_height_px": 16,          # clipped boxes shorter than this (own pixels) are never found
      "miss": {"height_px": [..], "probability": [..],         # miss probability by box height
               "occlusion": {"fraction": [..], "probability": [..]},   # covered by nearer people
@@ -57,6 +62,7 @@ from typing import Any
 
 import numpy as np
 
+from models.detector.preprocessing import input_side
 from models.errors import MomlocError
 
 FORMAT = "momloc detector profile v1"
@@ -138,6 +144,18 @@ class KeypointModel:
 
 
 @dataclass(frozen=True)
+class DetectorInput:
+    """How the detector sizes its input: ``height_px`` rows for a reference frame, more for a
+    frame taller than ``height_px * max_shrink`` (NanoDet's ``max_shrink`` option)."""
+
+    height_px: int
+    max_shrink: float
+
+    def rows(self, image_height: float) -> int:
+        return input_side(self.height_px, math.ceil(image_height), self.max_shrink)
+
+
+@dataclass(frozen=True)
 class DetectorProfile:
     """One detector's behaviour, loaded from JSON by :func:`load_profile`."""
 
@@ -152,6 +170,7 @@ class DetectorProfile:
     edges: EdgeModel
     false_positives: FalsePositiveModel
     keypoints: KeypointModel
+    input: DetectorInput | None = None  # None: every frame into one fixed input
 
     @classmethod
     def exact(cls) -> DetectorProfile:
@@ -175,8 +194,14 @@ class DetectorProfile:
         )
 
     def reference_height(self, height_px: np.ndarray, image_height: np.ndarray) -> np.ndarray:
-        """Box heights as the profile's tables see them (rescaled to the reference frame)."""
-        return height_px * (self.reference_height_px / np.asarray(image_height, float))
+        """Box heights as the profile's tables see them: rescaled to the reference frame, and
+        back up by as much as the detector's input grows for a taller frame (``input``)."""
+        image_height = np.asarray(image_height, float)
+        scale = self.reference_height_px / image_height
+        if self.input is not None:
+            rows = np.vectorize(self.input.rows, otypes=[float])(image_height)
+            scale = scale * rows / self.input.rows(self.reference_height_px)
+        return height_px * scale
 
     def miss_probability(
         self,
@@ -233,7 +258,7 @@ def _load_path(path: str) -> DetectorProfile:
 def parse_profile(data: Any, where: str = "<profile>") -> DetectorProfile:
     """Validate a decoded JSON object; errors name the key, e.g. ``miss.height_px``."""
     r = _Reader(where)
-    top = r.keys(data, "", _TOP)
+    top = r.keys(data, "", _TOP, optional=("input",))
     if top["format"] != FORMAT:
         raise r.error("format", f"expected '{FORMAT}', got {top['format']!r}")
     miss = r.keys(top["miss"], "miss", _MISS)
@@ -264,7 +289,15 @@ def parse_profile(data: Any, where: str = "<profile>") -> DetectorProfile:
     def edge(name: str, low: float, high: float) -> Table:
         return Table(edge_nodes, r.values(edges[name], f"edges.{name}", len(edge_nodes), low, high))
 
+    detector_input = None
+    if "input" in top:
+        block = r.keys(top["input"], "input", ("height_px", "max_shrink"))
+        detector_input = DetectorInput(
+            height_px=int(r.number(block["height_px"], "input.height_px", 32, 1e4, whole=True)),
+            max_shrink=r.number(block["max_shrink"], "input.max_shrink", 1.0, 100.0),
+        )
     return DetectorProfile(
+        input=detector_input,
         name=r.text(top["name"], "name"),
         detector=r.text(top["detector"], "detector"),
         source=r.text(top["source"], "source"),
@@ -334,13 +367,16 @@ class _Reader:
     def error(self, key: str, problem: str) -> MomlocError:
         return MomlocError(f"detector profile {self.where}: {key or 'top level'}: {problem}")
 
-    def keys(self, value: Any, key: str, expected: tuple[str, ...]) -> dict[str, Any]:
+    def keys(
+        self, value: Any, key: str, expected: tuple[str, ...], optional: tuple[str, ...] = ()
+    ) -> dict[str, Any]:
         if not isinstance(value, dict):
             raise self.error(key, f"expected an object, got {type(value).__name__}")
         prefix = f"{key}." if key else ""
         for name in expected:
             if name not in value:
                 raise self.error(f"{prefix}{name}", "missing")
+        expected += optional
         for name in value:
             if name not in expected:
                 raise self.error(f"{prefix}{name}", f"unknown key (expected {', '.join(expected)})")

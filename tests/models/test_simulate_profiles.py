@@ -274,6 +274,22 @@ def test_heights_are_looked_up_at_the_reference_frame_height() -> None:
     )
 
 
+def test_a_detector_whose_input_grows_sees_tall_frames_at_their_input_scale() -> None:
+    # NanoDet grows its 256 input rows for frames over 768 rows (max_shrink 3): a 1080p frame
+    # gets 384 rows, so a 150 px person there is a 100 px person of the 480 px reference frames
+    # (SSDLite squeezes every frame into 300x300: 66.7 px).
+    nanodet, ssdlite = load_profile("nanodet"), load_profile("ssdlite")
+    heights = np.array([150.0, 90.0])
+    np.testing.assert_allclose(nanodet.reference_height(heights, 1080.0), [100.0, 60.0])
+    np.testing.assert_allclose(ssdlite.reference_height(heights, 1080.0), [150 * 4 / 9, 40.0])
+    np.testing.assert_allclose(nanodet.reference_height(heights, 720.0), heights * 2 / 3)
+    np.testing.assert_allclose(nanodet.reference_height(heights, 480.0), heights)
+    cameras = np.array([[480.0], [1080.0]])  # per camera, broadcast over people
+    np.testing.assert_allclose(
+        nanodet.reference_height(np.array([[90.0, 150.0]]), cameras), [[90, 150], [60, 100]]
+    )
+
+
 def test_same_seed_same_detections_in_any_order_and_other_seed_differs() -> None:
     config = SceneConfig(
         "d", (8.0, 6.0), (CameraSpec((0.05, 0.05, 2.3), (4, 3, 0.9)),), people=3,
@@ -307,6 +323,9 @@ def _mutations() -> list[tuple[str, object, str]]:
         ("false_positives.hotspots", 2.5, "false_positives.hotspots: expected a whole number"),
         ("miss.occlusion", [0, 1], "miss.occlusion: expected an object"),
         ("false_positives.aspect", [0.6, 0.3], "false_positives.aspect: expected [low, high]"),
+        ("input.max_shrink", "DELETE", "input.max_shrink: missing"),
+        ("input.rows", 256, "input.rows: unknown key"),
+        ("input.max_shrink", 0.5, "input.max_shrink: 0.5 outside"),
     ]
 
 

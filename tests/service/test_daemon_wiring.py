@@ -44,3 +44,23 @@ def test_cameras_are_opened_by_their_settings_type(tmp_path: Path) -> None:
     missing = load_settings(None, cameras=[{"type": "file", "path": str(tmp_path / "no.avi")}])
     with pytest.raises(MomlocError, match=r"no\.avi does not exist"):
         build_rig(missing)
+
+
+def test_the_detectors_input_growth_is_a_setting() -> None:
+    from service.daemon import build_detect_stage
+
+    def stage(**detector: object) -> object:
+        settings = load_settings(
+            None,
+            cameras=[{"type": "v4l2", "device": "0"}],
+            detector=detector,
+            detection={"schedule": "every_frame"},
+        )
+        return build_detect_stage(settings, None).detector
+
+    assert stage().max_shrink == 3.0  # the kind's default
+    assert stage(max_shrink=2).max_shrink == 2.0
+    with pytest.raises(MomlocError, match="detector 'ssdlite': bad option"):
+        stage(kind="ssdlite", max_shrink=2)
+    with pytest.raises(MomlocError, match="max_shrink"):
+        stage(max_shrink=0.5)
