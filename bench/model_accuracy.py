@@ -3,7 +3,8 @@
 ``python -m bench.model_accuracy [--quick | --tables] [--profile NAME]`` writes
 ``bench/results/model_accuracy.md`` (with ``--quick``: ``model_accuracy_quick.md``, with
 ``--tables``: ``model_accuracy_tables.md``; with a ``--profile`` other than the default, the
-profile's name is appended, e.g. ``model_accuracy_ideal.md``) and PNG plots next to it.
+profile's name is appended, e.g. ``model_accuracy_ideal.md``, then the ``--presets`` asked for,
+e.g. ``model_accuracy_tables_outdoor-6cam.md``) and PNG plots next to it.
 
 Every recording is simulated with the detector profile ``--profile`` (default: the shipped
 detector's, ``models.simulate.DEFAULT_PROFILE``; ``ideal`` is the former kind noise). ``--tables``
@@ -345,6 +346,7 @@ def main(argv: list[str] | None = None) -> int:
     presets = tuple(args.presets) if args.presets else plan.presets
     suffix = ("_quick" if args.quick else "") + ("_tables" if args.tables else "")
     suffix += "" if profile == DEFAULT_PROFILE else f"_{Path(profile).stem}"
+    suffix += f"_{'_'.join(args.presets)}" if args.presets else ""
     started, load_start = time.monotonic(), os.getloadavg()[0]
     runs: list[PresetRun] = []
     with tempfile.TemporaryDirectory(prefix="momloc-bench-") as work:
@@ -359,6 +361,7 @@ def main(argv: list[str] | None = None) -> int:
     command = f"python -m bench.model_accuracy{' --quick' if args.quick else ''}"
     command += " --tables" if args.tables else ""
     command += f" --profile {args.profile}" if args.profile else ""
+    command += f" --presets {' '.join(args.presets)}" if args.presets else ""
     header = [
         "# Model accuracy: MoM vs. calibrated baseline"
         + (" (quick run)" if args.quick else " (README tables)" if args.tables else ""),
