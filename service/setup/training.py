@@ -124,7 +124,9 @@ class TrainingJob:
             with self._lock:
                 if self._cancelled:
                     break
-                self._state.update(stage=name, epoch=None, val_error_m=None, val_median_m=None)
+                self._state.update(
+                    stage=name, epoch=None, val_error_m=None, val_median_m=None, metrics=None
+                )
                 staging = final.with_name(final.name + ".training")
                 shutil.rmtree(staging, ignore_errors=True)
                 process = _spawn(recording, staging, options)
@@ -136,15 +138,14 @@ class TrainingJob:
             if name == "first" and len(stages) > 1:
                 first_loaded = True
                 self._state["first_model"] = {
-                    "val_error_m": self._state.get("val_error_m"),
-                    "val_median_m": self._state.get("val_median_m"),
+                    **self._kept_figures(),
                     "epochs": self._state.get("epoch"),
                     "seconds": round(time.monotonic() - started, 1),
                     "model": outcome,
                 }
                 log.info("first model loaded; final training continues")
                 continue
-            self._finish("done", model=outcome)
+            self._finish("done", model=outcome, **self._kept_figures())
             return
         self._finish("failed", error="training cancelled")
 
@@ -196,6 +197,16 @@ class TrainingJob:
                 for k in ("val_mean_m", "val_median_m", "epochs_run", "stopped_by", "seconds")
                 if k in update
             }
+
+    def _kept_figures(self) -> dict[str, Any]:
+        """The installed model's validation errors: the stage's closing summary (early stopping
+        keeps the best epoch, up to ``patience`` epochs before the last one), else the last
+        epoch's."""
+        summary = self._state.get("metrics") or {}
+        return {
+            "val_error_m": summary.get("val_mean_m", self._state.get("val_error_m")),
+            "val_median_m": summary.get("val_median_m", self._state.get("val_median_m")),
+        }
 
     def _finish(self, state: str, **fields: Any) -> None:
         self._state.update(state=state, **fields)

@@ -130,3 +130,44 @@ def test_check_summary_text_shows_the_stored_figure() -> None:
     summary = summarise([{"name": "a", "error_m": 0.064}, {"name": "b", "error_m": 0.065}])
     assert summary["median_m"] == 0.065
     assert summary["text"] == f"median {summary['median_m']:.2f} m over 2 marks"
+
+
+def test_training_reports_the_kept_models_error_not_the_last_epochs(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Early stopping keeps the best epoch, ``patience`` epochs before the last: the page's
+    figure for the first and the final model is the kept one's (the closing summary)."""
+    import json
+    import subprocess
+    import sys
+    import time
+
+    from service.setup import training
+
+    def fake_train(recording: Path, staging: Path, options: list[str]) -> subprocess.Popen[str]:
+        lines = [
+            {"epoch": e, "max_epochs": 3, "val_error_m": 0.5, "val_median_m": m}
+            for e, m in ((1, 0.4), (2, 0.2), (3, 0.3))
+        ] + [{"val_mean_m": 0.25, "val_median_m": 0.2, "epochs_run": 3, "stopped_by": "patience"}]
+        script = (
+            f"import pathlib; p = pathlib.Path({str(staging)!r}); p.mkdir(); "
+            "(p / 'encoder.onnx').write_text(''); (p / 'model.json').write_text('{}'); "
+            f"print({chr(10).join(json.dumps(line) for line in lines)!r})"
+        )
+        return subprocess.Popen(
+            [sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+            text=True,
+        )  # fmt: skip
+
+    monkeypatch.setattr(training, "_spawn", fake_train)
+    (tmp_path / "rec.npz").write_bytes(b"")
+    job = training.TrainingJob(lambda: tmp_path, lambda path: {"loaded": True})
+    job.start(tmp_path / "rec.npz", first_model=True)
+    deadline = time.monotonic() + 30
+    while job.status()["state"] == "running" and time.monotonic() < deadline:
+        time.sleep(0.02)
+    done = job.status()
+    assert done["state"] == "done", done
+    assert done["epoch"] == 3  # the last epoch run
+    assert done["val_median_m"] == done["first_model"]["val_median_m"] == 0.2  # the kept one
+    assert done["val_error_m"] == 0.25
