@@ -136,7 +136,9 @@ measured MediaPipe keypoints, every pose-less box falling back to its template p
 a track fed once by a measurement with a pose trusted as if two cameras had seen it (no
 single-view wait, no ghost check): 77.5 / 71.9 / 58.0 / 79.9 / 81.9 % against 79.4 / 70.4 /
 57.6 / 82.6 / 83.3 %; the same and single-view tracks that never had a pose hidden: 80.0 /
-72.7 / 58.5 / 79.9 / 81.9 % (373.0 summed against 373.3): a wash.
+72.7 / 58.5 / 79.9 / 81.9 % (373.0 summed against 373.3): a wash. Caveat: that baseline
+is the template-pose fallback, which :mod:`models.sampling` then rejected; the shipped
+keypoint models (no fallback) were not re-measured with these two tracker variants.
 
 ``meta`` (one dict per detection) is passed through: ``cameras`` is copied onto the track and the
 whole dict is kept as ``Track.meta``.
