@@ -8,17 +8,17 @@ from models.simulate import Scene
 from service.stream_eval import frame_detections, scene_config
 
 
-def _observation_with_false_boxes() -> tuple[Scene, object]:
+def _observation_with_false_boxes() -> object:
     scene = Scene(scene_config("indoor-2cam", 3, "nanodet"), seed=4)
     for i in range(400):
         obs = scene.observe(i)
         if np.isfinite(obs.false_boxes).all(-1).any() and np.isfinite(obs.boxes).all(-1).any():
-            return scene, obs
+            return obs
     raise AssertionError("no frame with both people and false boxes")
 
 
 def test_keypoints_ride_with_their_boxes_and_false_boxes_have_none() -> None:
-    _, obs = _observation_with_false_boxes()
+    obs = _observation_with_false_boxes()
     with_points = frame_detections(obs, np.random.default_rng(0), keypoints=True)
     boxes_only = frame_detections(obs, np.random.default_rng(0))
     for k, found in enumerate(with_points):
