@@ -48,6 +48,7 @@ bench-model: $(VENV)/.stamp-dev
 bench-detector: $(VENV)/.stamp-dev
 	$(PY) -m bench.detector_speed
 	$(PY) -m bench.detector_accuracy
+	$(PY) -m bench.highres_recall
 
 bench-service: $(VENV)/.stamp-dev
 	$(PY) -m bench.service_latency

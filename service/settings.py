@@ -126,8 +126,8 @@ class DetectorSettings(BaseModel):
         le=100.0,
         description="nanodet: a frame that would shrink by more than this into input_size gets a "
         "larger input, the frame shrunk by exactly this much (1920x1080: 640x384 at the default "
-        "3, ~2.3x the CPU), so high-resolution cameras keep their small people; 100 keeps "
-        "input_size for every frame. Default: the kind's.",
+        "3, ~2.4x the CPU of 320x256), so high-resolution cameras keep their small people; 100 "
+        "keeps input_size for every frame. Default: the kind's.",
     )
     keypoints: bool = Field(
         False,

@@ -82,15 +82,16 @@ class NanoDetDetector(PersonDetector):
     input_size: network input (width, height), multiples of 32. 320×256 keeps most of a 640×480
         frame's detail for people 80–300 px tall at a cost close to SSDLite's (benchmark).
     max_shrink: a frame that would shrink by more than this into ``input_size`` (per axis) gets
-        a larger input instead, the frame shrunk by exactly this much (a 1920×1080 frame: 640×384,
-        ~2.3× the CPU of 320×256), so a high-resolution camera's small people stay large enough
-        for the network and keep their aspect ratio
+        a larger input instead, the frame shrunk by exactly this much (a 1920×1080 frame:
+        640×384, ~2.4× the CPU of a 320×256 input on the same frame), so a high-resolution
+        camera's small people stay large enough for the network and keep their aspect ratio
         (:func:`~models.detector.preprocessing.input_for_frame`). Measured on 1920×1080 frames
-        (``bench/results/highres_recall.md``): recall 0.88 → 0.95 on drawn outdoor frames (people
-        under 100 px 0.55 → 0.82) and 0.72 → 0.91 on the hand-checked video at that size; shrink
-        2 (4.5× the CPU) found more people under 100 px (0.91) but fewer drawn people over 200 px
-        (0.80 against 0.91), 4 was less precise (0.87 against 0.95 on the video). ``None``:
-        every frame into ``input_size``.
+        (``bench/results/highres_recall.md``): recall 0.88 → 0.95 on drawn outdoor frames
+        (people under 100 px 0.55 → 0.82) and 0.72 → 0.91 on the hand-checked video at that
+        size; shrink 2 (twice the CPU of shrink 3) found more people under 100 px (0.91) but
+        fewer drawn people over 200 px (0.80 against 0.91) and fired on a static signpost
+        (precision 0.87), 4 on a traffic cone (0.87 against 0.95). ``None``: every frame into
+        ``input_size``.
     letterbox: pad to the input's aspect ratio instead of stretching.
     iou_threshold: greedy NMS overlap.
     max_detections: at most this many people per frame.
