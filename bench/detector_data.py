@@ -20,15 +20,19 @@ import hashlib
 import json
 import shutil
 import subprocess
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 
 from bench.detector_metrics import Truth
 from models.errors import MomlocError
+
+if TYPE_CHECKING:
+    from models.simulate import Scene
 
 DATA = Path(__file__).resolve().parent / "data"
 VTEST_LABELS = DATA / "vtest_people.json"
@@ -197,25 +201,31 @@ def simulated_truth(
 def simulator_samples(
     frames_per_scene: int = 6, seeds: Sequence[int] = (1, 2), step: int = 45
 ) -> Iterator[Sample]:
-    """Drawn frames of several scenes and seeds (every camera), people of all sizes."""
+    """Drawn frames of several scenes and seeds (every 640×480 camera), people of all sizes."""
     from models.simulate import Scene, get_config
 
     for preset, changes in SIM_PLAN:
         config = get_config(preset, **changes)
         tag = preset + ("-more" if changes else "")
         for seed in seeds:
-            scene = Scene(config, seed)
-            for f in range(frames_per_scene):
-                frame = f * step
-                observed = scene.observe(frame)
-                centre = observed.joints.mean(axis=1)  # [P, 3]
-                for k, camera in enumerate(scene.cameras_at(frame)):
-                    if tuple(camera.image_size) != FRAME_SIZE:
-                        continue
-                    depth = (centre @ camera.R.T + camera.t)[:, 2]
-                    truth = simulated_truth(observed.true_boxes[:, k], depth, camera.image_size)
-                    image = scene.render(frame, k)
-                    yield Sample(f"sim:{tag}/s{seed}/f{frame}/c{k}", image, truth)
+            frames = range(0, frames_per_scene * step, step)
+            yield from scene_samples(Scene(config, seed), frames, f"{tag}/s{seed}", FRAME_SIZE)
+
+
+def scene_samples(
+    scene: Scene, frames: Iterable[int], tag: str, size: tuple[int, int] | None = None
+) -> Iterator[Sample]:
+    """Each camera's drawn frame at ``frames`` with its truth (only cameras of ``size`` when
+    given); nearer people occlude farther ones by the depth of their joints' centre."""
+    for frame in frames:
+        observed = scene.observe(frame)
+        centre = observed.joints.mean(axis=1)  # [P, 3]
+        for k, camera in enumerate(scene.cameras_at(frame)):
+            if size is not None and tuple(camera.image_size) != size:
+                continue
+            depth = (centre @ camera.R.T + camera.t)[:, 2]
+            truth = simulated_truth(observed.true_boxes[:, k], depth, camera.image_size)
+            yield Sample(f"sim:{tag}/f{frame}/c{k}", scene.render(frame, k), truth)
 
 
 def photo_samples(doc: dict | None = None) -> list[Sample]:

@@ -38,7 +38,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from bench.detector_data import FRAME_SIZE, Sample, simulated_truth, vtest_samples
+from bench.detector_data import FRAME_SIZE, Sample, scene_samples, vtest_samples
 from bench.detector_metrics import HEIGHT_BANDS, Evaluation, Truth, evaluate
 from models.detector import create_detector
 from models.detector.nanodet import NanoDetDetector
@@ -93,20 +93,12 @@ def rebuilt(sample: Sample, size: tuple[int, int]) -> Sample:
 
 
 def drawn_samples() -> Iterator[Sample]:
-    """Every camera of the outdoor preset at a few frames and seeds; truth (occlusion, cut-off)
-    derived as :func:`bench.detector_data.simulator_samples` does for the 640×480 presets."""
+    """Every camera of the outdoor preset at a few frames and seeds."""
     from models.simulate import Scene, get_config
 
     for seed in DRAWN_SEEDS:
         scene = Scene(get_config(DRAWN_PRESET), seed)
-        for frame in DRAWN_FRAMES:
-            observed = scene.observe(frame)
-            centre = observed.joints.mean(axis=1)  # [P, 3]
-            for k, camera in enumerate(scene.cameras_at(frame)):
-                depth = (centre @ camera.R.T + camera.t)[:, 2]
-                truth = simulated_truth(observed.true_boxes[:, k], depth, camera.image_size)
-                image = scene.render(frame, k)
-                yield Sample(f"sim:{DRAWN_PRESET}/s{seed}/f{frame}/c{k}", image, truth)
+        yield from scene_samples(scene, DRAWN_FRAMES, f"{DRAWN_PRESET}/s{seed}")
 
 
 def detectors() -> dict[float | None, NanoDetDetector]:
