@@ -27,6 +27,21 @@ height bins (the foot decides a single-view position), and a check draws the sim
 noise with the fitted values onto its true joints and compares the spreads it then gives with
 the real ones.
 
+Gross errors. A statistic more than ``GROSS`` (0.25 h) from the median of **its own** height
+bin's real values is gross (a collapsed or swapped pose); the rate over all heights pools the
+bins. Centring each bin on its own real median, not on the simulated one, keeps a bias out of
+the count: the real foot median sits +0.12 h above the simulated one at < 60 px, +0.07 h at
+60-100 px, so around the simulated median ordinary noise tail counted as gross (the foot rate
+was 0.208 that way, 0.154 about the real medians, run of 2026-12-03). The simulator draws gross
+errors as one event per person and joint group (``models.simulate.noise.gross_errors``: the
+group's joints land anywhere in the box), and an event is not a gross statistic (a wild pair of
+ankles may land low), so the profile's rate is calibrated, not copied: :func:`calibrate_gross`
+bisects the rate until the simulator's statistic, through the same :func:`box_statistics` and
+:func:`pooled_gross` with the calibrated noise, is gross as often as the real one (foot: 0.154
+real needs limbs 0.327 per person; the former independent per-joint draws at 0.208 gave the
+simulated foot statistic 0.027). Noise and rates are calibrated in turns (:func:`calibrate`),
+since the real robust spread has the real gross errors in it.
+
 What the excess contains besides keypoint noise: the hand boxes' own error (about ±1 px
 vertically, ±2 px horizontally, per the label file), so it is an **upper bound** on the keypoint
 noise for the vertical groups as far as annotation goes; and any difference between the
@@ -66,7 +81,7 @@ from typing import Any
 import numpy as np
 
 from bench.report import RESULTS, machine_line, markdown_table
-from models.sampling import keypoint_visible
+from models.sampling import KEYPOINT_MIN_CONFIDENCE, keypoint_visible
 
 MAD_TO_SIGMA = 1.4826  # 1.4826 · MAD of N(0, s) is s
 HEIGHT_BINS: tuple[tuple[str, float, float], ...] = (
@@ -85,8 +100,13 @@ SIM_PLAN: tuple[tuple[str, dict[str, Any]], ...] = (
 SIM_SEEDS = (0, 1, 2)
 SIM_STEP = 3  # frames between sampled simulator frames (decorrelates the gait a little)
 MIN_SIM_PER_BIN = 100  # fewer simulated people in a bin: use the pooled simulated spread
-GROSS = 0.25  # a joint this far (fraction of h) from the simulated median is a gross error
+GROSS = 0.25  # a statistic this far (fraction of h) from its bin's own median is a gross error
 CALIBRATION_ROUNDS = 4
+# keypoints.gross group of the profile -> the statistic measuring it (limbs: the ankles, the only
+# limb joints measured; torso: the hips); ``calibrate_gross`` fits each group's rate to it
+GROSS_STATISTICS = {"head": "head", "torso": "hip_x", "limbs": "foot"}
+GROSS_BISECTIONS = 30
+GROSS_ROUNDS = 3  # noise, then rates, alternated this often (a fourth round changes nothing)
 
 
 @dataclass(frozen=True)
@@ -175,6 +195,29 @@ def gross_rate(values: np.ndarray | Sequence[float], centre: float, limit: float
     return float(np.mean(np.abs(x - centre) > limit)) if x.size else math.nan
 
 
+def pooled_gross(
+    values: np.ndarray,
+    heights: np.ndarray,
+    weights: Sequence[float] | None = None,
+) -> tuple[float, list[float]]:
+    """The gross rate over the height bins (``HEIGHT_BINS`` but ``all``), each bin's values
+    centred on **their own** median (so a bias that differs between bins, like the real foot's
+    +0.12 h at < 60 px against +0.07 h at 60-100 px, is not counted as gross), averaged with
+    ``weights`` per bin (default: the bin's finite values, i.e. the pooled count). Returns the
+    rate and the per-bin rates."""
+    values = np.asarray(values, float)
+    rates, counts = [], []
+    for _, low, high in HEIGHT_BINS[:-1]:
+        x = values[in_bin(heights, low, high)]
+        rates.append(gross_rate(x, finite_median(x), GROSS))
+        counts.append(int(np.isfinite(x).sum()))
+    w = np.asarray(counts if weights is None else weights, float)
+    r = np.asarray(rates, float)
+    ok = np.isfinite(r) & (w > 0)
+    total = float((w[ok] * r[ok]).sum() / w[ok].sum()) if ok.any() else math.nan
+    return total, rates
+
+
 def in_bin(heights: np.ndarray, low: float, high: float) -> np.ndarray:
     return (heights >= low) & (heights < high)
 
@@ -230,16 +273,30 @@ def bootstrap_excess(
     return float(low), float(high)
 
 
-def add_profile_noise(
-    people: People, sigma: float, pixels: float, rng: np.random.Generator
-) -> np.ndarray:
-    """The simulator's keypoint noise (``models.simulate.noise``) on exact keypoints: N(0, sigma ·
-    h + pixels) px, three times that on joints the exact profile marks occluded (conf < 0.4)."""
+def simulator_keypoints(sigma: float, pixels: float, gross: dict[str, float] | None = None) -> Any:
+    """A profile's keypoint block with this noise and these gross rates per group (no pose
+    misses: the statistics are of found poses)."""
+    from models.simulate.profile import KEYPOINT_GROUPS, KeypointModel, Table
+
+    rates = [0.0] * 17
+    for group, joints in KEYPOINT_GROUPS.items():
+        for j in joints:
+            rates[j] = (gross or {}).get(group, 0.0)
+    return KeypointModel(sigma, pixels, 0.0, Table((0.0,), (0.0,)), tuple(rates))
+
+
+def add_profile_noise(people: People, model: Any, rng: np.random.Generator) -> np.ndarray:
+    """The simulator's keypoint noise and gross errors (``models.simulate.noise``:
+    ``keypoint_noise_scale`` and ``gross_errors``, the very functions it draws with) on exact
+    keypoints: occluded are the joints the exact profile marks so (confidence < 0.4, its
+    occluded range being U(0.05, 0.35)); gross errors land in the person's (true) box."""
+    from models.simulate.noise import gross_errors, keypoint_noise_scale
+
     kp = people.keypoints.copy()
-    scale = sigma * people.heights[:, None] + pixels
-    scale = np.where(kp[..., 2] < 0.4, 3.0 * scale, scale)
+    scale = keypoint_noise_scale(model, people.heights, kp[..., 2] < 0.4)
     kp[..., :2] += rng.standard_normal(kp[..., :2].shape) * scale[..., None]
-    return kp
+    wild = gross_errors(kp[:, None, None], people.boxes[:, None, None], model, rng)
+    return wild[:, 0, 0]
 
 
 # ---------------------------------------------------------------- data
@@ -404,6 +461,10 @@ def spreads_by_bin(
             excess = excess_sigma(s_real, s_sim)
             low_ci, high_ci = bootstrap_excess(values_r, s_sim, rng, draws)
             median_s = finite_median(values_s)
+            if name == "all":
+                gross = pooled_gross(stats_real[group], real.heights)[0]
+            else:
+                gross = gross_rate(values_r, finite_median(values_r), GROSS)
             row[group] = {
                 "n": int(np.isfinite(values_r).sum()),
                 "n_sim": n_sim,
@@ -416,7 +477,7 @@ def spreads_by_bin(
                 "median_real": finite_median(values_r),
                 "median_sim": median_s,
                 "bias": finite_median(values_r) - median_s,
-                "gross": gross_rate(values_r, median_s, GROSS),
+                "gross": gross,
             }
         rows.append(row)
     return rows
@@ -442,18 +503,24 @@ def fit_group(rows: list[dict[str, Any]], group: str = "foot") -> dict[str, Any]
 
 
 def calibrate_foot(
-    real: People, sim: People, fit: dict[str, Any], min_confidence: float, seed: int
+    real: People,
+    sim: People,
+    fit: dict[str, Any],
+    min_confidence: float,
+    seed: int,
+    gross: dict[str, float] | None = None,
 ) -> dict[str, Any]:
-    """Refit so that the simulator's noise model, seen through the same foot statistic (the
-    lower of two noisy ankles), reproduces the real foot spread: each round scales every bin's
-    target by real / simulated-with-noise spread and fits again."""
+    """Refit so that the simulator's noise model (with gross errors at ``gross`` rates per
+    group: the real spread has its gross errors in it too), seen through the same foot statistic
+    (the lower of two noisy ankles), reproduces the real foot spread: each round scales every
+    bin's target by real / simulated-with-noise spread and fits again."""
     points = fit["points"]
     targets = np.array([p["excess_px"] for p in points], float)
     heights = [p["h_px"] for p in points]
     weights = [p["weight"] for p in points]
     sigma, pixels = fit["sigma"], fit["pixels"]
     for _ in range(CALIBRATION_ROUNDS):
-        rows = check_fit(real, sim, sigma, pixels, min_confidence, seed)
+        rows = check_fit(real, sim, sigma, pixels, min_confidence, seed, gross)
         by_bin = {r["bin"]: r["foot"] for r in rows}
         ratio = np.array(
             [by_bin[p["bin"]]["spread_real"] / by_bin[p["bin"]]["spread_sim_noisy"] for p in points]
@@ -463,23 +530,161 @@ def calibrate_foot(
     return {"sigma": sigma, "pixels": pixels, "targets_px": targets.tolist()}
 
 
-def check_fit(
-    real: People, sim: People, sigma: float, pixels: float, min_confidence: float, seed: int
-) -> list[dict[str, Any]]:
-    """Simulated spreads with the simulator's noise at (sigma, pixels) next to the real ones."""
+def calibrate(
+    real: People, sim: People, fit: dict[str, Any], min_confidence: float, seed: int
+) -> tuple[dict[str, Any], dict[str, dict[str, Any]], list[dict[str, Any]]]:
+    """Noise and gross rates calibrated together: the noise (:func:`calibrate_foot`) without
+    gross errors, the gross rates at that noise (:func:`calibrate_gross`), then the noise again
+    with those gross errors in (the real spread has its own in it) and the rates again at the
+    new noise. Returns the noise, the rates and each round's figures."""
+    gross_rates: dict[str, float] | None = None
+    rounds: list[dict[str, Any]] = []
+    for _ in range(GROSS_ROUNDS):
+        noise = calibrate_foot(real, sim, fit, min_confidence, seed, gross_rates)
+        gross = calibrate_gross(real, sim, noise["sigma"], noise["pixels"], min_confidence, seed)
+        gross_rates = {g: c["rate"] for g, c in gross.items()}
+        rounds.append({"sigma": noise["sigma"], "pixels": noise["pixels"], "gross": gross_rates})
+    return noise, gross, rounds
+
+
+def calibrate_gross(
+    real: People,
+    sim: People,
+    sigma: float,
+    pixels: float,
+    min_confidence: float,
+    seed: int,
+) -> dict[str, dict[str, Any]]:
+    """Per group of ``keypoints.gross``, the rate at which the simulator's gross errors (one
+    event per person and group, :func:`models.simulate.noise.gross_errors`), on top of its noise
+    at (sigma, pixels), make the group's statistic as often gross as on real video.
+
+    Both sides through the same code: :func:`box_statistics`, then :func:`pooled_gross` (each
+    height bin about its own median); the simulated bins weighted by the real people with the
+    joint in each (the simulator has far more tall people than vtest). The rate is bisected on
+    [0, 1] with the same draws at every step. Noise alone may already be gross as often as
+    reality (rate 0), or no rate may reach it (a wild pair of hips stays inside the box, whose
+    half width is under 0.25 h: then 1 would be needed and nothing is calibrated: ``reached``
+    is False and the rate is the measured statistic's rate itself)."""
+    stats_real = box_statistics(real.boxes, real.keypoints, min_confidence)
+    out: dict[str, dict[str, Any]] = {}
+    for group, statistic in GROSS_STATISTICS.items():
+        measured, _ = pooled_gross(stats_real[statistic], real.heights)
+        weights = [
+            int(np.isfinite(stats_real[statistic][in_bin(real.heights, lo, hi)]).sum())
+            for _, lo, hi in HEIGHT_BINS[:-1]
+        ]
+
+        def simulated(
+            rate: float,
+            group: str = group,
+            statistic: str = statistic,
+            weights: list[int] = weights,
+        ) -> float:
+            model = simulator_keypoints(sigma, pixels, {group: rate})
+            noisy = add_profile_noise(sim, model, np.random.default_rng(seed))
+            values = box_statistics(sim.boxes, noisy, min_confidence)[statistic]
+            return pooled_gross(values, sim.heights, weights)[0]
+
+        at_zero, at_one = simulated(0.0), simulated(1.0)
+        reached = at_zero >= measured or at_one >= measured
+        if at_zero >= measured:
+            rate = 0.0
+        elif at_one < measured:
+            rate = measured
+        else:
+            low, high = 0.0, 1.0
+            for _ in range(GROSS_BISECTIONS):
+                mid = (low + high) / 2
+                low, high = (mid, high) if simulated(mid) < measured else (low, mid)
+            rate = high
+        out[group] = {
+            "statistic": statistic,
+            "measured": measured,
+            "weights": weights,
+            "simulated_noise_only": at_zero,
+            "simulated_all_wild": at_one,
+            "reached": reached,
+            "rate": rate,
+            "simulated": simulated(rate),
+            "simulated_per_joint_model": simulated_per_joint(
+                sim, sigma, pixels, group, measured, statistic, weights, min_confidence, seed
+            ),
+        }
+    return out
+
+
+def simulated_per_joint(
+    sim: People,
+    sigma: float,
+    pixels: float,
+    group: str,
+    rate: float,
+    statistic: str,
+    weights: Sequence[float],
+    min_confidence: float,
+    seed: int,
+) -> float:
+    """The group statistic's gross rate under the simulator's former gross errors (each joint
+    wild on its own at ``rate``, the measured statistic's rate applied per joint), for the
+    record of what the per-group events changed."""
+    from models.simulate.profile import KEYPOINT_GROUPS
+
     rng = np.random.default_rng(seed)
-    noisy = People(sim.boxes, add_profile_noise(sim, sigma, pixels, rng), sim.tags, sim.occluded)
+    model = simulator_keypoints(sigma, pixels)
+    kp = add_profile_noise(sim, model, rng)
+    members = list(KEYPOINT_GROUPS[group])
+    wild = np.zeros(kp.shape[:2], bool)
+    wild[:, members] = rng.random((len(kp), len(members))) < rate
+    wild &= np.isfinite(kp[..., 0])
+    lo, hi = sim.boxes[:, None, :2], sim.boxes[:, None, 2:]
+    kp[..., :2] = np.where(
+        wild[..., None], lo + rng.random(kp[..., :2].shape) * (hi - lo), kp[..., :2]
+    )
+    values = box_statistics(sim.boxes, kp, min_confidence)[statistic]
+    return pooled_gross(values, sim.heights, weights)[0]
+
+
+def check_fit(
+    real: People,
+    sim: People,
+    sigma: float,
+    pixels: float,
+    min_confidence: float,
+    seed: int,
+    gross: dict[str, float] | None = None,
+) -> list[dict[str, Any]]:
+    """Simulated spreads with the simulator's noise at (sigma, pixels) (and gross errors at
+    ``gross`` rates per group) next to the real ones."""
+    rng = np.random.default_rng(seed)
+    model = simulator_keypoints(sigma, pixels, gross)
+    noisy = People(sim.boxes, add_profile_noise(sim, model, rng), sim.tags, sim.occluded)
     stats_real = box_statistics(real.boxes, real.keypoints, min_confidence)
     stats_sim = box_statistics(noisy.boxes, noisy.keypoints, min_confidence)
+    gross_real = {g: pooled_gross(stats_real[g], real.heights) for g in GROUPS}
+    gross_sim = {
+        g: pooled_gross(
+            stats_sim[g],
+            sim.heights,
+            [
+                int(np.isfinite(stats_real[g][in_bin(real.heights, lo, hi)]).sum())
+                for _, lo, hi in HEIGHT_BINS[:-1]
+            ],
+        )
+        for g in GROUPS
+    }
     rows = []
-    for name, low, high in HEIGHT_BINS:
+    for i, (name, low, high) in enumerate(HEIGHT_BINS):
         mask_r = in_bin(real.heights, low, high)
         mask_s = in_bin(sim.heights, low, high)
         row: dict[str, Any] = {"bin": name, "n_sim": int(mask_s.sum())}
         for group in GROUPS:
+            pick = 0 if name == "all" else 1
             row[group] = {
                 "spread_real": robust_spread(stats_real[group][mask_r]),
                 "spread_sim_noisy": robust_spread(stats_sim[group][mask_s]),
+                "gross_real": gross_real[group][0] if pick == 0 else gross_real[group][1][i],
+                "gross_sim_noisy": gross_sim[group][0] if pick == 0 else gross_sim[group][1][i],
             }
         rows.append(row)
     return rows
@@ -544,13 +749,44 @@ def miss_table(rows: list[dict[str, Any]]) -> str:
 
 
 def check_table(rows: list[dict[str, Any]]) -> str:
-    header = ["height bin", "sim people"] + [f"{g} real / sim+noise" for g in GROUPS]
+    header = ["height bin", "sim people"]
+    header += [f"{g} spread real / sim" for g in GROUPS]
+    header += [f"{g} gross real / sim" for g in GROUPS]
     cells = []
     for r in rows:
         cell: list[object] = [r["bin"], r["n_sim"]]
         for g in GROUPS:
             cell.append(f"{_f(r[g]['spread_real'])} / {_f(r[g]['spread_sim_noisy'])}")
+        for g in GROUPS:
+            cell.append(f"{_f(r[g]['gross_real'], 2)} / {_f(r[g]['gross_sim_noisy'], 2)}")
         cells.append(cell)
+    return markdown_table(header, cells)
+
+
+def gross_table(gross: dict[str, dict[str, Any]]) -> str:
+    header = [
+        "group",
+        "statistic",
+        "real gross",
+        "sim: noise only",
+        "sim: group always wild",
+        "**rate**",
+        "sim at rate",
+        "sim, former per-joint draws at the real rate",
+    ]
+    cells = [
+        [
+            group,
+            c["statistic"],
+            _f(c["measured"]),
+            _f(c["simulated_noise_only"]),
+            _f(c["simulated_all_wild"]),
+            f"**{_f(c['rate'])}**" + ("" if c["reached"] else " (unreachable: kept as measured)"),
+            _f(c["simulated"]),
+            _f(c["simulated_per_joint_model"]),
+        ]
+        for group, c in gross.items()
+    ]
     return markdown_table(header, cells)
 
 
@@ -582,12 +818,19 @@ def summary(result: dict[str, Any]) -> list[str]:
         f"- Bias (median real − sim): foot {foot['bias']:+.3f} h (MediaPipe's ankle sits higher "
         f"in the box than the simulator's), head {head['bias']:+.3f} h, "
         f"hip x {hip['bias']:+.3f} h; the simulator has no keypoint bias.",
-        f"- Gross errors (a joint > {GROSS} h from the simulated median, e.g. a collapsed pose): "
-        f"foot {foot['gross']:.0%}, head {head['gross']:.0%}, hip x {hip['gross']:.0%} of found "
-        "joints; the simulator has none.",
+        f"- Gross errors (a statistic > {GROSS} h from its height bin's own median, e.g. a "
+        f"collapsed pose): foot {foot['gross']:.1%}, head {head['gross']:.1%}, hip x "
+        f"{hip['gross']:.1%} of the people with the joint. Simulator rates per person and group "
+        "that reproduce them through the same statistics: "
+        + ", ".join(
+            f"{g} {c['rate']:.3f}" + ("" if c["reached"] else " (unreachable, kept as measured)")
+            for g, c in result["gross_calibrated"].items()
+        )
+        + ".",
         f"- Proposed: sigma {fit['sigma']:.4f}, pixels {fit['pixels']:.2f} (direct fit to the "
         f"foot excess); sigma {calibrated['sigma']:.4f}, pixels {calibrated['pixels']:.2f} when "
-        "calibrated through the simulator's lower-ankle statistic. Assumed so far: sigma "
+        "calibrated through the simulator's lower-ankle statistic, with its gross errors in. "
+        "Assumed so far: sigma "
         f"{result['assumed_profile']['sigma']}, pixels {result['assumed_profile']['pixels']}.",
     ]
 
@@ -623,6 +866,7 @@ def render(result: dict[str, Any]) -> str:
         "",
         "Spreads are 1.4826 · MAD in units of box height h; excess = sqrt(max(0, real² − sim²)); "
         "excess px = excess × the bin's median real h; bias = median real − median sim (of h); "
+        f"gross: more than {GROSS} h from the bin's own median (the all row pools the bins); "
         f"90 % intervals from {result['bootstrap']} bootstrap draws over the real people.",
         "",
         "## Summary",
@@ -658,10 +902,29 @@ def render(result: dict[str, Any]) -> str:
         "",
         "Calibrated through the simulator (each bin's target scaled by real / simulated-with-noise "
         f"foot spread, refitted, {CALIBRATION_ROUNDS} rounds; this undoes the shrinking by the "
-        f"lower-of-two-ankles statistic): **sigma {calibrated['sigma']:.4f}, pixels "
-        f"{calibrated['pixels']:.2f}**.",
+        "lower-of-two-ankles statistic), with the simulator's gross errors at the rates below "
+        "(the real spread has its own gross errors in it; noise and rates alternated "
+        f"{GROSS_ROUNDS} times: "
+        + "; ".join(
+            f"{r['pixels']:.2f} px, limbs {r['gross']['limbs']:.3f}"
+            for r in result["calibration_rounds"]
+        )
+        + f"): **sigma {calibrated['sigma']:.4f}, pixels {calibrated['pixels']:.2f}**.",
         "",
         check_table(result["check_calibrated"]),
+        "",
+        "## Gross errors, calibrated through the simulator",
+        "",
+        "The real rate is how often a group's statistic is more than "
+        f"{GROSS} h from its height bin's own median (bins pooled by their people). The simulator "
+        "draws one event per person and group (`models.simulate.noise.gross_errors`: the group's "
+        "found joints land anywhere in the box); its rate is bisected until the simulated "
+        "statistic, through the same `box_statistics` and `pooled_gross`, with the calibrated "
+        "noise, each bin weighted by the real people in it, is gross as often as the real one. "
+        "The last column is the simulator's former model (each joint wild on its own) at the "
+        "real rate: a gross lower ankle then needs both ankles wild, so it fell far short.",
+        "",
+        gross_table(result["gross_calibrated"]),
         "",
         "The same direct fit for the other groups (for comparison; the profile has one pair for "
         "every joint):",
@@ -772,7 +1035,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     rng = np.random.default_rng(args.seed)
     spreads = spreads_by_bin(clean, sim, args.min_confidence, rng, args.bootstrap)
     fit = fit_group(spreads, "foot")
-    calibrated = calibrate_foot(clean, sim, fit, args.min_confidence, args.seed)
+    calibrated, gross, rounds = calibrate(clean, sim, fit, args.min_confidence, args.seed)
+    rates = {g: c["rate"] for g, c in gross.items()}
     return {
         "command": args.command,
         "machine": machine_line(),
@@ -797,9 +1061,17 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "fit": fit,
         "fit_by_group": {g: fit_group(spreads, g) for g in GROUPS},
         "calibrated": calibrated,
+        "gross_calibrated": gross,
+        "calibration_rounds": rounds,
         "check": check_fit(clean, sim, fit["sigma"], fit["pixels"], args.min_confidence, args.seed),
         "check_calibrated": check_fit(
-            clean, sim, calibrated["sigma"], calibrated["pixels"], args.min_confidence, args.seed
+            clean,
+            sim,
+            calibrated["sigma"],
+            calibrated["pixels"],
+            args.min_confidence,
+            args.seed,
+            rates,
         ),
         "occluded": {
             "misses": miss_rates(occluded, args.min_confidence),
@@ -825,13 +1097,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sim-frames", type=int, default=400, help="per scene and seed")
     parser.add_argument("--bootstrap", type=int, default=2000)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--min-confidence", type=float, default=None)
+    parser.add_argument("--min-confidence", type=float, default=KEYPOINT_MIN_CONFIDENCE)
     parser.add_argument("--out", type=Path, default=RESULTS / "keypoint_noise.md")
     args = parser.parse_args(argv)
-    if args.min_confidence is None:
-        from models.sampling import KEYPOINT_MIN_CONFIDENCE
-
-        args.min_confidence = KEYPOINT_MIN_CONFIDENCE
     given = sys.argv[1:] if argv is None else argv
     args.command = " ".join(["python -m bench.keypoint_noise", *map(shlex.quote, given)])
     result = run(args)

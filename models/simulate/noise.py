@@ -46,10 +46,19 @@ Keypoints (COCO-17), as a pose estimator on each found box gives them (the profi
    with ``keypoints.correlation_s`` (a Gaussian copula, as for the box misses).
 2. **Noise**: the projected joints plus ``N(0, sigma · h + pixels)`` pixels, with confidence
    U(0.55, 0.95). A joint inside a nearer person's body region, or a face point turned away from
-   the camera, is occluded: confidence U(0.05, 0.35) and three times the noise.
-3. **Gross errors**: each found joint, at its group's ``keypoints.gross`` rate (head, torso,
-   limbs), lands anywhere in the box instead (a collapsed or swapped pose; independent per
-   frame), keeping its confidence.
+   the camera, is occluded: confidence U(0.05, 0.35) and three times the noise
+   (:func:`keypoint_noise_scale`).
+3. **Gross errors**: per person and joint group (head, torso, limbs), with the group's
+   ``keypoints.gross`` rate, the whole group goes wild: each of its found joints lands anywhere
+   in the box instead, keeping its confidence (a collapsed or swapped pose takes both ankles,
+   not one; independent per frame). One event per group, not per joint, because what the rate
+   is measured on is a group statistic: ``bench/keypoint_noise.py`` counts how often the lower
+   ankle (box bottom minus the lowest ankle) is gross on real video. With independent per-joint
+   draws both ankles had to go wild, and land high, for that statistic to turn gross: at the
+   per-joint limb rate 0.208 the simulated foot statistic was gross 0.027 of the time, against
+   0.154 for MediaPipe (``bench/results/keypoint_noise.md``, 2026-12-03). The profile's rates
+   are calibrated through this model (``calibrate_gross`` there) so that the simulated
+   statistics are gross as often as the real ones (limbs 0.327 per person).
 
 Joints outside the image, and every joint of a missed detection, are NaN.
 
@@ -63,10 +72,22 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import ndtr
 
-from models.simulate.profile import DetectorProfile
+from models.simulate.profile import KEYPOINT_GROUPS, DetectorProfile, KeypointModel
 
 _GRID_X, _GRID_Y = 8, 12
 _BODY_WIDTH = 0.7
+OCCLUDED_NOISE = 3.0  # an occluded or turned-away joint's noise, times a visible one's
+
+
+def keypoint_noise_scale(
+    model: KeypointModel, height: np.ndarray, occluded: np.ndarray
+) -> np.ndarray:
+    """The keypoint noise's standard deviation in pixels, ``sigma · h + pixels``, times
+    :data:`OCCLUDED_NOISE` on occluded joints: ``height`` [...] box heights (px), ``occluded``
+    [..., J] bool → [..., J]. The one formula the simulator draws with and
+    ``bench.keypoint_noise`` calibrates through."""
+    scale = model.sigma * np.asarray(height, float)[..., None] + model.pixels
+    return np.where(occluded, OCCLUDED_NOISE * scale, scale)
 
 
 def correlated_normals(
@@ -231,16 +252,17 @@ def detect(
         rng,
         None if keypoint_draws is None else keypoint_draws.normals,
     )
-    return boxes, _gross_errors(keypoints, boxes, profile, rng)
+    return boxes, gross_errors(keypoints, boxes, profile.keypoints, rng)
 
 
 @dataclass(frozen=True)
 class KeypointDraws:
     """Standard normals of one block's keypoints: the pixel noise [F,K,P,17,2] and the latent of
-    the pose-miss decision [F,K,P] (None: i.i.d. draws from the block's generator)."""
+    the pose-miss decision [F,K,P] (pass no ``KeypointDraws`` at all for i.i.d. draws from the
+    block's generator)."""
 
-    normals: np.ndarray | None
-    miss_latent: np.ndarray | None
+    normals: np.ndarray
+    miss_latent: np.ndarray
 
 
 def _pose_found(
@@ -256,22 +278,29 @@ def _pose_found(
     if not model.misses:
         return True
     ref = profile.reference_height(np.nan_to_num(height), image_size[:, 1, None].astype(float))
-    latent = None if draws is None else draws.miss_latent
-    if latent is None:
-        latent = rng.standard_normal(height.shape)
+    latent = rng.standard_normal(height.shape) if draws is None else draws.miss_latent
     return ndtr(latent) >= model.miss(ref)
 
 
-def _gross_errors(
-    keypoints: np.ndarray, boxes: np.ndarray, profile: DetectorProfile, rng: np.random.Generator
+def gross_errors(
+    keypoints: np.ndarray, boxes: np.ndarray, model: KeypointModel, rng: np.random.Generator
 ) -> np.ndarray:
-    """Found joints moved, at the profile's per-joint rate, to a uniform place inside the
-    person's box: a collapsed or swapped pose puts a joint anywhere on the body."""
-    rate = np.asarray(profile.keypoints.gross)
-    if not (rate > 0).any():
+    """Keypoints [F,K,P,J,3] with gross errors: per person and joint group of
+    :data:`~models.simulate.profile.KEYPOINT_GROUPS`, at the group's rate, every found joint of
+    the group moved to its own uniform place inside the person's box [F,K,P,4] (a collapsed or
+    swapped pose puts the group's joints anywhere on the body). The draws come last from the
+    block's generator (one uniform per person and group, then the places), so the boxes drawn
+    before them do not depend on the rates."""
+    rates = np.asarray(model.gross)
+    if not (rates > 0).any():
         return keypoints
     f, k, p, j, _ = keypoints.shape
-    wild = (rng.random((f, k, p, j)) < rate) & np.isfinite(keypoints[..., 0])
+    event = rng.random((f, k, p, len(KEYPOINT_GROUPS)))
+    wild = np.zeros((f, k, p, j), bool)
+    for g, joints in enumerate(KEYPOINT_GROUPS.values()):
+        members = list(joints)
+        wild[..., members] = event[..., g, None] < rates[members]
+    wild &= np.isfinite(keypoints[..., 0])
     u = rng.random((f, k, p, j, 2))
     lo, hi = boxes[..., None, :2], boxes[..., None, 2:]
     out = keypoints.copy()
@@ -293,8 +322,7 @@ def _keypoints(
 ) -> np.ndarray:
     f, k, p, j, _ = joints.shape
     occluded = _covered(joints, regions, nearer) | face_away
-    sigma = profile.keypoints.sigma * height[..., None] + profile.keypoints.pixels
-    sigma = np.where(occluded, 3.0 * sigma, sigma)
+    sigma = keypoint_noise_scale(profile.keypoints, height, occluded)
     if normals is None:
         normals = rng.normal(0.0, 1.0, (f, k, p, j, 2))
     noisy = joints + normals * sigma[..., None]

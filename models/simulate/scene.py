@@ -4,9 +4,14 @@
 ``[seed, 0]``, the appearance (clothes) from ``[seed, 2]``, and the detector noise of frames
 ``64 b .. 64 b + 63`` from ``[seed, 1, b]`` (plus ``[seed, 3, b]`` and ``[seed, 3, b + 1]`` for
 the temporally correlated edge errors, ``[seed, 6, b]`` and ``[seed, 6, b + 1]`` for the
-persistent misses, ``[seed, 4, b]``, ``[seed, 4, b + 1]`` and ``[seed, 8, b]`` for the false
-positives, ``[seed, 5]`` for their fixed places), so ``observe(i)`` returns the same arrays
-whatever was observed before, and ``simulate`` (which observes whole blocks at once) agrees with it.
+persistent misses, ``[seed, 9, b]`` and ``[seed, 9, b + 1]`` for the keypoint noise and
+``[seed, 10, b]`` and ``[seed, 10, b + 1]`` for the pose-miss latents when the profile's keypoints
+have a correlation time (without one both come from ``[seed, 1, b]``), ``[seed, 4, b]``,
+``[seed, 4, b + 1]`` and ``[seed, 8, b]`` for the false positives, ``[seed, 5]`` for their fixed
+places), so ``observe(i)`` returns the same arrays whatever was observed before, and ``simulate``
+(which observes whole blocks at once) agrees with it. ``[seed, 1, b]`` is drawn from in a fixed
+order, boxes first and the keypoints' gross errors last, so the boxes do not depend on the
+keypoint model.
 
 How blind the detector is comes from ``SceneConfig.detector_profile`` (a shipped profile's name,
 a JSON path or a loaded :class:`~models.simulate.profile.DetectorProfile`; default the shipped
@@ -122,7 +127,11 @@ class FrameObservation:
     def reported(self, camera: int) -> tuple[np.ndarray, np.ndarray]:
         """What camera ``camera``'s detector reports: boxes [M, 4] (the people it found, then
         its false positives) and their keypoints [M, 17, 3], NaN for a false box (a pose
-        estimator finding no body in it). Shared by every consumer of simulated detections."""
+        estimator finding no body in it). What the live simulated detector
+        (``service.simulated_detections``), the set-up feed (``service.setup.feeds``) and the
+        stream evaluation (``service.stream_eval``) read; some benchmarks (``bench.stream_bound``,
+        ``bench.association``, ``bench.realtime``) read ``boxes`` directly instead, without the
+        false positives."""
         seen = np.isfinite(self.boxes[:, camera]).all(axis=-1)
         false = self.false_boxes[camera]
         false = false[np.isfinite(false).all(axis=-1)]
