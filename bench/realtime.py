@@ -194,12 +194,12 @@ def run_pipeline(rig: ClipRig, detect: Any, seconds: float, warmup: float = 2.0)
     pipeline.add_detection_listener(lambda t, b: boxes.append(sum(len(x) for x in b)))
     pipeline.start()
     time.sleep(warmup)
-    pipeline.throughput.latency.clear()  # measure after warm-up only
+    pipeline.throughput.clear_latencies()  # measure after warm-up only
     cpu0, wall0, done0 = os.times(), time.time(), pipeline.frames_processed
     n0 = len(boxes)
     time.sleep(seconds)
     cpu1, wall1, done1 = os.times(), time.time(), pipeline.frames_processed
-    latency = list(np.array(pipeline.throughput.latency, float) * 1e3)
+    latency = list(pipeline.throughput.latencies_ms())
     stats = pipeline.stats()
     pipeline.stop()
     return {

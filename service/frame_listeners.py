@@ -109,34 +109,51 @@ class Previews:
 
 
 class Throughput:
-    """Frame rate over the last ~4 s, capture -> publish latency percentiles, stage timings."""
+    """Frame rate over the last ~4 s, capture -> publish latency percentiles, stage timings.
+
+    Written by the pipeline thread, read by /v1/health and /metrics on server threads: both
+    hold the lock (iterating a deque while another thread appends raised "deque mutated during
+    iteration", a 500 from /v1/health under load)."""
 
     def __init__(self, clock: Callable[[], float] = time.time) -> None:
         self._clock = clock
+        self._lock = threading.Lock()
         self._done: deque[float] = deque(maxlen=120)  # publish times, for fps
-        self.latency: deque[float] = deque(maxlen=600)  # capture -> publish, seconds
+        self._latency: deque[float] = deque(maxlen=600)  # capture -> publish, seconds
         self._stage_ms: dict[str, float] = {}
 
     def __call__(self, result: FrameResult) -> None:
         now = self._clock()
-        self._done.append(now)
-        self.latency.append(now - result.t_capture)
-        self._stage_ms = dict(result.timings_ms)
+        with self._lock:
+            self._done.append(now)
+            self._latency.append(now - result.t_capture)
+            self._stage_ms = dict(result.timings_ms)
+
+    def latencies_ms(self) -> np.ndarray:
+        """The recent capture -> publish latencies, in milliseconds."""
+        with self._lock:
+            return np.array(self._latency, float) * 1e3
+
+    def clear_latencies(self) -> None:
+        with self._lock:
+            self._latency.clear()
 
     def stats(self) -> dict[str, Any]:
         now = self._clock()
-        recent = [t for t in self._done if now - t <= 4.0]
+        with self._lock:
+            recent = [t for t in self._done if now - t <= 4.0]
+            stage_ms = dict(self._stage_ms)
         fps = 0.0
         if len(recent) >= 2 and recent[-1] > recent[0]:
             fps = (len(recent) - 1) / (recent[-1] - recent[0])
-        lat = np.array(self.latency, float) * 1e3
+        lat = self.latencies_ms()
         return {
             "fps": round(fps, 2),
             "latency_ms": {
                 "p50": round(float(np.percentile(lat, 50)), 2) if lat.size else None,
                 "p95": round(float(np.percentile(lat, 95)), 2) if lat.size else None,
             },
-            "stage_ms": {k: round(v, 2) for k, v in self._stage_ms.items()},
+            "stage_ms": {k: round(v, 2) for k, v in stage_ms.items()},
         }
 
 

@@ -74,3 +74,39 @@ def test_metrics_text_reads_live_state():
     assert "momloc_people 2.0" in text
     assert 'momloc_camera_connected{camera="0"} 1.0' in text
     assert "momloc_frames_dropped_total 4.0" in text
+
+
+def test_throughput_stats_are_read_safely_while_frames_are_published():
+    """/v1/health read the fps window while the pipeline thread appended to it: CI saw
+    'RuntimeError: deque mutated during iteration' (a 500). Here the publisher is let in
+    exactly while stats() iterates the window; readers and the writer now share a lock, so it
+    waits instead of mutating."""
+    import threading
+    from collections import deque
+
+    from service.frame_listeners import Throughput
+
+    reading, appended = threading.Event(), threading.Event()
+
+    class Window(deque):
+        def __iter__(self):
+            iterator = super().__iter__()
+            reading.set()
+            appended.wait(0.5)  # a publisher that can get in appends now
+            return iterator
+
+    throughput = Throughput()
+    frame = SimpleNamespace(t_capture=0.0, timings_ms={"detect": 1.0})
+    throughput(frame)
+    throughput._done = Window(throughput._done, maxlen=120)
+
+    def publish() -> None:
+        reading.wait(5)
+        throughput(frame)
+        appended.set()
+
+    publisher = threading.Thread(target=publish)
+    publisher.start()
+    stats = throughput.stats()
+    publisher.join()
+    assert appended.is_set() and stats["latency_ms"]["p50"] is not None
