@@ -39,6 +39,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=None,
         help="pad to square instead of stretching (detector default)",
     )
+    parser.add_argument(
+        "--max-shrink",
+        type=float,
+        help="nanodet: shrink larger frames by at most this much (a larger input; detector "
+        "default 3; e.g. 100 keeps 320x256 for every frame)",
+    )
     parser.add_argument("--keypoints", action="store_true", help="add MediaPipe keypoints")
     parser.add_argument("--out-dir", type=Path, help="write annotated copies here")
     parser.add_argument("--no-write", action="store_true", help="only print, write no images")
@@ -67,6 +73,8 @@ def run(args: argparse.Namespace) -> int:
         options["score_threshold"] = args.threshold
     if args.letterbox is not None:
         options["letterbox"] = args.letterbox
+    if args.max_shrink is not None:
+        options["max_shrink"] = args.max_shrink
     detector = create_detector(args.detector, **options)
 
     results = []

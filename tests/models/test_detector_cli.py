@@ -35,6 +35,20 @@ def test_detect_prints_boxes_and_writes_annotated_copies(tmp_path, capsys):
     assert (out_dir / "snapshot.detections.jpg").is_file()
 
 
+def test_detect_finds_a_1080p_snapshots_small_people_unless_told_to_squeeze(tmp_path, capsys):
+    snapshot = tmp_path / "hd.png"
+    tile, _ = person_frame("astronaut", 130, anchor=(0.5, 0.8))
+    frame = np.full((1080, 1920, 3), tile[0, 0], np.uint8)
+    frame[300:780, 640:1280] = tile
+    cv2.imwrite(str(snapshot), frame)
+    assert main(["detect", "--no-write", str(snapshot)]) == 0
+    assert "1 person (1920x1080)" in capsys.readouterr().out
+    assert main(["detect", "--no-write", "--max-shrink", "100", str(snapshot)]) == 0
+    assert "0 people (1920x1080)" in capsys.readouterr().out
+    assert main(["detect", "--detector", "ssdlite", "--max-shrink", "2", str(snapshot)]) == 2
+    assert "bad option" in capsys.readouterr().err
+
+
 def test_detect_errors_are_one_line(tmp_path, capsys):
     bad = tmp_path / "bad.jpg"
     bad.write_bytes(b"no jpeg here")
