@@ -31,50 +31,16 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from models.dataset import MomDataset  # noqa: E402
 from models.simulate import Scene, get_config, simulate  # noqa: E402
-from models.simulate.detector_view import camera_truth, match  # noqa: E402
+from models.simulate.detector_view import detector_dataset  # noqa: E402
 from models.train import train_model  # noqa: E402
 from service.demo import DEMO_FPS, DEMO_PEOPLE, DEMO_PRESET, DEMO_SEED, demo_settings  # noqa: E402
 from service.settings import DEMO_MODEL_DIR  # noqa: E402
 
 TRAIN_SEED = DEMO_SEED + 1000
-
-
-def detector_dataset(scene: Scene, frames: range, detector, progress: bool = False) -> MomDataset:
-    """Rows of detector boxes on the drawn frames of ``scene``, labelled with the true positions."""
-    sizes = [camera.image_size for camera in scene.cameras]
-    world, boxes, frame_ids, tracks = [], [], [], []
-    for count, f in enumerate(frames):
-        obs = scene.observe(f)
-        images = [scene.render(f, k) for k in range(scene.num_cameras)]
-        found = detector.detect(images)
-        rows = np.full((len(obs.track), scene.num_cameras, 4), np.nan, np.float32)
-        hips = obs.joints[:, 11:13].mean(1)
-        for k, detections in enumerate(found):
-            depth = scene.cameras[k].project_depth(hips)[1]
-            truth = camera_truth(obs.true_boxes[:, k], depth, sizes[k])
-            hit = match(truth.boxes, detections.boxes)
-            rows[hit >= 0, k] = detections.boxes[hit[hit >= 0]]
-        seen = np.isfinite(rows).all(-1).any(-1)
-        world.append(obs.world[seen, :2])
-        boxes.append(rows[seen])
-        frame_ids.append(np.full(int(seen.sum()), f))
-        tracks.append(obs.track[seen])
-        if progress and count % 200 == 0:
-            print(f"  frame {count}/{len(frames)}", file=sys.stderr, flush=True)
-    return MomDataset(
-        world=np.concatenate(world),
-        boxes=np.concatenate(boxes),
-        frame=np.concatenate(frame_ids),
-        track=np.concatenate(tracks),
-        image_size=np.array(sizes, np.int32),
-    )
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,8 +1,8 @@
 """What a detector *should* find in a rendered frame, and which of its boxes found whom.
 
-Shared by the rendering benchmark (``bench/render_recall.py``), the rendered-recall test and
-``tools/make_demo_model.py`` (which labels real detector boxes with the simulator's truth), so all
-three count people the same way:
+Shared by the rendering benchmark (``bench/render_recall.py``), the rendered-recall test,
+``tools/make_demo_model.py`` and ``bench/highres_localization.py`` (which label real detector boxes
+with the simulator's truth through :func:`detector_dataset`), so all count people the same way:
 
 - the **reference box** of a person is the true box of the projected body clipped to the image;
 - ``visible`` is the fraction of the true box's area inside the image (truncation);
@@ -18,10 +18,18 @@ counting only at IoU >= ``min_iou``.
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
+
+from models.dataset import MomDataset
+
+if TYPE_CHECKING:
+    from models.detector.base import PersonDetector
+    from models.simulate.scene import Scene
 
 CLEAR_VISIBLE = 0.9
 CLEAR_OCCLUDED = 0.2
@@ -97,3 +105,42 @@ def match(truth_boxes: np.ndarray, detections: np.ndarray, min_iou: float = 0.5)
     good = iou[r, c] >= min_iou
     out[rows[r[good]]] = c[good]
     return out
+
+
+def detector_dataset(
+    scene: Scene, frames: range, detector: PersonDetector, progress: bool = False
+) -> MomDataset:
+    """Rows of detector boxes on the drawn frames of ``scene``, labelled with the true positions.
+
+    Every frame's cameras are drawn and sent through ``detector`` (``detect(images)``, one result
+    with ``boxes`` per image); each detection is labelled with the person whose reference box it
+    overlaps most (one-to-one, IoU >= 0.5, :func:`match`). Detections matching nobody are dropped;
+    a person the detector misses in a camera is NaN there; a person no camera found has no row.
+    """
+    sizes = [camera.image_size for camera in scene.cameras]
+    world, boxes, frame_ids, tracks = [], [], [], []
+    for count, f in enumerate(frames):
+        obs = scene.observe(f)
+        images = [scene.render(f, k) for k in range(scene.num_cameras)]
+        found = detector.detect(images)
+        rows = np.full((len(obs.track), scene.num_cameras, 4), np.nan, np.float32)
+        hips = obs.joints[:, 11:13].mean(1)
+        for k, detections in enumerate(found):
+            depth = scene.cameras[k].project_depth(hips)[1]
+            truth = camera_truth(obs.true_boxes[:, k], depth, sizes[k])
+            hit = match(truth.boxes, detections.boxes)
+            rows[hit >= 0, k] = detections.boxes[hit[hit >= 0]]
+        seen = np.isfinite(rows).all(-1).any(-1)
+        world.append(obs.world[seen, :2])
+        boxes.append(rows[seen])
+        frame_ids.append(np.full(int(seen.sum()), f))
+        tracks.append(obs.track[seen])
+        if progress and count % 200 == 0:
+            print(f"  frame {count}/{len(frames)}", file=sys.stderr, flush=True)
+    return MomDataset(
+        world=np.concatenate(world),
+        boxes=np.concatenate(boxes),
+        frame=np.concatenate(frame_ids),
+        track=np.concatenate(tracks),
+        image_size=np.array(sizes, np.int32),
+    )
