@@ -49,6 +49,7 @@ bench-detector: $(VENV)/.stamp-dev
 	$(PY) -m bench.detector_speed
 	$(PY) -m bench.detector_accuracy
 	$(PY) -m bench.highres_recall
+	$(PY) -m bench.highres_localization
 
 bench-service: $(VENV)/.stamp-dev
 	$(PY) -m bench.service_latency
