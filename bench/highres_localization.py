@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.report import RESULTS, machine_line, markdown_table
+from bench.report import RESULTS, command_line, machine_line, markdown_table
 
 PRESET = "outdoor-6cam"
 SETTINGS: tuple[float | None, ...] = (None, 3.0)
@@ -353,9 +353,7 @@ def main(argv: list[str] | None = None) -> int:
         "trained with `models.train.train_model` defaults (seed 0) on that setting's training "
         "rows and evaluated with `models.evaluate` (the served localizer) on its test rows."
     )
-    command = " ".join(
-        ["python -m bench.highres_localization", *(sys.argv[1:] if argv is None else argv)]
-    )
+    command = command_line("bench.highres_localization", argv)
     text = report(results, command, header)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(text)

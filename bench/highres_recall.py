@@ -26,7 +26,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
@@ -37,7 +36,7 @@ import numpy as np
 
 from bench.detector_data import FRAME_SIZE, Sample, scene_samples, vtest_samples
 from bench.detector_metrics import HEIGHT_BANDS, Evaluation, Truth, evaluate
-from bench.report import machine_line
+from bench.report import command_line, machine_line
 from models.detector import create_detector
 from models.detector.nanodet import NanoDetDetector
 from models.detector.preprocessing import PAD_VALUE, input_for_frame
@@ -260,9 +259,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"vtest {size[0]}x{size[1]} done", flush=True)
     rows += measure("drawn", drawn_samples(), models, SMALL)
     counts = {"vtest": len(video), "drawn": rows[-1].result.frames}
-    command = " ".join(
-        ["python -m bench.highres_recall", *(sys.argv[1:] if argv is None else argv)]
-    )
+    command = command_line("bench.highres_recall", argv)
     text = report(rows, counts, command)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(text)

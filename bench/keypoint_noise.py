@@ -69,8 +69,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import shlex
-import sys
 import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -80,7 +78,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.report import RESULTS, machine_line, markdown_table
+from bench.report import RESULTS, command_line, machine_line, markdown_table
 from models.sampling import KEYPOINT_MIN_CONFIDENCE, keypoint_visible
 
 MAD_TO_SIGMA = 1.4826  # 1.4826 · MAD of N(0, s) is s
@@ -1100,8 +1098,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--min-confidence", type=float, default=KEYPOINT_MIN_CONFIDENCE)
     parser.add_argument("--out", type=Path, default=RESULTS / "keypoint_noise.md")
     args = parser.parse_args(argv)
-    given = sys.argv[1:] if argv is None else argv
-    args.command = " ".join(["python -m bench.keypoint_noise", *map(shlex.quote, given)])
+    args.command = command_line("bench.keypoint_noise", argv)
     result = run(args)
     text = render(result)
     args.out.parent.mkdir(parents=True, exist_ok=True)

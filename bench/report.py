@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import os
 import platform
+import shlex
+import sys
 from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
@@ -36,6 +38,13 @@ def machine_line() -> str:
         f"Machine: {cores} cores ({cpu_model()}), Python {platform.python_version()}, "
         f"numpy {np.__version__}; run {now}."
     )
+
+
+def command_line(module: str, argv: Sequence[str] | None) -> str:
+    """The command that ran a bench, as one would type it again (``argv`` None: the process's
+    own arguments, as ``argparse`` reads them)."""
+    given = sys.argv[1:] if argv is None else list(argv)
+    return shlex.join(["python", "-m", module, *given])
 
 
 def markdown_table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> str:

@@ -24,14 +24,13 @@ import argparse
 import hashlib
 import os
 import platform
-import shlex
-import sys
 import tempfile
 from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
 
+from bench.report import command_line
 from models.mom_runtime import MomRuntime
 from service.stream_eval import run_stream, scene_config
 from service.tracking import RECOMMENDED, Tracker
@@ -301,8 +300,7 @@ def main(argv: list[str] | None = None) -> int:
         help="what the models read: the detector's boxes or the simulated keypoints",
     )
     args = parser.parse_args(argv)
-    given = sys.argv[1:] if argv is None else argv
-    command = shlex.join(["python", "-m", "bench.stream_accuracy", *given])
+    command = command_line("bench.stream_accuracy", argv)
     if args.quick:
         args.frames, args.seeds, args.train_frames, args.epochs = 300, args.seeds[:1], 800, 40
     scenes = SCENES
