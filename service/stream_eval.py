@@ -62,12 +62,11 @@ def in_view(true_boxes: np.ndarray, image_sizes: np.ndarray, min_fraction: float
     return np.any(np.nan_to_num(fraction) >= min_fraction, axis=1)
 
 
-def frame_detections(
-    obs: FrameObservation, rng: np.random.Generator, keypoints: bool = False
-) -> list[Detections]:
+def frame_detections(obs: FrameObservation, rng: np.random.Generator) -> list[Detections]:
     """Per camera the detector's report (people and false positives,
-    :meth:`FrameObservation.reported`), shuffled; with ``keypoints`` every box carries its
-    COCO-17 keypoints (a keypoint model's input; NaN for a false box)."""
+    :meth:`FrameObservation.reported`), shuffled, every box with its COCO-17 keypoints (NaN for
+    a false box), as :class:`service.simulated_detections.SimulatedDetections` hands them to the
+    daemon: the association reads them for a keypoint model only."""
     out = []
     for k in range(obs.boxes.shape[1]):
         boxes, points = obs.reported(k)
@@ -76,7 +75,7 @@ def frame_detections(
             Detections(
                 boxes[order].astype(np.float32).reshape(-1, 4),
                 np.ones(len(order), np.float32),
-                points[order].astype(np.float32) if keypoints else None,
+                points[order].astype(np.float32),
             )
         )
     return out
@@ -113,11 +112,10 @@ def run_stream(
     scorers = {float(g): StreamScorer(g) for g in gates}
     coverage = coverage_function(runtime, [True] * int(runtime.num_cameras))
     bias = ViewBias() if view_bias is True else view_bias or None
-    with_keypoints = getattr(runtime, "observation", "bbox") == "keypoints"
     for i in range(frames):
         obs = scene.observe(i)
         t = i / scene.fps
-        detections = frame_detections(obs, rng, with_keypoints)
+        detections = frame_detections(obs, rng)
         result = associate(detections, runtime, max_error_px, max_view_gap_m)
         meta = [
             {"cameras": a.cameras, "cost": a.cost, "association": j} for j, a in enumerate(result)
