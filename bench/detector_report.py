@@ -22,7 +22,7 @@ import numpy as np
 
 from bench.detector_accuracy import IOU_THRESHOLDS, REFERENCE, SCORE_THRESHOLDS, DetectorRun
 from bench.detector_metrics import HEIGHT_BANDS, Evaluation
-from bench.report import RESULTS, machine_line, markdown_table
+from bench.report import RESULTS, machine_line, markdown_table, strict_json
 
 CURVE_EDGES = [*range(0, 320, 20), 480]  # 20 px bins; the last collects everyone taller
 EDGE_BINS = [0, 50, 100, 150, 200, 300, 480]
@@ -68,16 +68,6 @@ def _flag_rates(evaluation: Evaluation) -> dict[str, dict[str, object]]:
     return out
 
 
-def _json_clean(value: object) -> object:
-    if isinstance(value, float):
-        return round(value, 4) if np.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: _json_clean(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_json_clean(v) for v in value]
-    return value
-
-
 @dataclass
 class Report:
     runs: dict[str, DetectorRun]
@@ -100,7 +90,9 @@ class Report:
         md = RESULTS / f"detector_accuracy{self.suffix}.md"
         md.write_text(self.markdown(png.name))
         js = RESULTS / f"detector_profile_measurements{self.suffix}.json"
-        js.write_text(json.dumps(_json_clean(self.profiles()), indent=1, ensure_ascii=False) + "\n")
+        js.write_text(
+            json.dumps(strict_json(self.profiles(), 4), indent=1, ensure_ascii=False) + "\n"
+        )
         return [md, png, js]
 
     # -- Markdown ---------------------------------------------------------------------------

@@ -78,7 +78,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.report import RESULTS, command_line, machine_line, markdown_table
+from bench.report import RESULTS, command_line, machine_line, markdown_table, strict_json
 from models.sampling import KEYPOINT_MIN_CONFIDENCE, keypoint_visible
 
 MAD_TO_SIGMA = 1.4826  # 1.4826 · MAD of N(0, s) is s
@@ -1079,17 +1079,6 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     }
 
 
-def _clean_json(value: Any) -> Any:
-    """NaN/inf → None (strict JSON)."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: _clean_json(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_clean_json(v) for v in value]
-    return value
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--sim-frames", type=int, default=400, help="per scene and seed")
@@ -1103,7 +1092,7 @@ def main(argv: list[str] | None = None) -> int:
     text = render(result)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(text)
-    args.out.with_suffix(".json").write_text(json.dumps(_clean_json(result), indent=1) + "\n")
+    args.out.with_suffix(".json").write_text(json.dumps(strict_json(result), indent=1) + "\n")
     print(text)
     return 0
 

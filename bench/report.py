@@ -7,6 +7,7 @@ no display is needed and nothing is shown.
 
 from __future__ import annotations
 
+import math
 import os
 import platform
 import shlex
@@ -14,6 +15,7 @@ import sys
 from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -45,6 +47,20 @@ def command_line(module: str, argv: Sequence[str] | None) -> str:
     own arguments, as ``argparse`` reads them)."""
     given = sys.argv[1:] if argv is None else list(argv)
     return shlex.join(["python", "-m", module, *given])
+
+
+def strict_json(value: Any, digits: int | None = None) -> Any:
+    """``value`` for ``json.dumps`` as strict JSON: NaN and infinite floats as None, floats
+    rounded to ``digits`` when given, through dicts, lists and tuples."""
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            return None
+        return value if digits is None else round(value, digits)
+    if isinstance(value, dict):
+        return {k: strict_json(v, digits) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [strict_json(v, digits) for v in value]
+    return value
 
 
 def markdown_table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
