@@ -100,6 +100,7 @@ def write_model_dir(
     floor_prior: dict | None = None,
     extra: dict[str, Any] | None = None,
     world_bounds: dict[str, float] | None = None,
+    setup_area: dict | None = None,
 ) -> None:
     """Write all three files, each atomically (:mod:`models.atomic`), ``model.json`` last and
     once, complete with the ``floor_prior`` entry and any ``extra`` top-level entries (e.g. the
@@ -139,6 +140,8 @@ def write_model_dir(
         meta["floor_prior"] = floor_prior
     if world_bounds is not None:
         meta["world_bounds"] = world_bounds
+    if setup_area is not None:
+        meta["setup_area"] = setup_area
     clashes = set(extra or {}) & set(meta)
     if clashes:
         raise ValueError(f"extra model.json entries would replace {sorted(clashes)}")

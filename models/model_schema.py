@@ -96,6 +96,7 @@ class ModelSchema(BaseModel):
     decoder: DecoderSchema
     floor_prior: FloorPriorSchema | None = None
     world_bounds: WorldBoundsSchema | None = None  # absent in models trained before 2026-12
+    setup_area: dict[str, Any] | None = None  # models.setup_area; absent before 2026-12-03
 
     @model_validator(mode="after")
     def _one_per_camera(self) -> ModelSchema:

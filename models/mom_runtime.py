@@ -27,6 +27,7 @@ from models.model_schema import validate_model_json
 from models.onnx_session import open_session
 from models.prior_policy import POLICY_WEIGHTS, VIEW_CLASSES, blend, row_weights
 from models.sampling import InferenceSampler, SamplerConfig, draws_from_json, unit_mean
+from models.setup_area import SetupArea
 
 if TYPE_CHECKING:
     from onnxruntime import InferenceSession
@@ -58,6 +59,9 @@ class MomRuntime:
         self.floor_prior = FloorPrior.from_json(prior["prior"]) if prior.get("prior") else None
         if max(self.prior_weights) > 0 and self.floor_prior is None:
             raise ValueError(f"floor_prior: policy {self.policy!r} without a fitted prior")
+        area = meta.get("setup_area")
+        # where the model was set up (models.setup_area); None for models trained before it
+        self.setup_area = SetupArea.from_json(area) if area else None
         bounds = meta.get("world_bounds")
         # the floor area the training positions cover ((xmin, ymin), (xmax, ymax)) metres, for
         # the map's default extent; None for models written before export stored it
@@ -142,13 +146,18 @@ class MomRuntime:
         The model's policy (:mod:`models.prior_policy`) weighs the floor-mark geometry against
         the encoder per row: all geometry for a model trained on marks, a blend chosen on
         validation rows for dense labels; the encoder alone where no fitted camera sees the row.
+        A row the geometry puts outside the set-up area (:mod:`models.setup_area`) takes the
+        geometry's position whatever the policy: the encoder never saw such a row in training
+        and maps it into its training area.
         """
-        if max(self.prior_weights) == 0.0 or self.floor_prior is None:
-            return self.encode(boxes, keypoints)
         boxes = self._check_boxes(boxes)
+        if self.floor_prior is None:
+            return self.encode(boxes, keypoints)
         prior_keypoints = keypoints if self.observation == "keypoints" else None
         prior_xy, _ = self.floor_prior.predict(boxes, prior_keypoints)
-        weight = row_weights(boxes, self.prior_weights)
+        weight = self._served_weights(boxes, prior_xy)
+        if weight.max(initial=0.0) == 0.0:
+            return self.encode(boxes, keypoints)
         need = ~np.isfinite(prior_xy).all(axis=1) | (weight < 1.0)
         encoder_xy = np.full_like(prior_xy, np.nan)
         if need.any():
@@ -156,6 +165,23 @@ class MomRuntime:
                 boxes[need], None if keypoints is None else np.asarray(keypoints)[need]
             )
         return blend(encoder_xy, prior_xy, weight).astype(np.float32)
+
+    def _served_weights(self, boxes: np.ndarray, prior_xy: np.ndarray) -> np.ndarray:
+        """The floor geometry's weight [B] per row: the policy's, 1 beyond the set-up area."""
+        weight = row_weights(boxes, self.prior_weights)
+        if self.setup_area is None:
+            return weight
+        beyond = np.isfinite(prior_xy).all(axis=1) & ~self.setup_area.contains(prior_xy)
+        return np.where(beyond, 1.0, weight)
+
+    def inside(self, boxes: np.ndarray, world: np.ndarray) -> np.ndarray:
+        """[B] bool: the rows' positions [B, 2] lie in the set-up area and some box [B, K, 4]
+        where its camera saw training boxes (:class:`~models.setup_area.SetupArea`); all True
+        for a model without an area."""
+        boxes = self._check_boxes(boxes)
+        if self.setup_area is None:
+            return np.ones(len(boxes), dtype=bool)
+        return self.setup_area.contains(world) & self.setup_area.boxes_in_region(boxes)
 
     def covariance(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
         """Covariance [B, 2, 2] (m²) of :meth:`localize`'s positions; NaN where unknown.
@@ -171,8 +197,8 @@ class MomRuntime:
         if self.floor_prior is None:
             return np.full((len(boxes), 2, 2), np.nan)
         prior_keypoints = keypoints if self.observation == "keypoints" else None
-        _, cov = self.floor_prior.predict_covariance(boxes, prior_keypoints)
-        weight = row_weights(boxes, self.prior_weights)
+        prior_xy, cov = self.floor_prior.predict_covariance(boxes, prior_keypoints)
+        weight = self._served_weights(boxes, prior_xy)
         scale = weight + (1.0 - weight) * self.encoder_error_ratio
         return cov * (scale**2)[:, None, None]
 

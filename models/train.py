@@ -41,6 +41,7 @@ from models.sampling import (
     observation_mask,
     sample_estimators,
 )
+from models.setup_area import SetupArea
 
 MIN_ROWS = 50
 VALIDATION_DRAWS = 4  # draws averaged for the per-epoch validation (as serving does)
@@ -372,6 +373,7 @@ def _train(
         floor_prior=floor_prior,
         extra=extra_meta,
         world_bounds=world_bounds(dataset.world),
+        setup_area=SetupArea.fit(dataset.world, dataset.boxes).to_json(),
     )
     metrics["floor_prior"] = summary(floor_prior)
     return metrics

@@ -1,0 +1,116 @@
+"""The set-up area: hull distances, camera regions, and a model that keeps people beyond its
+labels beyond them (the encoder alone maps them into its training area)."""
+
+import functools
+import json
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from models.errors import MomlocError
+from models.mom_runtime import MomRuntime
+from models.setup_area import SetupArea, distance_outside
+from tests.models.mom_scene import make_dataset
+
+SQUARE = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]])
+
+
+def test_distance_to_a_convex_hull_is_zero_inside_and_euclidean_outside():
+    area = SetupArea.fit(np.r_[SQUARE, [[1.0, 1.0]]], np.full((5, 1, 4), np.nan), margin_m=0.0)
+    assert len(area.floor) == 4  # the inner point is not a vertex
+    points = np.array([[1.0, 1.0], [2.0, 1.0], [3.0, 1.0], [3.0, 3.0], [np.nan, 0.0]])
+    d = distance_outside(area.floor, points)
+    np.testing.assert_allclose(d[:4], [0.0, 0.0, 1.0, np.sqrt(2.0)], atol=1e-9)
+    assert np.isnan(d[4])
+
+
+def test_contains_honours_the_margin_and_degenerate_hulls():
+    area = SetupArea.fit(SQUARE, np.full((4, 1, 4), np.nan), margin_m=0.5)
+    assert area.contains(
+        np.array([[2.4, 1.0], [2.6, 1.0], [-0.49, -0.0], [np.nan, 1]])
+    ).tolist() == [
+        True,
+        False,
+        True,
+        True,  # unknown is not evidence of elsewhere
+    ]
+    line = SetupArea.fit(np.array([[0.0, 0.0], [4.0, 0.0]]), np.full((2, 1, 4), np.nan))
+    assert line.contains(np.array([[2.0, 0.4], [2.0, 0.6], [4.4, 0.0]])).tolist() == [
+        True,
+        False,
+        True,
+    ]
+
+
+def test_camera_regions_judge_foot_points_and_box_heights():
+    boxes = np.array(
+        [[[100, 100, 140, 300]], [[300, 150, 340, 320]], [[200, 200, 230, 310]]], float
+    )
+    area = SetupArea.fit(np.array([[0, 0], [1, 0], [0, 1]], float), boxes)
+    probe = np.array(
+        [
+            [[210, 120, 250, 290]],  # foot among the training feet, usual height
+            [[600, 20, 620, 60]],  # far off in the image and tiny
+            [[150, 50, 190, 300]],  # usual place, usual height
+            [[150, 0, 190, 300 + 600]],  # twice the tallest box, foot far below
+            [[np.nan] * 4],  # not seen: nothing says elsewhere
+        ]
+    )
+    assert area.boxes_in_region(probe).tolist() == [True, False, True, False, True]
+    with pytest.raises(MomlocError, match=r"set-up area: boxes"):
+        area.boxes_in_region(np.zeros((1, 2, 4)))
+
+
+def test_json_round_trip_and_malformed_entries():
+    boxes = np.array(
+        [[[100, 100, 140, 300]], [[300, 150, 340, 320]], [[200, 200, 230, 310]]], float
+    )
+    area = SetupArea.fit(np.array([[0, 0], [1, 0], [0, 1]], float), boxes)
+    again = SetupArea.from_json(json.loads(json.dumps(area.to_json())))
+    np.testing.assert_allclose(again.floor, area.floor)
+    probe = np.array([[[210, 120, 250, 290]], [[600, 20, 620, 60]]], float)
+    assert again.boxes_in_region(probe).tolist() == area.boxes_in_region(probe).tolist()
+    with pytest.raises(MomlocError, match="setup_area"):
+        SetupArea.from_json({"format": "setup-area-v1", "floor": [[0, 0]]})
+
+
+@functools.cache
+def _half_room_model() -> Path:
+    """A dense model trained on people in the left half of a 6 m room only (x < 2.8 m)."""
+    from models.train import train_model
+
+    data, _ = make_dataset(2400, cameras=2, seed=11)
+    left = np.flatnonzero(data.world[:, 0] < 2.8)
+    out = Path(tempfile.mkdtemp(prefix="mom-area-")) / "left"
+    train_model(data.subset(left), out, epochs=25, seed=0, progress=False)
+    return out
+
+
+def test_people_beyond_the_labels_are_localized_by_geometry_and_reported_outside():
+    runtime = MomRuntime.load(_half_room_model())
+    assert runtime.setup_area is not None
+    # served by the encoder alone inside the area, as the dense CMC model chose (issue 23)
+    runtime.prior_weights = (0.0, 0.0, 0.0)
+    data, _ = make_dataset(2400, cameras=2, seed=31)
+    far = np.flatnonzero(data.world[:, 0] > 4.3)
+    near = np.flatnonzero(data.world[:, 0] < 2.3)
+    assert len(far) > 100 and len(near) > 100
+    served = runtime.localize(data.boxes[far])
+    encoder = runtime.encode(data.boxes[far])
+    served_error = np.median(np.linalg.norm(served - data.world[far], axis=1))
+    encoder_error = np.median(np.linalg.norm(encoder - data.world[far], axis=1))
+    # the encoder pulls them into its training area; geometry keeps them where they are
+    assert served_error < 0.5 * encoder_error
+    assert runtime.inside(data.boxes[far], served).mean() < 0.1
+    # inside the area nothing changes: the policy's answer, and reported inside
+    inside_xy = runtime.localize(data.boxes[near])
+    assert runtime.inside(data.boxes[near], inside_xy).mean() > 0.95
+
+
+def test_models_without_an_area_count_everything_inside():
+    runtime = MomRuntime.load(_half_room_model())
+    runtime.setup_area = None
+    data, _ = make_dataset(200, cameras=2, seed=32)
+    assert runtime.inside(data.boxes, runtime.localize(data.boxes)).all()
