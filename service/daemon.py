@@ -191,6 +191,7 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
         model_dir=model_dir,
         tracker=build_tracker(settings),
         max_error_px=settings.tracking.max_error_px,
+        outside_area=settings.tracking.outside_area,
     )
     extras = {}
     if player is not None:

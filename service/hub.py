@@ -13,7 +13,9 @@ Wire format (version 1)::
                  "confidence": 0.9, "cameras": [0, 1]}]}
 
 ``t`` is the capture time of the frames the snapshot came from (unix seconds, wall clock), so a
-client on the same host measures latency as receive time - ``t``.
+client on the same host measures latency as receive time - ``t``. A person outside the floor area
+the model was set up on carries ``"outside": true``, and only when the daemon is set to serve
+them (``tracking.outside_area: flag``; by default they are not served at all).
 """
 
 from __future__ import annotations
@@ -45,6 +47,13 @@ class Snapshot:
         people = [dict(p) for p in people]
         body = {"v": SCHEMA_VERSION, "seq": seq, "t": t, "people": people}
         return cls(seq, t, people, json.dumps(body, separators=(",", ":")))
+
+    def inside_only(self) -> Snapshot:
+        """This snapshot without the people served flagged ``outside`` (the set-up area,
+        ``service.chain``): what zones, counts and MQTT see unless asked for everyone."""
+        if not any(p.get("outside") for p in self.people):
+            return self
+        return Snapshot.build(self.seq, self.t, [p for p in self.people if not p.get("outside")])
 
     def as_dict(self) -> dict[str, Any]:
         return {"v": SCHEMA_VERSION, "seq": self.seq, "t": self.t, "people": self.people}

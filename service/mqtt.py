@@ -151,7 +151,7 @@ class MqttPublisher:
     # -- inputs (any thread, never block) --------------------------------------------------------
 
     def offer(self, snapshot: Snapshot) -> None:
-        self._positions.put(snapshot)
+        self._positions.put(snapshot if self.settings.include_outside else snapshot.inside_only())
         if self._hungry:  # wake the sender only when it waits for a position, not per frame
             self._wake.set()
 

@@ -166,6 +166,7 @@ def offline_pipeline(settings: Settings, runtime: Any, feed: Feed, model_dir: Pa
         model_dir=model_dir,
         tracker=build_tracker(settings),
         max_error_px=settings.tracking.max_error_px,
+        outside_area=settings.tracking.outside_area,
         shift_threaded=False,
     )
 

@@ -113,6 +113,11 @@ class MqttSettings(BaseModel):
     rate: float = Field(
         10.0, gt=0, le=100, description="Most position messages per second (newest wins)."
     )
+    include_outside: bool = Field(
+        False,
+        description="Also publish people served flagged outside the set-up area "
+        "(tracking.outside_area: flag); by default positions and counts are the inside only.",
+    )
     client_id: str | None = Field(
         None, max_length=128, description="MQTT client id; default momloc-{room}-<random>."
     )

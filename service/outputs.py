@@ -51,7 +51,7 @@ def health_summary(daemon: Any) -> dict[str, Any]:
     return {
         "status": health["status"],
         "t": latest.t,
-        "people": len(latest.people),
+        "people": len(latest.inside_only().people),
         "fps": health["pipeline"]["fps"],
         "cameras": len(health["cameras"]),
         "cameras_connected": sum(1 for c in health["cameras"] if c["connected"]),

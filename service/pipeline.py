@@ -46,13 +46,12 @@ from capture.rig import FrameSet
 from capture.worker import CameraState, Frame
 from models.errors import MomlocError
 from service.association import DEFAULT_MAX_ERROR_PX
+from service.chain import Chain, OutsideArea, served_inside
 from service.frame_listeners import CameraView, CameraWatch, DetectionTap, Previews, Throughput
 from service.hub import Hub, Snapshot
-from service.measurements import coverage_function, measurement_covariances
 from service.setup.camera_monitor import CameraMoved
 from service.stages import (
     AssociateStage,
-    Association,
     DetectStage,
     FrameListener,
     FrameResult,
@@ -60,7 +59,6 @@ from service.stages import (
     Track,
     TrackStage,
 )
-from service.view_bias import ViewBias
 
 log = logging.getLogger("momloc.pipeline")
 
@@ -110,6 +108,7 @@ class Pipeline:
         tracker: TrackStage | None = None,
         associate: AssociateStage | None = None,
         max_error_px: float = DEFAULT_MAX_ERROR_PX,
+        outside_area: OutsideArea = "drop",
         load_runtime: Callable[[Path], LocalizationModel] | None = None,
         shift_threaded: bool = True,
     ) -> None:
@@ -117,16 +116,14 @@ class Pipeline:
             from service.tracking import RECOMMENDED, Tracker
 
             tracker = Tracker(fps_hint=30.0, **RECOMMENDED)
-        if associate is None:
-            from service.association import associate as associate_people
-
-            associate = associate_people
         self.rig, self.detect, self.hub = rig, detect, hub
         self.num_cameras = num_cameras
-        self.tracker, self.associate, self.max_error_px = tracker, associate, max_error_px
+        # associate -> set-up area -> lone-view correction -> tracker: the one chain (service.chain)
+        self.chain = Chain(
+            tracker, associate=associate, max_error_px=max_error_px, outside_area=outside_area
+        )
         self._load_runtime = load_runtime or _load_mom_runtime
         self.runtime, self.model_dir = runtime, model_dir
-        self.view_bias = ViewBias()  # lone-view offsets per track and camera (new per model)
         self.image_sizes: list[tuple[int, int] | None] = [None] * num_cameras
         self.error: str | None = None
         self._seq = 0
@@ -243,18 +240,15 @@ class Pipeline:
         detections = list(self.detect(used))
         t1 = time.perf_counter()
         runtime = self.runtime
-        associations: list[Association] = []
         self.error = None  # this iteration's state only; failures are counted separately
-        if runtime is not None:
-            problem = self._incompatibility(runtime)
-            if problem is None:
-                associations = self.associate(detections, runtime, max_error_px=self.max_error_px)
-            else:
-                self.error = f"model: {problem}"
-        t2 = time.perf_counter()
+        problem = None if runtime is None else self._incompatibility(runtime)
+        if problem is not None:
+            self.error = f"model: {problem}"
         self._seq += 1
-        tracks = self._track(t_used, associations, runtime, [f is not None for f in used.frames])
-        t3 = time.perf_counter()
+        delivered = [f is not None for f in used.frames]
+        associations, tracks = self.chain(
+            t_used, detections, runtime if problem is None else None, delivered, self._seq
+        )
         snapshot = Snapshot.build(self._seq, t_used, [_person(tr) for tr in tracks])
         if runtime is not None:  # set-up mode (no model) publishes no positions at all
             self.hub.publish(snapshot)
@@ -268,42 +262,11 @@ class Pipeline:
             tracks=tracks,
             snapshot=snapshot,
             runtime=runtime,
-            timings_ms={
-                "detect": (t1 - t0) * 1e3,
-                "associate": (t2 - t1) * 1e3,
-                "track": (t3 - t2) * 1e3,
-            },
+            timings_ms={"detect": (t1 - t0) * 1e3, **self.chain.timings_ms},
         )
         for listener in self._listeners:
             listener(result)
         return snapshot
-
-    def _track(
-        self,
-        t: float,
-        associations: Sequence[Association],
-        runtime: LocalizationModel | None,
-        delivered: Sequence[bool],
-    ) -> list[Track]:
-        """The tracker's one call per frame set (meta links each track back to its association)."""
-        meta = [
-            {"cameras": [int(c) for c in a.cameras], "frame": self._seq, "association": i}
-            for i, a in enumerate(associations)
-        ]
-        # the tracker weighs each position by its covariance (a lone view is trusted across its
-        # line of sight, hardly along it) and drops single-view ghosts where another camera that
-        # delivered a frame should see the person (service.measurements); a single-view position
-        # is first corrected by its track's lone-view offset (service.view_bias), the same call
-        # as service.stream_eval.run_stream
-        return self.view_bias.update(
-            self.tracker,
-            t,
-            associations,
-            runtime,
-            meta,
-            covariances=measurement_covariances(associations, runtime),
-            coverage=coverage_function(runtime, delivered),
-        )
 
     def _incompatibility(self, runtime: LocalizationModel) -> str | None:
         """Why ``runtime`` cannot serve these cameras and this detector, or None when it can."""
@@ -346,7 +309,7 @@ class Pipeline:
         if problem is not None:
             raise MomlocError(f"{path}: {problem}; keeping the current model")
         self.runtime, self.model_dir = runtime, path
-        self.view_bias = ViewBias()  # offsets of the former model's localizer do not carry over
+        self.chain.new_model()  # offsets of the former model's localizer do not carry over
         if self.error and self.error.startswith("model"):
             self.error = None
         log.info("model loaded from %s", path)
@@ -398,7 +361,7 @@ class Pipeline:
 
 
 def _person(track: Track) -> dict[str, Any]:
-    return {
+    person = {
         "id": int(track.id),
         "x": round(float(track.x), 4),
         "y": round(float(track.y), 4),
@@ -407,6 +370,9 @@ def _person(track: Track) -> dict[str, Any]:
         "confidence": round(float(np.clip(track.confidence, 0.0, 1.0)), 3),
         "cameras": [int(k) for k in track.cameras],
     }
+    if not served_inside(track):  # served flagged (tracking.outside_area: flag)
+        person["outside"] = True
+    return person
 
 
 def _load_mom_runtime(path: Path) -> LocalizationModel:

@@ -265,6 +265,13 @@ class TrackingSettings(BaseModel):
         gt=0,
         description="Largest reprojection error (px, scaled to a 200 px box) for a match.",
     )
+    outside_area: Literal["drop", "flag"] = Field(
+        "drop",
+        description="People outside the floor area the model was set up on (its floor marks "
+        "plus a margin, where its cameras saw training boxes): 'drop' leaves them out of "
+        "tracking and every output; 'flag' tracks them and serves them with outside: true "
+        "(the map shows them; zones and MQTT ignore them).",
+    )
 
 
 class FloorSettings(BaseModel):

@@ -63,6 +63,7 @@ class Association:
     errors: np.ndarray = field(default_factory=lambda: np.zeros(0))  # [K] px, NaN where unseen
     covariance: np.ndarray | None = None  # [2, 2] m² of ``world`` when the model gives one
     keypoints: np.ndarray | None = None  # [K, J, 3] for keypoint models, NaN where unseen
+    inside: bool = True  # in the model's set-up area (service.chain; models.setup_area)
 
 
 class LocalizationModel(Protocol):

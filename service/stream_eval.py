@@ -1,8 +1,9 @@
-"""Offline served-accuracy run: simulated detections → association → tracking → stream metrics.
+"""Offline served-accuracy run: simulated detections → the daemon's chain → stream metrics.
 
-The chain the daemon runs per frame set (:func:`service.association.associate`, then
-:class:`service.tracking.Tracker`) driven by frame timestamps (``frame / fps``, no real-time
-pacing) over a simulated scene, and what it serves scored by :mod:`models.stream_metrics`.
+The chain the daemon runs per frame set (:class:`service.chain.Chain`: association, the set-up
+area, lone-view correction, :class:`service.tracking.Tracker`) driven by frame timestamps
+(``frame / fps``, no real-time pacing) over a simulated scene, and what it serves scored by
+:mod:`models.stream_metrics`.
 
 What counts as truth: every person *in view*, i.e. whose true body box keeps at least
 ``MIN_VISIBLE_FRACTION`` of its area inside at least one camera's image, whether or not the
@@ -24,6 +25,7 @@ Example::
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -37,7 +39,7 @@ from service.association import (
     LocalizationModel,
     associate,
 )
-from service.measurements import coverage_function, measurement_covariances
+from service.chain import Chain, OutsideArea
 from service.tracking import RECOMMENDED, Tracker
 from service.view_bias import ViewBias
 
@@ -94,6 +96,7 @@ def run_stream(
     min_visible_fraction: float = MIN_VISIBLE_FRACTION,
     use_covariance: bool = True,
     view_bias: ViewBias | bool = True,
+    outside_area: OutsideArea = "drop",
     on_frame: Callable[[int, list, list], None] | None = None,
 ) -> dict[float, dict]:
     """Stream metrics per gate (metres → :meth:`StreamScorer.result`) of one scene run.
@@ -104,28 +107,27 @@ def run_stream(
     ``view_bias`` corrects single-view positions by their track's lone-view offset as the
     pipeline does (:class:`service.view_bias.ViewBias`; ``True``: the default one, ``False``:
     none);
+    ``outside_area``: what the chain does with people outside the model's set-up area
+    (:mod:`service.chain`);
     ``on_frame(i, associations, tracks)`` taps every frame (diagnostics, other scorers).
     """
     scene = Scene(config, seed=seed)
     tracker = tracker if tracker is not None else Tracker(fps_hint=scene.fps, **RECOMMENDED)
     rng = np.random.default_rng([seed, 77])
     scorers = {float(g): StreamScorer(g) for g in gates}
-    coverage = coverage_function(runtime, [True] * int(runtime.num_cameras))
-    bias = ViewBias() if view_bias is True else view_bias or None
+    chain = Chain(
+        tracker,
+        associate=functools.partial(associate, max_view_gap_m=max_view_gap_m),
+        max_error_px=max_error_px,
+        outside_area=outside_area,
+        use_covariance=use_covariance,
+        view_bias=None if view_bias is False else view_bias,
+    )
+    delivered = [True] * int(runtime.num_cameras)
     for i in range(frames):
         obs = scene.observe(i)
         t = i / scene.fps
-        detections = frame_detections(obs, rng)
-        result = associate(detections, runtime, max_error_px, max_view_gap_m)
-        meta = [
-            {"cameras": a.cameras, "cost": a.cost, "association": j} for j, a in enumerate(result)
-        ]
-        covariances = measurement_covariances(result, runtime) if use_covariance else None
-        if bias is not None:
-            tracks = bias.update(tracker, t, result, runtime, meta, covariances, coverage)
-        else:
-            positions = np.array([a.world for a in result]).reshape(-1, 2)
-            tracks = tracker.update(t, positions, meta, covariances=covariances, coverage=coverage)
+        result, tracks = chain(t, frame_detections(obs, rng), runtime, delivered, i)
         if on_frame is not None:
             on_frame(i, result, tracks)
         want = in_view(obs.true_boxes, scene.image_sizes, min_visible_fraction)

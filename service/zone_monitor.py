@@ -114,7 +114,7 @@ class ZoneMonitor:
         if snapshot.seq <= 0:
             return
         with self._lock:
-            events = self.tracker.update(snapshot.t, snapshot.people)
+            events = self.tracker.update(snapshot.t, snapshot.inside_only().people)
             if not events:
                 return
             self.recent.extend(events)

@@ -20,6 +20,7 @@ from models.errors import MomlocError
 from service.detector_stage import DetectorStage
 from service.hub import Hub
 from service.pipeline import Pipeline
+from service.stages import Association
 from service.tracking import Tracker
 
 
@@ -72,7 +73,7 @@ def boxes_stage(frame_set):
 
 
 def fake_associate(detections, runtime, max_error_px):
-    a = SimpleNamespace(
+    a = Association(
         boxes=np.stack([d.boxes[0] for d in detections]),
         cameras=[0, 1],
         world=np.array([detections[0].boxes[0, 0] / 100.0, 2.0]),
@@ -253,7 +254,7 @@ def test_keypoints_reach_association_and_box_only_detectors_refuse_keypoint_mode
         return [a]
 
     pipeline, _ = make(detect=keypoint_stage, runtime=KeypointRuntime())
-    pipeline.associate = associate
+    pipeline.chain.associate = associate
     snapshots = [pipeline.process(pipeline.rig.frame_set()) for _ in range(10)]
     assert len(snapshots[-1].people) == 1 and seen[0][0].shape == (1, 17, 3)
     assert pipeline.model_info()["observation"] == "keypoints"
@@ -297,7 +298,7 @@ def test_skew_rule_leaves_stale_frames_out_of_fusion():
         return [Detections.empty() for _ in frame_set.frames]
 
     pipeline, _ = make(detect=detect)
-    pipeline.associate = lambda detections, runtime, max_error_px: []
+    pipeline.chain.associate = lambda detections, runtime, max_error_px: []
     image = np.zeros((480, 640, 3), np.uint8)
     frames = [
         Frame(camera=0, image=image, timestamp=10.0, seq=5),  # 120 ms late

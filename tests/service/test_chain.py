@@ -1,0 +1,86 @@
+"""The one chain: people outside the set-up area are dropped, or served flagged, and never reach
+zones or MQTT unless asked; the live pipeline and the stream benchmark run the same object."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from models.detector.base import Detections
+from service.chain import Chain
+from service.hub import Snapshot
+from service.tracking import RECOMMENDED, Tracker
+from service.zone_monitor import ZoneMonitor
+from service.zones import Zone
+from tests.service.mom_doubles import OracleRuntime, person_boxes, room_cameras
+
+INSIDE_X = 4.0  # the fake set-up area: x below this
+
+
+class AreaOracle(OracleRuntime):
+    """The oracle localizer with a set-up area (x < 4 m), as ``MomRuntime.inside`` answers."""
+
+    def inside(self, boxes: np.ndarray, world: np.ndarray) -> np.ndarray:
+        return np.asarray(world)[:, 0] < INSIDE_X
+
+
+def _frames(runtime: OracleRuntime, people: np.ndarray) -> list[Detections]:
+    boxes = person_boxes(runtime.projections, people)
+    return [
+        Detections(boxes[:, k].astype(np.float32), np.ones(len(people), np.float32))
+        for k in range(runtime.num_cameras)
+    ]
+
+
+def _run(chain: Chain, runtime: OracleRuntime, people: np.ndarray, seconds: float = 2.0):
+    tracks = []
+    for i in range(int(seconds * 10)):
+        _, tracks = chain(i / 10, _frames(runtime, people), runtime, [True, True], i)
+    return tracks
+
+
+@pytest.fixture()
+def runtime() -> AreaOracle:
+    return AreaOracle(room_cameras(2))
+
+
+PEOPLE = np.array([[2.0, 3.0], [5.2, 2.5]])  # one inside, one beyond x = 4
+
+
+def test_people_outside_the_set_up_area_are_dropped_by_default(runtime):
+    chain = Chain(Tracker(fps_hint=10, **RECOMMENDED))
+    associations, _ = chain(0.0, _frames(runtime, PEOPLE), runtime, [True, True], 0)
+    assert [a.inside for a in associations] == [True]
+    tracks = _run(chain, runtime, PEOPLE)
+    assert len(tracks) == 1 and tracks[0].x == pytest.approx(2.0, abs=0.1)
+
+
+def test_flagged_people_are_tracked_and_marked_but_zones_and_counts_ignore_them(runtime):
+    from service.pipeline import _person
+
+    chain = Chain(Tracker(fps_hint=10, **RECOMMENDED), outside_area="flag")
+    tracks = _run(chain, runtime, PEOPLE)
+    people = sorted((_person(tr) for tr in tracks), key=lambda p: p["x"])
+    assert len(people) == 2
+    assert "outside" not in people[0] and people[1]["outside"] is True
+    snapshot = Snapshot.build(1, 0.0, people)
+    assert [p["x"] for p in snapshot.inside_only().people] == [people[0]["x"]]
+    monitor = ZoneMonitor([Zone.create("room", [(0, 0), (7, 0), (7, 7), (0, 7)], 0.0)])
+    monitor.offer(snapshot)
+    assert monitor.occupancy()[0]["count"] == 1
+
+
+def test_a_model_without_an_area_keeps_everyone(runtime):
+    plain = OracleRuntime(room_cameras(2))
+    tracks = _run(Chain(Tracker(fps_hint=10, **RECOMMENDED)), plain, PEOPLE)
+    assert len(tracks) == 2
+
+
+def test_a_snapshot_without_outside_people_is_its_own_inside_view():
+    snapshot = Snapshot.build(3, 1.0, [{"id": 1, "x": 0.0, "y": 0.0}])
+    assert snapshot.inside_only() is snapshot
+
+
+def test_unknown_outside_policy_is_refused():
+    with pytest.raises(ValueError, match="outside_area"):
+        Chain(Tracker(), outside_area="hide")  # type: ignore[arg-type]
