@@ -48,8 +48,8 @@ Output policy (documented for API users):
 - with ``doubt_outside`` the ghost check also doubts a single-view track whose own camera
   should *not* see it where it is (``coverage``): a box localized where the camera that
   reported it cannot see a person is a false box localized from its odd size and place;
-- ``confidence`` is a running detection rate (exponential average of seen / unseen frames) times
-  the coasting factor, in 0..1.
+- ``confidence`` is a running detection rate (exponential average of seen / unseen frame sets
+  over ``rate_time_s`` seconds, so the same at any frame rate) times the coasting factor, in 0..1.
 
 - a track counts as seen by two cameras (``multi_view``: no longer subject to the single-view
   confirmation and ghost check) once two cameras have reported it together for ``multi_view_s``
@@ -227,7 +227,7 @@ class Tracker:
         measurement_std_m: float = 0.12,
         accel_std: float = 2.0,
         confirm_s: float = 0.3,
-        rate_alpha: float = 0.1,
+        rate_time_s: float = 0.32,
         motion: str = "cv",
         measurement_scale: float = 1.0,
         min_measurement_std_m: float = 0.03,
@@ -252,7 +252,7 @@ class Tracker:
         self.measurement_var = float(measurement_std_m) ** 2
         self.accel_var = float(accel_std) ** 2
         self.confirm_s = max(0.0, float(confirm_s))
-        self.rate_alpha = float(rate_alpha)
+        self.rate_time_s = max(1e-6, float(rate_time_s))
         if motion not in MOTION_MODELS:
             raise ValueError(f"motion {motion!r}: expected one of {sorted(MOTION_MODELS)}")
         self.motion = motion
@@ -328,7 +328,7 @@ class Tracker:
             self._correct(self._tracks[r], positions[c], noise[c], meta[c], self._time)
         for i, track in enumerate(self._tracks):
             if i not in matched_tracks:
-                track.rate *= 1.0 - self.rate_alpha
+                track.rate *= 1.0 - self._rate_weight(dt)
         for c in sorted(set(range(len(positions))) - set(cols.tolist())):
             self._tracks.append(self._spawn(positions[c], noise[c], meta[c], self._time))
         if coverage is not None and self.ghost_s > 0:
@@ -418,11 +418,18 @@ class Tracker:
         track.motion.correct(z, self._robust(track, z, r))
         track.last_seen = t
         track.hits += 1
-        track.rate = track.rate * (1.0 - self.rate_alpha) + self.rate_alpha
+        weight = self._rate_weight(self._frame_dt)
+        track.rate = track.rate * (1.0 - weight) + weight
         track.cameras = [int(k) for k in meta.get("cameras", [])]
         self._count_views(track, self._frame_dt)
         self._confirm(track, t)
         track.meta = dict(meta)
+
+    def _rate_weight(self, dt: float) -> float:
+        """Weight of this update in the detection rate: an exponential average over time
+        (``rate_time_s``), so confidence means the same at 4 and at 30 frame sets a second
+        (0.32 s is the former per-frame weight 0.1 at 30 fps)."""
+        return float(1.0 - np.exp(-max(dt, 0.0) / self.rate_time_s))
 
     def _robust(self, track: _State, z: np.ndarray, r: np.ndarray) -> np.ndarray:
         """Measurement covariance inflated by d² / robust_chi2 when the innovation's squared
@@ -479,7 +486,8 @@ class Tracker:
             cameras=[int(k) for k in meta.get("cameras", [])],
             meta=dict(meta),
         )
-        self._count_views(state, 1.0 / self.fps_hint)
+        # credited for one frame interval, as measured (the hint before a second update)
+        self._count_views(state, self._frame_dt if self._frame_dt > 0 else 1.0 / self.fps_hint)
         self._confirm(state, t)
         self._next_id += 1
         return state

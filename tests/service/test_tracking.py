@@ -240,3 +240,23 @@ def test_likelihood_cost_pairs_a_lone_view_along_its_line_of_sight() -> None:
     assert owner == {"euclidean": False, "likelihood": True}
     with pytest.raises(ValueError, match="assign_cost"):
         Tracker(assign_cost="cosine")
+
+
+@pytest.mark.parametrize("fps", [4.0, 30.0])
+def test_timing_rules_mean_the_same_at_4_and_30_frame_sets_a_second(fps: float) -> None:
+    """Confirmation, confidence and coasting are in seconds: a person seen for 2 s, then
+    unseen for 0.5 s, looks the same to clients whatever the camera rate (the real CMC room
+    runs at 4 fps; webcams at 30)."""
+    tracker = Tracker(fps_hint=30.0, **RECOMMENDED)  # the daemon's hint, whatever the rate
+    seen = int(round(2.0 * fps))
+    frames = [np.array([[1.0 + 0.5 * i / fps, 2.0]]) for i in range(seen)]
+    frames += [np.zeros((0, 2))] * int(round(0.5 * fps))
+    out = run(tracker, frames, fps)
+    first_served = next(i for i, o in enumerate(out) if o) / fps
+    assert first_served <= 0.3 + 1.0 / fps  # confirm_s, to within one frame
+    assert out[seen - 1][0].confidence == pytest.approx(1.0 - np.exp(-2.0 / 0.32), abs=0.08)
+    # 0.5 s unseen: the detection rate has fallen by the same factor at either rate
+    assert out[-1] == [] or out[-1][0].confidence < 0.3
+    missed = [o for o in out[seen:] if o]
+    rates = [o[0].confidence for o in missed]
+    assert all(b < a for a, b in zip(rates, rates[1:], strict=False))
