@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -248,9 +250,9 @@ def test_timing_rules_mean_the_same_at_4_and_30_frame_sets_a_second(fps: float) 
     unseen for 0.5 s, looks the same to clients whatever the camera rate (the real CMC room
     runs at 4 fps; webcams at 30)."""
     tracker = Tracker(fps_hint=30.0, **RECOMMENDED)  # the daemon's hint, whatever the rate
-    seen = int(round(2.0 * fps))
+    seen = round(2.0 * fps)
     frames = [np.array([[1.0 + 0.5 * i / fps, 2.0]]) for i in range(seen)]
-    frames += [np.zeros((0, 2))] * int(round(0.5 * fps))
+    frames += [np.zeros((0, 2))] * round(0.5 * fps)
     out = run(tracker, frames, fps)
     first_served = next(i for i, o in enumerate(out) if o) / fps
     assert first_served <= 0.3 + 1.0 / fps  # confirm_s, to within one frame
@@ -259,4 +261,4 @@ def test_timing_rules_mean_the_same_at_4_and_30_frame_sets_a_second(fps: float) 
     assert out[-1] == [] or out[-1][0].confidence < 0.3
     missed = [o for o in out[seen:] if o]
     rates = [o[0].confidence for o in missed]
-    assert all(b < a for a, b in zip(rates, rates[1:], strict=False))
+    assert all(b < a for a, b in itertools.pairwise(rates))
