@@ -117,9 +117,11 @@ def get_config(
     room: tuple[float, float] | None = None,
     cameras: int | None = None,
     detector_profile: str | DetectorProfile | None = None,
+    outside_people: int | None = None,
 ) -> SceneConfig:
-    """A preset by name (or a config), with people, fps, perturbations, the room or the detector
-    profile (name, JSON path or :class:`DetectorProfile`) overridden.
+    """A preset by name (or a config), with people, fps, perturbations, the room, the detector
+    profile (name, JSON path or :class:`DetectorProfile`) or the number of people walking
+    outside the set-up area (``SceneConfig.outside_people``) overridden.
 
     ``room`` (width, depth) and/or ``cameras`` (1-9) re-hang the cameras with
     :func:`ring_cameras`, keeping the preset's field of view, image size and distortion.
@@ -146,6 +148,8 @@ def get_config(
         )
     if people is not None:
         config = dataclasses.replace(config, people=int(people))
+    if outside_people is not None:
+        config = dataclasses.replace(config, outside_people=int(outside_people))
     if fps is not None:
         config = dataclasses.replace(config, fps=float(fps))
     if perturbations is not None:
@@ -163,6 +167,7 @@ def make_scene(
     fps: float | None = None,
     perturbations: Sequence[Perturbation] | None = None,
     detector_profile: str | None = None,
+    outside_people: int | None = None,
 ) -> Scene:
     """The scene of a preset with the people count and frame rate overridden, optionally
     cameras bumped mid-run and the simulated detector's profile chosen (name or JSON path;
@@ -173,5 +178,6 @@ def make_scene(
         fps=fps,
         perturbations=perturbations,
         detector_profile=detector_profile,
+        outside_people=outside_people,
     )
     return Scene(config, seed=seed)
