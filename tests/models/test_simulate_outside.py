@@ -114,3 +114,16 @@ def test_rendered_frames_show_outside_people() -> None:
     assert scene.body_points(0).shape[0] == 5
     image = scene.render(0, 0)
     assert image.shape == (480, 640, 3)
+
+
+def test_cmc_room_preset_copies_the_real_room() -> None:
+    config = PRESETS["cmc-room"]
+    assert config.room == (7.67, 3.41) and config.fps == 4.0 and config.num_cameras == 4
+    assert config.area == (2.03, 6.3, 0.0, 3.41) and config.outside_people > 0
+    scene = Scene(config, seed=0)
+    assert scene.image_sizes.tolist() == [[1920, 1024]] * 4
+    for camera in scene.cameras:  # every camera sees the middle of the set-up area
+        pixels, front = camera.project(np.array([4.0, 1.7, 0.9]))
+        assert front and 0 < pixels[0] < 1920 and 0 < pixels[1] < 1024
+    seen = np.isfinite(scene.observe_block(0)["true_boxes"]).all(-1)  # [F, P, K]
+    assert seen.mean() > 0.8  # a small room: almost everyone in every view
