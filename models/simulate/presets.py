@@ -13,7 +13,15 @@ outdoor-6cam    16 × 25    6        1920×1080  8       MultiviewX (corners and
 living-room     5 × 4      2        640×480    2       a home: wide-angle webcams, distortion
 office-3cam     8 × 6      3        640×480    4       a small office
 single-cam      6 × 5      1        640×480    2       one webcam (K = 1 tests)
+cmc-room        7.67×3.41  4        1920×1024  3 (+2)  the CMC lab (Ong et al., TPAMI 2020)
 ==============  =========  =======  =========  ======  ===================================
+
+``cmc-room`` copies the real CMC room at 4 fps: its people are labelled in the authors'
+tracking area (x 2.03-6.30 m, the whole depth) and more walk outside it, in the rest of the
+room (``outside_people``, see :mod:`models.simulate.outside`). Its camera poses were derived
+once from the data set's projection matrices by ``tools/cmc_camera_poses.py`` (centre, floor
+target of the image-centre ray, field of view from f_x; the real rolls of 0.5-2.7° and principal
+points 13-52 px off centre are left out): a handful of pose numbers, not the evaluation data.
 """
 
 from __future__ import annotations
@@ -26,6 +34,7 @@ from models.simulate.profile import DetectorProfile, load_profile
 from models.simulate.scene import CameraSpec, Perturbation, Scene, SceneConfig
 
 INSET = 0.05
+CMC_ROOM = (7.67, 3.41)
 _HEIGHTS = (2.3, 2.4, 2.2, 2.5, 2.35, 2.25, 2.45, 2.15, 2.55)
 
 
@@ -106,6 +115,24 @@ PRESETS: dict[str, SceneConfig] = {
     ),
     "office-3cam": room_config("office-3cam", 8.0, 6.0, 3, people=4, hfov_deg=70.0),
     "single-cam": room_config("single-cam", 6.0, 5.0, 1, people=2, hfov_deg=70.0),
+    "cmc-room": SceneConfig(
+        "cmc-room",
+        CMC_ROOM,
+        tuple(
+            CameraSpec(position, target, hfov, (1920, 1024))
+            for position, target, hfov in (
+                ((0.214, 3.014, 2.185), (4.863, 1.627, 0.0), 82.47),
+                ((7.165, 3.378, 2.144), (3.783, 0.298, 0.0), 84.85),
+                ((7.592, 0.397, 2.192), (3.298, 1.763, 0.0), 82.94),
+                ((0.258, 1.266, 2.136), (4.244, 2.028, 0.0), 84.02),
+            )
+        ),
+        people=3,
+        fps=4.0,
+        wall_height=2.7,
+        area=(2.03, 6.3, 0.0, CMC_ROOM[1]),
+        outside_people=2,
+    ),
 }
 
 
@@ -117,9 +144,11 @@ def get_config(
     room: tuple[float, float] | None = None,
     cameras: int | None = None,
     detector_profile: str | DetectorProfile | None = None,
+    outside_people: int | None = None,
 ) -> SceneConfig:
-    """A preset by name (or a config), with people, fps, perturbations, the room or the detector
-    profile (name, JSON path or :class:`DetectorProfile`) overridden.
+    """A preset by name (or a config), with people, fps, perturbations, the room, the detector
+    profile (name, JSON path or :class:`DetectorProfile`) or the number of people walking
+    outside the set-up area (``SceneConfig.outside_people``) overridden.
 
     ``room`` (width, depth) and/or ``cameras`` (1-9) re-hang the cameras with
     :func:`ring_cameras`, keeping the preset's field of view, image size and distortion.
@@ -146,6 +175,8 @@ def get_config(
         )
     if people is not None:
         config = dataclasses.replace(config, people=int(people))
+    if outside_people is not None:
+        config = dataclasses.replace(config, outside_people=int(outside_people))
     if fps is not None:
         config = dataclasses.replace(config, fps=float(fps))
     if perturbations is not None:
@@ -163,6 +194,7 @@ def make_scene(
     fps: float | None = None,
     perturbations: Sequence[Perturbation] | None = None,
     detector_profile: str | None = None,
+    outside_people: int | None = None,
 ) -> Scene:
     """The scene of a preset with the people count and frame rate overridden, optionally
     cameras bumped mid-run and the simulated detector's profile chosen (name or JSON path;
@@ -173,5 +205,6 @@ def make_scene(
         fps=fps,
         perturbations=perturbations,
         detector_profile=detector_profile,
+        outside_people=outside_people,
     )
     return Scene(config, seed=seed)

@@ -8,10 +8,11 @@ persistent misses, ``[seed, 9, b]`` and ``[seed, 9, b + 1]`` for the keypoint no
 ``[seed, 10, b]`` and ``[seed, 10, b + 1]`` for the pose-miss latents when the profile's keypoints
 have a correlation time (without one both come from ``[seed, 1, b]``), ``[seed, 4, b]``,
 ``[seed, 4, b + 1]`` and ``[seed, 8, b]`` for the false positives, ``[seed, 5]`` for their fixed
-places), so ``observe(i)`` returns the same arrays whatever was observed before, and ``simulate``
-(which observes whole blocks at once) agrees with it. ``[seed, 1, b]`` is drawn from in a fixed
-order, boxes first and the keypoints' gross errors last, so the boxes do not depend on the
-keypoint model.
+places; ``[seed, 11]`` and ``[seed, 12, s]`` for the people outside the set-up area, see
+:mod:`models.simulate.outside`), so ``observe(i)`` returns the same arrays whatever was
+observed before, and ``simulate`` (which observes whole blocks at once) agrees with it.
+``[seed, 1, b]`` is drawn from in a fixed order, boxes first and the keypoints' gross errors
+last, so the boxes do not depend on the keypoint model.
 
 How blind the detector is comes from ``SceneConfig.detector_profile`` (a shipped profile's name,
 a JSON path or a loaded :class:`~models.simulate.profile.DetectorProfile`; default the shipped
@@ -38,6 +39,8 @@ from models.errors import MomlocError
 from models.simulate import false_positives
 from models.simulate.camera import NEAR, PinholeCamera, project_points
 from models.simulate.noise import KeypointDraws, correlated_normals, detect
+from models.simulate.observation import OBSERVED, FrameObservation
+from models.simulate.outside import Placed, Together, outside_walkers
 from models.simulate.people import Walkers, Walking
 from models.simulate.profile import DEFAULT_PROFILE, DetectorProfile, load_profile
 from models.simulate.skeleton import HEAD, MID_HIP, RADII, body_points
@@ -89,6 +92,12 @@ class SceneConfig:
     perturbations: tuple[Perturbation, ...] = ()
     wall_height: float = 2.8
     outdoor: bool = False  # rendering only: open ground and sky instead of walls and ceiling
+    # The set-up area (xmin, xmax, ymin, ymax metres) where the ``people`` walk and are labelled;
+    # None: the whole room. ``outside_people`` more walk in view beyond it, in the room (grown by
+    # ``outside_band`` metres past its walls) minus the area: see models.simulate.outside.
+    area: tuple[float, float, float, float] | None = None
+    outside_people: int = 0
+    outside_band: float = 0.0
 
     def __post_init__(self) -> None:
         if not 1 <= len(self.cameras) <= MAX_CAMERAS:
@@ -102,45 +111,25 @@ class SceneConfig:
         for p in self.perturbations:
             if not 0 <= p.camera < len(self.cameras):
                 raise MomlocError(f"scene '{self.name}': perturbation of unknown camera {p.camera}")
+        if self.outside_people < 0 or self.outside_band < 0:
+            raise MomlocError(f"scene '{self.name}': outside people and band must be >= 0")
+        if self.area is not None:
+            x0, x1, y0, y1 = self.area
+            inside = x0 >= 0 and y0 >= 0 and x1 <= self.room[0] and y1 <= self.room[1]
+            if not (inside and x1 - x0 >= 1.0 and y1 - y0 >= 1.0):
+                raise MomlocError(
+                    f"scene '{self.name}': area {self.area} must lie in the room {self.room} "
+                    "and be at least 1 m each way"
+                )
+
+    @property
+    def setup_area(self) -> tuple[float, float, float, float]:
+        """(xmin, xmax, ymin, ymax) where the labelled people walk: ``area`` or the room."""
+        return self.area if self.area is not None else (0.0, self.room[0], 0.0, self.room[1])
 
     @property
     def num_cameras(self) -> int:
         return len(self.cameras)
-
-
-@dataclass(frozen=True)
-class FrameObservation:
-    """One frame: ``track`` [P], ``world`` [P,2], ``joints`` [P,17,3] (world metres),
-    ``boxes`` [P,K,4] noisy (NaN: not detected), ``keypoints`` [P,K,17,3], ``true_boxes``
-    [P,K,4] (tight, unclipped box of the projected body; NaN behind the camera or off-image),
-    ``false_boxes`` [K,Q,4] the detector's false positives per camera (NaN-padded; no person)."""
-
-    frame: int
-    track: np.ndarray
-    world: np.ndarray
-    joints: np.ndarray
-    boxes: np.ndarray
-    keypoints: np.ndarray
-    true_boxes: np.ndarray
-    false_boxes: np.ndarray
-
-    def reported(self, camera: int) -> tuple[np.ndarray, np.ndarray]:
-        """What camera ``camera``'s detector reports: boxes [M, 4] (the people it found, then
-        its false positives) and their keypoints [M, 17, 3], NaN for a false box (a pose
-        estimator finding no body in it). What the live simulated detector
-        (``service.simulated_detections``), the set-up feed (``service.setup.feeds``) and the
-        stream evaluation (``service.stream_eval``) read; some benchmarks (``bench.stream_bound``,
-        ``bench.association``, ``bench.realtime``) read ``boxes`` directly instead, without the
-        false positives."""
-        seen = np.isfinite(self.boxes[:, camera]).all(axis=-1)
-        false = self.false_boxes[camera]
-        false = false[np.isfinite(false).all(axis=-1)]
-        joints = self.keypoints.shape[2:]
-        boxes = np.concatenate([self.boxes[seen, camera], false])
-        points = np.concatenate(
-            [self.keypoints[seen, camera], np.full((len(false), *joints), np.nan)]
-        )
-        return boxes, points
 
 
 class Scene:
@@ -154,9 +143,20 @@ class Scene:
         self._fp_places = false_positives.hotspots(
             self.profile, self.image_sizes, np.random.default_rng([self.seed, 5])
         )
-        self.walkers: Walking = Walkers(
-            config.room, config.people, config.fps, np.random.default_rng([self.seed, 0])
+        walkers = Walkers(
+            config.room if config.area is None else (config.area[1] - config.area[0],
+                                                     config.area[3] - config.area[2]),
+            config.people, config.fps, np.random.default_rng([self.seed, 0]),
+        )  # fmt: skip
+        self.walkers: Walking = (
+            walkers if config.area is None else Placed(walkers, (config.area[0], config.area[2]))
         )
+        self.outsiders: Walking | None = None
+        if config.outside_people:
+            self.outsiders = outside_walkers(
+                config.room, config.setup_area, config.outside_band, config.outside_people,
+                config.fps, self.seed,
+            )  # fmt: skip
         self._perturbed: dict[int, list[tuple[int, PinholeCamera]]] = {}
         for p in sorted(config.perturbations, key=lambda q: q.start_frame):
             base = self.cameras[p.camera]
@@ -210,11 +210,14 @@ class Scene:
         return FrameObservation(
             frame=frame_index,
             track=np.arange(self.config.people, dtype=np.int64),
-            **{
-                key: block[key][i].copy()
-                for key in ("world", "joints", "boxes", "keypoints", "true_boxes", "false_boxes")
-            },
+            **{key: block[key][i].copy() for key in OBSERVED},
         )
+
+    def _everyone(self) -> Walking:
+        """The labelled people, then the outside ones (what the cameras see)."""
+        if self.outsiders is None:
+            return self.walkers
+        return Together([self.walkers, self.outsiders])
 
     def render(self, frame_index: int, camera_index: int) -> np.ndarray:
         """The image camera ``camera_index`` takes at ``frame_index``: uint8 BGR [H, W, 3]."""
@@ -224,21 +227,24 @@ class Scene:
             raise MomlocError(f"camera {camera_index} not in 0..{self.num_cameras - 1}")
         with self._lock:
             if self._renderer is None:
-                looks = appearance(np.random.default_rng([self.seed, 2]), self.config.people)
+                count = self.config.people + self.config.outside_people
+                looks = appearance(np.random.default_rng([self.seed, 2]), count)
                 self._renderer = Renderer(
                     self.config.room, self.config.wall_height, looks, self.config.outdoor
                 )
             camera = self.cameras_at(frame_index)[camera_index]
             points = self.body_points(frame_index)
             background = self._renderer.background(camera)
-        return self._renderer.draw(background, camera, points, self.walkers.heights)
+        return self._renderer.draw(background, camera, points, self._everyone().heights)
 
     def body_points(self, frame_index: int) -> np.ndarray:
-        """World points [P, NUM_POINTS, 3] of every body (joints, then auxiliary points)."""
+        """World points [P + O, NUM_POINTS, 3] of every body (joints, then auxiliary points):
+        the labelled people, then the outside ones."""
+        everyone = self._everyone()
         with self._lock:
-            states = self.walkers.states(frame_index, frame_index + 1)
+            states = everyone.states(frame_index, frame_index + 1)
         return body_points(
-            states.position, states.heading, states.phase, states.amplitude, self.walkers.heights
+            states.position, states.heading, states.phase, states.amplitude, everyone.heights
         )[0]
 
     def observe_block(self, block: int) -> dict[str, np.ndarray]:
@@ -255,9 +261,10 @@ class Scene:
 
     def _compute_block(self, block: int) -> dict[str, np.ndarray]:
         start = block * BLOCK
-        states = self.walkers.states(start, start + BLOCK)
+        everyone = self._everyone()
+        states = everyone.states(start, start + BLOCK)
         points = body_points(
-            states.position, states.heading, states.phase, states.amplitude, self.walkers.heights
+            states.position, states.heading, states.phase, states.amplitude, everyone.heights
         )  # [F, P, M, 3]
         intr, rot, trans, dist = self._camera_arrays(start, start + BLOCK)
         pixels, depth, magnification = project_points(
@@ -269,7 +276,7 @@ class Scene:
             with_scale=True,
         )  # [F, K, P, M, 2], [F, K, P, M], [F, K, P, M]
         front = depth > NEAR
-        radius = RADII * self.walkers.heights[:, None]  # [P, M]
+        radius = RADII * everyone.heights[:, None]  # [P, M]
         rho = intr[:, :, None, None, 0, 0] * radius * magnification / np.where(front, depth, 1.0)
         volume = front & (radius > 0)
         lo = np.where(volume[..., None], pixels - rho[..., None], np.inf).min(-2)
@@ -288,7 +295,7 @@ class Scene:
         face_away[..., 3] = depth[..., 3] > head
         face_away[..., 4] = depth[..., 4] > head
         rng = np.random.default_rng([self.seed, 1, block])
-        shape = (BLOCK, self.num_cameras, self.config.people)
+        shape = (BLOCK, self.num_cameras, len(everyone.heights))
         boxes, keypoints = detect(
             true_boxes,
             depth[..., MID_HIP],
@@ -301,14 +308,19 @@ class Scene:
             self._correlated(6, block, shape, self.profile.miss.correlation_s),
             self._keypoint_draws(block, shape),
         )
-        return {
+        n = len(self.walkers.heights)  # labelled people first, then the outside ones
+        people = {
             "world": states.position,
             "joints": points[:, :, :17],
             "boxes": boxes.transpose(0, 2, 1, 3),
             "keypoints": keypoints.transpose(0, 2, 1, 3, 4),
             "true_boxes": true_boxes.transpose(0, 2, 1, 3),
-            "false_boxes": self._false_boxes(block),
         }
+        out = {key: value[:, :n] for key, value in people.items()}
+        for key in ("world", "boxes", "keypoints", "true_boxes"):
+            out[f"outside_{key}"] = people[key][:, n:]
+        out["false_boxes"] = self._false_boxes(block)
+        return out
 
     def _correlated(
         self, stream: int, block: int, shape: tuple[int, ...], correlation_s: float

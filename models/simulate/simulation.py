@@ -39,14 +39,16 @@ def simulate(
     room: tuple[float, float] | None = None,
     cameras: int | None = None,
     detector_profile: str | DetectorProfile | None = None,
+    outside_people: int | None = None,
 ) -> SimulationResult:
     """Observe ``frames`` frames of a preset (by name) or a :class:`SceneConfig`.
 
     ``people``, ``fps``, ``perturbation``, ``room``, ``cameras`` and ``detector_profile`` (how
     blind the simulated detector is: a shipped profile's name such as ``"ideal"``, ``"ssdlite"``,
     ``"nanodet"`` (the default), or a JSON path) override the preset (see
-    :func:`~models.simulate.presets.get_config`). False positives are not rows: they have no
-    ground truth (``Scene.observe(i).false_boxes`` has them).
+    :func:`~models.simulate.presets.get_config`), as does ``outside_people``. False positives
+    and people outside the set-up area are not rows: they have no label
+    (``Scene.observe(i).false_boxes`` and ``.outside_*`` have them).
 
     Example::
 
@@ -65,6 +67,7 @@ def simulate(
         room=room,
         cameras=cameras,
         detector_profile=detector_profile,
+        outside_people=outside_people,
     )
     scene = Scene(config, seed)
     parts: dict[str, list[np.ndarray]] = {

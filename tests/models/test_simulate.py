@@ -53,6 +53,8 @@ def test_projection_matrix_agrees_with_project() -> None:
 
 def test_webcam_cameras_are_mounted_high_and_look_into_the_room() -> None:
     for config in PRESETS.values():
+        if config.name == "cmc-room":  # a real lab's 82-85° cameras: test_simulate_outside
+            continue
         for spec in config.cameras:
             camera = spec.camera()
             assert 1.8 <= camera.position[2] <= 2.6

@@ -1,0 +1,97 @@
+"""People beyond the set-up area: in view of the cameras, never labelled, never tracked.
+
+Why: a real room is not empty outside the floor the marks cover. In the CMC room (Ong et al.,
+IEEE TPAMI 2020) the detector returns ~9 boxes per frame of people outside the authors' tracking
+area, and a model that never saw them localizes them inside its area (issue 23). A simulator
+without them hides that failure, so a scene can put ``SceneConfig.outside_people`` extra people
+in the *outside region*: the room grown by ``outside_band`` metres on every side (open space
+beyond the walls; 0 = the room itself) minus the set-up ``area``. That region is cut into up to
+four strips (left and right of the area over the whole depth, then below and above it between
+them); each outside person is put in one strip (probability proportional to its floor area)
+and wanders there like the tracked people do (:class:`~models.simulate.people.Walkers`), so
+nobody crosses the set-up area. The camera sees them with the same detector noise, occlusion
+and misses as everyone else; :class:`~models.simulate.observation.FrameObservation` holds
+them apart (``outside_*`` arrays).
+
+Determinism: strips are drawn from ``[seed, 11]`` and strip ``s``'s walkers from
+``[seed, 12, s]``, streams no other part of the scene uses, so a scene without outside people
+draws exactly what it drew before they existed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from models.errors import MomlocError
+from models.simulate.people import Walkers, WalkerStates, Walking
+
+MIN_STRIP = 0.5  # metres: narrower strips are left empty (no room to walk)
+
+Rect = tuple[float, float, float, float]  # xmin, xmax, ymin, ymax (metres)
+
+
+class Placed:
+    """A :class:`Walking` group moved by ``offset`` (its walkers live in local coordinates)."""
+
+    def __init__(self, walking: Walking, offset: tuple[float, float]) -> None:
+        self.walking = walking
+        self.offset = np.asarray(offset, float)
+        self.heights = walking.heights
+
+    def states(self, start: int, stop: int) -> WalkerStates:
+        s = self.walking.states(start, stop)
+        return WalkerStates(s.position + self.offset, s.heading, s.phase, s.amplitude)
+
+
+class Together:
+    """Several :class:`Walking` groups as one: people concatenated in the groups' order."""
+
+    def __init__(self, groups: list[Walking]) -> None:
+        self.groups = groups
+        self.heights = np.concatenate([g.heights for g in groups]) if groups else np.zeros(0)
+
+    def states(self, start: int, stop: int) -> WalkerStates:
+        parts = [g.states(start, stop) for g in self.groups]
+        return WalkerStates(
+            *(np.concatenate([getattr(p, key) for p in parts], axis=1) for key in _KEYS)
+        )
+
+
+_KEYS = ("position", "heading", "phase", "amplitude")
+
+
+def strips(room: tuple[float, float], area: Rect, band: float) -> list[Rect]:
+    """The outside region (room grown by ``band`` minus ``area``) as up to four rectangles at
+    least :data:`MIN_STRIP` wide each way: left, right, below, above."""
+    x0, x1, y0, y1 = -band, room[0] + band, -band, room[1] + band
+    ax0, ax1, ay0, ay1 = area
+    out = [
+        (x0, ax0, y0, y1),
+        (ax1, x1, y0, y1),
+        (ax0, ax1, y0, ay0),
+        (ax0, ax1, ay1, y1),
+    ]
+    return [r for r in out if r[1] - r[0] >= MIN_STRIP and r[3] - r[2] >= MIN_STRIP]
+
+
+def outside_walkers(
+    room: tuple[float, float], area: Rect, band: float, count: int, fps: float, seed: int
+) -> Walking:
+    """``count`` people wandering the outside region, each kept to one strip."""
+    rects = strips(room, area, band)
+    if not rects:
+        raise MomlocError(
+            f"outside people: no floor outside the set-up area {area} in room {room} "
+            f"(band {band} m): give a smaller area or an outside band"
+        )
+    sizes = np.array([(r[1] - r[0]) * (r[3] - r[2]) for r in rects])
+    choice = np.random.default_rng([seed, 11]).choice(len(rects), count, p=sizes / sizes.sum())
+    groups: list[Walking] = []
+    for s, rect in enumerate(rects):
+        n = int((choice == s).sum())
+        if n:
+            walkers = Walkers(
+                (rect[1] - rect[0], rect[3] - rect[2]), n, fps, np.random.default_rng([seed, 12, s])
+            )
+            groups.append(Placed(walkers, (rect[0], rect[2])))
+    return Together(groups)
