@@ -174,6 +174,16 @@ class MomRuntime:
         beyond = np.isfinite(prior_xy).all(axis=1) & ~self.setup_area.contains(prior_xy)
         return np.where(beyond, 1.0, weight)
 
+    def floor_views(
+        self, boxes: np.ndarray, keypoints: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """Each camera's own floor estimate [B, K, 2] of the rows and its information [B, K, 2,
+        2] from the floor geometry (:meth:`FloorPrior.views`); None without a fitted prior."""
+        if self.floor_prior is None:
+            return None
+        prior_keypoints = keypoints if self.observation == "keypoints" else None
+        return self.floor_prior.views(self._check_boxes(boxes), prior_keypoints)
+
     def inside(self, boxes: np.ndarray, world: np.ndarray) -> np.ndarray:
         """[B] bool: the rows' positions [B, 2] lie in the set-up area and some box [B, K, 4]
         where its camera saw training boxes (:class:`~models.setup_area.SetupArea`); all True

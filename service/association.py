@@ -70,6 +70,8 @@ DEFAULT_MAX_ERROR_PX = 100.0  # normalised px (half the reference height): see b
 REFERENCE_HEIGHT_PX = 200.0  # errors are judged as if every box were this tall
 MIN_HEIGHT_PX = 20.0
 DEFAULT_MAX_VIEW_GAP_M = 2.0
+DEFAULT_MAX_FLOOR_CHI2 = float("inf")  # off until measured on the real room
+FLOOR_INFO_SCALE = 3.0  # the floor prior's std is ~3x overconfident (service.measurements)
 _BLOCKED = 1e9
 
 
@@ -77,11 +79,73 @@ _BLOCKED = 1e9
 class _Gate:
     max_error_px: float
     max_view_gap_m: float
+    max_floor_chi2: float = DEFAULT_MAX_FLOOR_CHI2
 
-    def admits(self, worst: np.ndarray, gap: np.ndarray) -> np.ndarray:
-        """Worst normalised error within the gate, and views that agree on the floor (a NaN gap,
-        from a model that cannot localize one view alone, does not veto)."""
-        return (worst <= self.max_error_px) & ~(gap > self.max_view_gap_m)
+    def admits(
+        self, worst: np.ndarray, gap: np.ndarray, chi2: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Worst normalised error within the gate, and views that agree on the floor (a NaN gap
+        or χ², from a model that cannot localize one view alone or has no floor geometry for a
+        camera, does not veto)."""
+        ok = (worst <= self.max_error_px) & ~(gap > self.max_view_gap_m)
+        return ok if chi2 is None else ok & ~(chi2 > self.max_floor_chi2)
+
+
+@runtime_checkable
+class FloorViewModel(Protocol):
+    """A model with per-camera floor geometry (``MomRuntime.floor_views``): each camera's own
+    floor estimate of a box and its information matrix, or None without floor geometry."""
+
+    def floor_views(
+        self, boxes: np.ndarray, keypoints: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray] | None: ...
+
+
+class _FloorFit:
+    """Each detection's floor position and information from its own camera's floor map, and
+    clusters fused in information form: merging clusters P and Q costs the Mahalanobis
+    distance of their fused positions, ``d^T (Λ_P^-1 + Λ_Q^-1)^-1 d`` (the rise in the fused
+    χ²), which is small only where the cameras' lines of sight meet."""
+
+    def __init__(self, detections: _Views, runtime: LocalizationModel) -> None:
+        self.ok = False
+        if not isinstance(runtime, FloorViewModel):
+            return
+        rows = [{k: j} for k in range(len(detections)) for j in range(len(detections[k]))]
+        if not rows:
+            return
+        tuples = detections.stack(rows)
+        found = runtime.floor_views(tuples.boxes, tuples.keypoints)
+        if found is None:
+            return
+        est, info = found
+        self.ok = True
+        self._info: dict[tuple[int, int], np.ndarray] = {}
+        self._eta: dict[tuple[int, int], np.ndarray] = {}
+        for row, cluster in enumerate(rows):
+            ((k, j),) = cluster.items()
+            self._info[(k, j)] = info[row, k] / FLOOR_INFO_SCALE**2
+            self._eta[(k, j)] = self._info[(k, j)] @ est[row, k]
+
+    def chi2(self, pairs: Sequence[tuple[dict[int, int], dict[int, int]]]) -> np.ndarray | None:
+        """Merge cost per pair of clusters; NaN where either side has no floor information."""
+        if not self.ok:
+            return None
+        out = np.full(len(pairs), np.nan)
+        for i, (p, q) in enumerate(pairs):
+            (lp, ep), (lq, eq) = self._fused(p), self._fused(q)
+            try:
+                cov_p, cov_q = np.linalg.inv(lp), np.linalg.inv(lq)
+                d = cov_p @ ep - cov_q @ eq
+                out[i] = float(d @ np.linalg.solve(cov_p + cov_q, d))
+            except np.linalg.LinAlgError:
+                continue
+        return out
+
+    def _fused(self, cluster: dict[int, int]) -> tuple[np.ndarray, np.ndarray]:
+        info = sum((self._info[(k, j)] for k, j in cluster.items()), np.zeros((2, 2)))
+        eta = sum((self._eta[(k, j)] for k, j in cluster.items()), np.zeros(2))
+        return info, eta
 
 
 def associate(
@@ -89,6 +153,7 @@ def associate(
     runtime: LocalizationModel,
     max_error_px: float = DEFAULT_MAX_ERROR_PX,
     max_view_gap_m: float = DEFAULT_MAX_VIEW_GAP_M,
+    max_floor_chi2: float = DEFAULT_MAX_FLOOR_CHI2,
 ) -> list[Association]:
     """Group the detections of all cameras into people (see the module docstring)."""
     num_cameras = int(runtime.num_cameras)
@@ -99,11 +164,12 @@ def associate(
         )
     detections = _Views.of(detections_per_camera, _observation(runtime) == "keypoints")
     seen_cameras = [k for k in range(num_cameras) if len(detections[k])]
-    gate = _Gate(max_error_px, max_view_gap_m)
+    gate = _Gate(max_error_px, max_view_gap_m, max_floor_chi2)
+    floor = _FloorFit(detections, runtime)
     if len(seen_cameras) == 2:
-        clusters = _match_two(detections, seen_cameras, runtime, gate)
+        clusters = _match_two(detections, seen_cameras, runtime, gate, floor)
     else:
-        clusters = _merge_greedy(detections, runtime, gate)
+        clusters = _merge_greedy(detections, runtime, gate, floor)
 
     if not clusters:
         return []
@@ -131,7 +197,11 @@ def associate(
 
 
 def _match_two(
-    detections: _Views, cameras: list[int], runtime: LocalizationModel, limits: _Gate
+    detections: _Views,
+    cameras: list[int],
+    runtime: LocalizationModel,
+    limits: _Gate,
+    floor: _FloorFit,
 ) -> list[list[int | None]]:
     """Optimal gated bipartite assignment between the only two cameras with detections."""
     a, b = cameras
@@ -142,7 +212,8 @@ def _match_two(
     shape = (len(detections[a]), len(detections[b]))
     single = _single_view_positions(detections, runtime)
     gap = np.linalg.norm(single[a][:, None] - single[b][None], axis=2).reshape(-1)
-    gated = np.where(limits.admits(worst, gap), cost, _BLOCKED).reshape(shape)
+    chi2 = floor.chi2([({a: i}, {b: j}) for i, j in pairs])
+    gated = np.where(limits.admits(worst, gap, chi2), cost, _BLOCKED).reshape(shape)
     gate = limits.max_error_px
     # Leaving a detection unmatched (a single-view person) costs gate / 2, so a pair is only
     # worth matching when its RMS error is below the gate, and two marginal wrong pairs never
@@ -176,7 +247,7 @@ def _match_two(
 
 
 def _merge_greedy(
-    detections: _Views, runtime: LocalizationModel, limits: _Gate
+    detections: _Views, runtime: LocalizationModel, limits: _Gate, floor: _FloorFit
 ) -> list[list[int | None]]:
     """Agglomerative merging, cheapest admissible merge first, re-scoring each merged cluster.
 
@@ -194,7 +265,7 @@ def _merge_greedy(
     costs: dict[tuple[int, int], tuple[float, np.ndarray]] = {}
     ids = sorted(clusters)
     pairs = [(p, q) for i, p in enumerate(ids) for q in ids[i + 1 :]]
-    _score_pairs(pairs, clusters, positions, detections, runtime, limits, costs)
+    _score_pairs(pairs, clusters, positions, detections, runtime, limits, floor, costs)
     next_id = len(clusters)
     while costs:
         (p, q), (_, position) = min(costs.items(), key=lambda item: item[1][0])
@@ -203,7 +274,7 @@ def _merge_greedy(
         clusters[next_id] = merged
         positions[next_id] = position
         pairs = [(other, next_id) for other in clusters if other != next_id]
-        _score_pairs(pairs, clusters, positions, detections, runtime, limits, costs)
+        _score_pairs(pairs, clusters, positions, detections, runtime, limits, floor, costs)
         next_id += 1
     out = []
     for cluster in clusters.values():
@@ -221,6 +292,7 @@ def _score_pairs(
     detections: _Views,
     runtime: LocalizationModel,
     limits: _Gate,
+    floor: _FloorFit,
     costs: dict[tuple[int, int], tuple[float, np.ndarray]],
 ) -> None:
     """Add the admissible merges of ``pairs`` (clusters on disjoint cameras) to ``costs``."""
@@ -230,7 +302,7 @@ def _score_pairs(
     tuples = detections.stack([{**clusters[p], **clusters[q]} for p, q in pairs])
     world, _, cost, worst = _evaluate(tuples, runtime)
     gap = np.array([np.linalg.norm(positions[p] - positions[q]) for p, q in pairs])
-    ok = limits.admits(worst, gap)
+    ok = limits.admits(worst, gap, floor.chi2([(clusters[p], clusters[q]) for p, q in pairs]))
     for i, pair in enumerate(pairs):
         if ok[i]:
             costs[pair] = (float(cost[i]), world[i])
