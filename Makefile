@@ -7,7 +7,7 @@ PIP := $(PY) -m pip install --quiet
 HOST ?= 127.0.0.1
 PORT ?= 8765
 
-.PHONY: demo test lint format bench bench-model bench-detector bench-service bench-setup bench-keypoints test-keypoints test-floors test-docker clean
+.PHONY: demo test lint format bench bench-real bench-model bench-detector bench-service bench-setup bench-keypoints test-keypoints test-floors test-docker clean
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -61,6 +61,11 @@ bench-service: $(VENV)/.stamp-dev
 	$(PY) -m bench.stream_accuracy --observation keypoints --out bench/results/stream_accuracy_keypoints.md
 	$(PY) -m bench.stream_bound
 	$(PY) -m bench.offline_track
+
+# Real rooms (../shared/data, evaluation only): one line and exit 0 when the data is absent.
+DATA ?= ../shared/data
+bench-real: $(VENV)/.stamp-dev
+	nice -n 10 $(PY) -m bench.real_cmc --data $(DATA)
 
 bench-setup: $(VENV)/.stamp-dev
 	$(PY) -m bench.floor_prior_study

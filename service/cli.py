@@ -24,6 +24,7 @@ COMMANDS = (
     "eval",
     "record",
     "track",
+    "import_mot",
     "bridge",
 )
 

@@ -17,6 +17,9 @@ Two feeds, both a sequence of ``(frame index, FrameSet)`` plus the detection sta
   shuffled with a seeded generator, so neither row order nor track ids tell the association who
   is who. Keypoints are not fed: the pipeline's detection contract carries boxes only today
   (issue 13, "a keypoint model cannot be served"); they join once it carries them.
+  A *detections replay* (``models.detections_replay``, written by ``momloc import``) is fed the
+  same way, every box of every camera as recorded (boxes of nobody included, source order: its
+  rows carry no identity to hide), at the replay's own fps unless one is given.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from capture.recording import Recording
 from capture.rig import FrameSet
 from capture.worker import Frame
 from models.dataset import MomDataset
+from models.detections_replay import DetectionsReplay, is_replay
 from models.detector.base import Detections
 from models.errors import MomlocError
 from service.fixed_lag import FixedLagSmoother
@@ -103,13 +107,44 @@ class DatasetDetections:
         return out
 
 
-def detections_feed(path: str | Path, fps: float, seed: int = 0) -> Feed:
-    """A dataset v1 file's boxes as detector output (see the module docstring)."""
+class ReplayDetections:
+    """Detection stage answering each frame set with a replay's boxes of that frame index."""
+
+    keypoints = False
+
+    def __init__(self, replay: DetectionsReplay) -> None:
+        self.replay = replay
+
+    def __call__(self, frame_set: FrameSet) -> list[Detections]:
+        seq = next((f.seq for f in frame_set.frames if f is not None), None)
+        out = []
+        for k, f in enumerate(frame_set.frames):
+            if f is None or seq is None:
+                out.append(Detections.empty())
+                continue
+            boxes, scores = self.replay.at(int(seq), k)
+            out.append(Detections(boxes.copy(), scores.copy(), None))
+        return out
+
+
+def detections_feed(path: str | Path, fps: float | None, seed: int = 0) -> Feed:
+    """A dataset v1 file's or a detections replay's boxes as detector output (see the module
+    docstring); ``fps`` None: the replay's own, 15 (the simulator's) for a dataset."""
+    detect: DatasetDetections | ReplayDetections
+    if is_replay(path):
+        replay = DetectionsReplay.load(path)
+        fps = replay.fps if fps is None else fps
+        frames, sizes_array, detect = replay.frame, replay.image_size, ReplayDetections(replay)
+        if not len(frames):
+            raise MomlocError(f"{path}: the replay has no boxes")
+    else:
+        data = MomDataset.load(path)
+        fps = 15.0 if fps is None else fps
+        frames, sizes_array, detect = data.frame, data.image_size, DatasetDetections(data, seed)
     if not fps > 0:
         raise MomlocError(f"--fps {fps:g}: must be positive")
-    data = MomDataset.load(path)
-    first, last = int(data.frame.min()), int(data.frame.max())
-    sizes = [(int(w), int(h)) for w, h in data.image_size]
+    first, last = int(frames.min()), int(frames.max())
+    sizes = [(int(w), int(h)) for w, h in sizes_array]
 
     def frame_sets() -> Iterator[tuple[int, FrameSet]]:
         for f in range(first, last + 1):
@@ -118,7 +153,7 @@ def detections_feed(path: str | Path, fps: float, seed: int = 0) -> Feed:
             ]
             yield f, FrameSet(frames=frames, skew=0.0, stale=[False] * len(sizes))
 
-    return Feed(frame_sets(), last - first + 1, sizes, DatasetDetections(data, seed), str(path))
+    return Feed(frame_sets(), last - first + 1, sizes, detect, str(path))
 
 
 class _NoRig:

@@ -29,7 +29,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--detections", metavar="DATA.npz", type=Path, default=None,
-        help="instead of a recording: a dataset v1 file's boxes as the detector's output",
+        help="instead of a recording: a detections replay (momloc import) or a dataset v1 "
+        "file's boxes as the detector's output",
     )  # fmt: skip
     parser.add_argument("--model", type=Path, required=True, help="MODEL_DIR (momloc train)")
     parser.add_argument("--out", type=Path, required=True, help="positions file to write")
@@ -43,9 +44,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--config", type=Path, default=None, help="settings file for detector and tracking options"
     )
     parser.add_argument(
-        "--fps", type=float, default=15.0,
-        help="with --detections: frame rate of the dataset's frame index (default 15, the "
-        "simulator's)",
+        "--fps", type=float, default=None,
+        help="with --detections: frame rate of the frame index (default: the replay's own; "
+        "15, the simulator's, for a dataset file)",
     )  # fmt: skip
     parser.add_argument("--seed", type=int, default=0, help="seed of the per-camera shuffling")
     parser.add_argument(

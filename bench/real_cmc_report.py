@@ -1,0 +1,245 @@
+"""The CMC bench's anchors (same frames, same gate, same scorer) and its report files.
+
+Anchors, scored per frame (and streamed where they carry ids):
+
+``mvglmb``                  the data set's authors' calibrated multi-view tracker (MV-GLMB-OC)
+``foot_true_association``   calibrated geometry with the association given: each true person's
+                            paired boxes' bottom centres back-projected onto the floor through
+                            the known P, averaged over cameras
+``mom_true_association_*``  each served model fed the true pairing (one call per person with
+                            their paired boxes): the localizer's upper bound, no association
+                            or tracking error
+
+The JSON keeps one object per served variant and sequence (``moda``, ``precision``, ``recall``,
+``modp``, ``matched_mean_m``, ``mota``, ``idf1``, ``id_switches``, ``acc_0_3``,
+``people_by_cameras``, ``nobody_boxes_per_frame``, ``fp_breakdown``, ``fn_breakdown``, ...)
+and ``anchors``; another bench (the simulator's validation) reads those keys.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench import cmc_data
+from bench.real_cmc_chain import Ground, stream_scores
+from bench.real_cmc_score import score_frames
+from bench.real_cmc_setup import replay_path
+from bench.report import RESULTS, command_line, machine_line, markdown_table, strict_json
+from models.atomic import atomic_write_text
+
+CITATION = (
+    'Ong, Vo, Vo, Kim, Nordholm, "A Bayesian Filter for Multi-view 3D Multi-object Tracking '
+    'with Occlusion Handling", IEEE TPAMI 2020'
+)
+
+
+INTRO = """\
+Data: the CMC data set of {citation} (real 4-camera room, real Faster R-CNN boxes, 4 fps;
+evaluation only, read from `--data`). Models trained with `models.train` on CMC1's real boxes
+paired with the true positions (`bench/real_cmc_setup.py`; `marks9`: the rows within 0.3 m of
+a 3 x 3 grid of marks); CMC2's raw boxes (every box, boxes of nobody included) served through
+`momloc import` + the daemon's `Pipeline.process` (no smoothing). Scored inside the authors'
+tracking area (x 2.03-6.3 m, y 0-3.41 m), Hungarian at 0.5 m; per-frame figures from the
+associations (before tracking), streamed ones from the snapshots."""
+
+BREAKDOWN = """## Per-frame error breakdown
+
+FP: no true person in the cluster / mixed (boxes of 2+ people) / duplicate (the person is
+matched by another cluster) / off (> 0.5 m). FN: missed with a box of theirs in some camera /
+without any.
+
+"""
+
+
+def _per_person(ground: Ground, f: int) -> tuple[np.ndarray, np.ndarray]:
+    """Truth ids of ``f`` with a box in some camera, and their paired boxes [P, K, 4]."""
+    ids = ground.truth.id[ground.truth.at(f)][ground.views(f) > 0]
+    boxes = (
+        np.stack([ground.boxes_of(f, int(i)) for i in ids])
+        if len(ids)
+        else np.zeros((0, ground.replay.num_cameras, 4))
+    )
+    return ids, boxes
+
+
+def anchors(data: Path, models: dict[str, Path], sequence: str = "CMC2") -> dict[str, Any]:
+    """The anchors of ``sequence`` (see the module docstring)."""
+    from models.mom_runtime import MomRuntime
+
+    ground = Ground.build(data, sequence, replay_path(data, sequence))
+    authors = cmc_data.authors_tracker(data, sequence)
+    matrices = cmc_data.projections(data)
+    runtimes = {v: MomRuntime.load(m) for v, m in models.items()}
+    evals: dict[str, list] = {"mvglmb": [], "foot_true_association": []}
+    evals.update({f"mom_true_association_{v}": [] for v in models})
+    stream = {}
+    for f in ground.frames.tolist():
+        rows = authors.at(f)
+        stream[f] = (authors.id[rows], authors.world[rows])
+        evals["mvglmb"].append(ground.frame_eval(f, authors.world[rows]))
+        ids, boxes = _per_person(ground, f)
+        feet = np.zeros((len(ids), 2))
+        for p in range(len(ids)):
+            seen = np.flatnonzero(np.isfinite(boxes[p]).all(axis=1))
+            feet[p] = np.mean(
+                [
+                    cmc_data.floor_points(matrices[k], boxes[p, k : k + 1].astype(np.float64))[0]
+                    for k in seen
+                ],
+                axis=0,
+            )
+        evals["foot_true_association"].append(ground.frame_eval(f, feet))
+        for v, runtime in runtimes.items():
+            xy = runtime.localize(boxes.astype(np.float32)) if len(ids) else np.zeros((0, 2))
+            evals[f"mom_true_association_{v}"].append(
+                ground.frame_eval(f, np.asarray(xy, np.float64))
+            )
+    out = {name: score_frames(frames) for name, frames in evals.items()}
+    out["mvglmb"].update(stream_scores(ground, stream))
+    return out
+
+
+def _f(value: Any, digits: int = 1) -> str:
+    return (
+        ""
+        if value is None or (isinstance(value, float) and not np.isfinite(value))
+        else f"{value:.{digits}f}"
+    )
+
+
+def _row(name: str, r: dict[str, Any]) -> list[str]:
+    return [
+        name,
+        _f(r.get("moda")),
+        _f(r.get("precision")),
+        _f(r.get("recall")),
+        _f(r.get("modp")),
+        _f(r.get("matched_mean_m"), 3),
+        _f(r.get("mota")),
+        _f(r.get("idf1")),
+        str(r.get("id_switches", "")),
+        _f(r.get("acc_0_3")),
+    ]
+
+
+HEADER = [
+    "",
+    "MODA %",
+    "precision %",
+    "recall %",
+    "MODP %",
+    "matched mean m",
+    "streamed MOTA %",
+    "IDF1 %",
+    "id switches",
+    "Acc@0.3 %",
+]
+
+
+def markdown(results: dict[str, Any], seconds: float, argv: Sequence[str] | None) -> str:
+    anchors_ = results["anchors"]
+    rows = [
+        _row("calibrated tracker of the data set's authors (MV-GLMB-OC)", anchors_["mvglmb"]),
+        _row(
+            "true association + calibrated foot point (P known)", anchors_["foot_true_association"]
+        ),
+    ]
+    for v in ("dense", "marks9"):
+        rows.append(
+            _row(f"true association + MoM ({v} model)", anchors_[f"mom_true_association_{v}"])
+        )
+    for v in ("dense", "marks9"):
+        rows.append(_row(f"**product end to end, {v} model**", results[v]["CMC2"]))
+    sanity = [
+        _row(f"{v} model on CMC1 (in-sample)", results[v]["CMC1"]) for v in ("dense", "marks9")
+    ]
+    breakdown = []
+    for v in ("dense", "marks9"):
+        for seq in ("CMC2", "CMC1"):
+            r = results[v][seq]
+            fp, fn = r["fp_breakdown"], r["fn_breakdown"]
+            breakdown.append(
+                [
+                    f"{v} on {seq}",
+                    r["fp"],
+                    fp["nobody"],
+                    fp["mixed"],
+                    fp["duplicate"],
+                    fp["off"],
+                    r["fn"],
+                    fn["with_box"],
+                    fn["without_box"],
+                    _f(r["nobody_boxes_per_frame"]),
+                ]
+            )
+    split = []
+    for v in ("dense", "marks9"):
+        r = results[v]["CMC2"]
+        for c in ("0", "1", "2", "3", "4"):
+            split.append(
+                [
+                    f"{v}, {c} cameras",
+                    _f(100 * r["people_by_cameras"][c]),
+                    _f(r["recall_by_cameras"][c]),
+                    _f(r["matched_mean_by_cameras"][c], 3),
+                    r["estimates_by_cameras"][c],
+                    r["fp_by_cameras"][c],
+                ]
+            )
+    return (
+        "\n\n".join(
+            [
+                "# Real room: CMC, set up with 3 people (CMC1), serve 10 (CMC2)",
+                INTRO.format(citation=CITATION),
+                "## CMC2 (10 people), calibration-free, trained on CMC1\n\n"
+                + markdown_table(HEADER, rows),
+                "## In-sample sanity (CMC1)\n\n" + markdown_table(HEADER, sanity),
+                BREAKDOWN
+                + markdown_table(
+                    [
+                        "",
+                        "FP",
+                        "nobody",
+                        "mixed",
+                        "duplicate",
+                        "off",
+                        "FN",
+                        "with box",
+                        "without box",
+                        "boxes of nobody / frame",
+                    ],
+                    breakdown,
+                ),
+                "## CMC2 by number of cameras with a box of the person\n\n"
+                + markdown_table(
+                    [
+                        "",
+                        "share of people %",
+                        "recall %",
+                        "matched mean m",
+                        "estimates (by their cameras)",
+                        "FP (by their cameras)",
+                    ],
+                    split,
+                ),
+                f"`{command_line('bench.real_cmc', argv)}` in {seconds:.0f} s. {machine_line()}",
+            ]
+        )
+        + "\n"
+    )
+
+
+def write(
+    results: dict[str, Any], out: Path | None, seconds: float, argv: Sequence[str] | None
+) -> Path:
+    out = out or RESULTS / "real_cmc.md"
+    atomic_write_text(out, markdown(results, seconds, argv))
+    atomic_write_text(
+        out.with_suffix(".json"), json.dumps(strict_json(results, 4), indent=1) + "\n"
+    )
+    return out
