@@ -210,6 +210,7 @@ class _State:
     multi_view: bool = False  # seen by two cameras at once for ``multi_view_s`` in all
     multi_view_time: float = 0.0  # seconds seen by two or more cameras at once
     doubted_s: float = 0.0  # time single-view while another camera should have seen it
+    shadowed_s: float = 0.0  # time spent within merge_m of an older track
     cameras: list[int] = field(default_factory=list)
     meta: dict[str, Any] = field(default_factory=dict)
 
@@ -242,6 +243,9 @@ class Tracker:
         serve_coast_s: float | None = None,
         assign_cost: str = "euclidean",
         doubt_outside: bool = False,
+        birth_clearance_m: float = 0.0,
+        merge_s: float = 0.0,
+        merge_m: float = 0.0,
     ) -> None:
         if fps_hint <= 0 or max_missing_s <= 0 or gate_m <= 0:
             raise ValueError("fps_hint, max_missing_s and gate_m must be positive")
@@ -269,6 +273,9 @@ class Tracker:
             raise ValueError(f"assign_cost {assign_cost!r}: expected one of {ASSIGN_COSTS}")
         self.assign_cost = assign_cost
         self.doubt_outside = bool(doubt_outside)
+        self.birth_clearance_m = max(0.0, float(birth_clearance_m))
+        self.merge_s = max(0.0, float(merge_s))
+        self.merge_m = max(0.0, float(merge_m))
         self.serve_coast_s = self.max_missing_s if serve_coast_s is None else float(serve_coast_s)
         self._frame_dt = 1.0 / self.fps_hint
         self._motion_options = (
@@ -329,10 +336,12 @@ class Tracker:
         for i, track in enumerate(self._tracks):
             if i not in matched_tracks:
                 track.rate *= 1.0 - self._rate_weight(dt)
-        for c in sorted(set(range(len(positions))) - set(cols.tolist())):
+        for c in self._births(positions, set(cols.tolist())):
             self._tracks.append(self._spawn(positions[c], noise[c], meta[c], self._time))
         if coverage is not None and self.ghost_s > 0:
             self._doubt(coverage, dt)
+        if self.merge_s > 0 and self.merge_m > 0:
+            self._merge_shadows(dt)
 
         self._tracks = [
             tr
@@ -424,6 +433,39 @@ class Tracker:
         self._count_views(track, self._frame_dt)
         self._confirm(track, t)
         track.meta = dict(meta)
+
+    def _births(self, positions: np.ndarray, assigned: set[int]) -> list[int]:
+        """The unassigned positions that start tracks: none closer than ``birth_clearance_m``
+        to a confirmed track or to a track measured this update (a second cluster of a person
+        already tracked, not a second person: two people do not stand in one spot)."""
+        free = [c for c in range(len(positions)) if c not in assigned]
+        if self.birth_clearance_m <= 0 or not free or not self._tracks:
+            return free
+        held = [
+            tr.motion.mean[:2]
+            for tr in self._tracks
+            if tr.confirmed or tr.last_seen == self._time
+        ]
+        if not held:
+            return free
+        gap = np.linalg.norm(positions[free][:, None] - np.stack(held)[None], axis=2).min(axis=1)
+        return [c for c, d in zip(free, gap.tolist(), strict=True) if d >= self.birth_clearance_m]
+
+    def _merge_shadows(self, dt: float) -> None:
+        """Drop a track that has stayed within ``merge_m`` of an older one for
+        ``merge_s``: two tracks on one person (fed by the two halves of a split association)
+        that would otherwise both be served; the older id is kept."""
+        kept: list[_State] = []
+        for tr in sorted(self._tracks, key=lambda s: s.id):
+            near = any(
+                np.linalg.norm(tr.motion.mean[:2] - older.motion.mean[:2])
+                < self.merge_m
+                for older in kept
+            )
+            tr.shadowed_s = tr.shadowed_s + dt if near else 0.0
+            if tr.shadowed_s <= self.merge_s:
+                kept.append(tr)
+        self._tracks = kept
 
     def _rate_weight(self, dt: float) -> float:
         """Weight of this update in the detection rate: an exponential average over time
