@@ -14,6 +14,9 @@ For fast iteration on the chain (association, tracker, validity gate)::
     result = evaluate(".cache/real_cmc/model_dense_<key>", "CMC2")  # or train_models()["dense"]
     print(result["moda"], result["mota"], result["fp_breakdown"])
 
+Served variants: ``dense`` and ``marks9`` (``bench.real_cmc_setup``) on CMC2 and, in-sample,
+CMC1; ``dense_encoder`` (the dense model served by its encoder alone) on CMC2.
+
 Figures live in ``bench/results/real_cmc.md`` (and ``real_cmc.json``, read by the simulator's
 validation: keep its keys).
 """
@@ -29,7 +32,14 @@ from typing import Any
 
 from bench import cmc_data
 from bench.real_cmc_chain import Ground, score, serve
-from bench.real_cmc_setup import ROOT, VARIANTS, labelled_dataset, replay_path, trained_model
+from bench.real_cmc_setup import (
+    ROOT,
+    VARIANTS,
+    encoder_only,
+    labelled_dataset,
+    replay_path,
+    trained_model,
+)
 
 DEFAULT_DATA = ROOT.parent / "shared" / "data"
 SEQUENCES = ("CMC2", "CMC1")
@@ -72,9 +82,10 @@ def main(argv: list[str] | None = None) -> int:
 
     start = time.perf_counter()
     models = train_models(args.data)
+    served = {**models, "dense_encoder": encoder_only(models["dense"])}
     results: dict[str, Any] = {}
-    for variant, model_dir in models.items():
-        for sequence in SEQUENCES:
+    for variant, model_dir in served.items():
+        for sequence in SEQUENCES if variant in VARIANTS else SEQUENCES[:1]:
             print(f"bench-real: {variant} on {sequence} ...", file=sys.stderr, flush=True)
             results.setdefault(variant, {})[sequence] = evaluate(model_dir, sequence, args.data)
     results["anchors"] = real_cmc_report.anchors(args.data, models)

@@ -81,6 +81,7 @@ class Ground:
     replay: DetectionsReplay
     owner: dict[tuple[int, int], np.ndarray]
     frames: np.ndarray
+    matrices: np.ndarray
 
     @classmethod
     def build(cls, data: Path, sequence: str, replay_path: Path) -> Ground:
@@ -95,7 +96,7 @@ class Ground:
                 boxes, _ = replay.at(f, k)
                 who = cmc_data.pair_boxes(matrices[k], truth.world[rows], truth.z_c[rows], boxes)
                 owner[(f, k)] = np.where(who >= 0, truth.id[rows][np.maximum(who, 0)], -1)
-        return cls(truth, replay, owner, frames)
+        return cls(truth, replay, owner, frames, matrices)
 
     def views(self, frame: int) -> np.ndarray:
         """Per truth row of ``frame``: cameras with a box of that person."""
@@ -114,16 +115,18 @@ class Ground:
                 out[k] = self.replay.at(frame, k)[0][hit[0]]
         return out
 
-    def nobody_boxes(self) -> float:
-        """Boxes per frame (all cameras) that show no true person of the area."""
-        return float(
-            np.mean(
-                [
-                    sum(int((self.owner[(f, k)] < 0).sum()) for k in range(self.replay.num_cameras))
-                    for f in self.frames.tolist()
-                ]
-            )
-        )
+    def nobody_boxes(self) -> tuple[float, float]:
+        """Boxes per frame (all cameras) that show no true person of the area, and the share
+        of them whose calibrated foot point (``cmc_data.floor_points``) lies outside it."""
+        count = outside = 0
+        for f in self.frames.tolist():
+            for k in range(self.replay.num_cameras):
+                boxes = self.replay.at(f, k)[0][self.owner[(f, k)] < 0].astype(np.float64)
+                count += len(boxes)
+                outside += int(
+                    (~cmc_data.in_area(cmc_data.floor_points(self.matrices[k], boxes))).sum()
+                )
+        return count / len(self.frames), outside / count if count else float("nan")
 
     def frame_eval(
         self,
@@ -196,5 +199,5 @@ def score(ground: Ground, served: list[ServedFrame]) -> dict[str, Any]:
         evals.append(ground.frame_eval(f, s.world, people, [len(c) for c in s.cameras]))
     out = score_frames(evals)
     out.update(stream_scores(ground, {s.frame: (s.ids, s.xy) for s in served}))
-    out["nobody_boxes_per_frame"] = ground.nobody_boxes()
+    out["nobody_boxes_per_frame"], out["nobody_boxes_foot_outside"] = ground.nobody_boxes()
     return out
