@@ -15,7 +15,8 @@ For fast iteration on the chain (association, tracker, validity gate)::
     print(result["moda"], result["mota"], result["fp_breakdown"])
 
 Served variants: ``dense`` and ``marks9`` (``bench.real_cmc_setup``) on CMC2 and, in-sample,
-CMC1; ``dense_encoder`` (the dense model served by its encoder alone) on CMC2.
+CMC1; ``dense_encoder`` (the dense model served by its encoder alone) and
+``dense_people_only`` (fed only the boxes of true people: a perfect validity gate) on CMC2.
 
 Figures live in ``bench/results/real_cmc.md`` (and ``real_cmc.json``, read by the simulator's
 validation: keep its keys).
@@ -46,16 +47,26 @@ SEQUENCES = ("CMC2", "CMC1")
 
 
 def evaluate(
-    model_dir: str | Path, sequence: str = "CMC2", data: str | Path = DEFAULT_DATA
+    model_dir: str | Path,
+    sequence: str = "CMC2",
+    data: str | Path = DEFAULT_DATA,
+    *,
+    people_only: bool = False,
 ) -> dict[str, Any]:
     """Serve ``sequence``'s raw boxes with the model in ``model_dir`` through the daemon's chain
     and score it (per-frame ``moda``, ``precision``, ``recall``, ``modp``, ``matched_mean_m``,
     their split ``*_by_cameras``, ``fp_breakdown`` / ``fn_breakdown``; streamed ``mota``,
-    ``idf1``, ``id_switches``, ``acc_0_3``). Takes ~1 min for CMC2 on a busy core; the replay
-    and the evaluation pairing are rebuilt each call from ``data`` (cheap)."""
+    ``idf1``, ``id_switches``, ``acc_0_3``). Takes 1-2 min for CMC2 on a busy core; the replay
+    and the evaluation pairing are rebuilt each call from ``data`` (cheap).
+
+    ``people_only``: serve only the boxes the evaluation pairing gives to a true person (the
+    boxes of nobody removed), the bound a perfect validity gate would reach."""
     data = Path(data)
     replay = replay_path(data, sequence)
     ground = Ground.build(data, sequence, replay)
+    if people_only:
+        replay = ground.people_replay(replay.with_name(f"{replay.stem}_people.npz"))
+        ground = Ground.build(data, sequence, replay)
     return score(ground, serve(Path(model_dir), replay))
 
 
@@ -88,7 +99,12 @@ def main(argv: list[str] | None = None) -> int:
         for sequence in SEQUENCES if variant in VARIANTS else SEQUENCES[:1]:
             print(f"bench-real: {variant} on {sequence} ...", file=sys.stderr, flush=True)
             results.setdefault(variant, {})[sequence] = evaluate(model_dir, sequence, args.data)
+    print("bench-real: dense on CMC2, boxes of people only ...", file=sys.stderr, flush=True)
+    results["dense_people_only"] = {
+        "CMC2": evaluate(models["dense"], "CMC2", args.data, people_only=True)
+    }
     results["anchors"] = real_cmc_report.anchors(args.data, models)
+    results["models"] = {name: real_cmc_report.model_facts(path) for name, path in served.items()}
     out = real_cmc_report.write(results, args.out, time.perf_counter() - start, argv)
     print(f"bench-real: wrote {out} and its .json")
     print(json.dumps({v: results[v]["CMC2"]["moda"] for v in VARIANTS}))

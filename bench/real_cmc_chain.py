@@ -98,6 +98,17 @@ class Ground:
                 owner[(f, k)] = np.where(who >= 0, truth.id[rows][np.maximum(who, 0)], -1)
         return cls(truth, replay, owner, frames, matrices)
 
+    def people_replay(self, path: Path) -> Path:
+        """The replay without the boxes of nobody, written to ``path`` (an oracle's input)."""
+        keep = np.zeros(self.replay.n, bool)
+        for (f, k), owner in self.owner.items():
+            keep[self.replay.rows(f, k)[owner >= 0]] = True
+        r = self.replay
+        DetectionsReplay(
+            r.frame[keep], r.camera[keep], r.boxes[keep], r.scores[keep], r.image_size, r.fps
+        ).save(path)
+        return path
+
     def views(self, frame: int) -> np.ndarray:
         """Per truth row of ``frame``: cameras with a box of that person."""
         ids = self.truth.id[self.truth.at(frame)]
@@ -180,6 +191,7 @@ def stream_scores(
         "stream_precision": result["precision"],
         "stream_recall": result["recall"],
         "stream_matched_mean_m": result["mean"],
+        "stream_recall_by_cameras": {c: v["recall"] for c, v in result["by_views"].items()},
     }
 
 
