@@ -16,7 +16,8 @@ For fast iteration on the chain (association, tracker, validity gate)::
 
 Served variants: ``dense`` and ``marks9`` (``bench.real_cmc_setup``) on CMC2 and, in-sample,
 CMC1; ``dense_encoder`` (the dense model served by its encoder alone) and
-``dense_people_only`` (fed only the boxes of true people: a perfect validity gate) on CMC2.
+``dense_people_only`` (fed only the boxes of true people: a perfect validity gate) and
+``dense_true_association`` (the association replaced by the true one) on CMC2.
 
 Figures live in ``bench/results/real_cmc.md`` (and ``real_cmc.json``, read by the simulator's
 validation: keep its keys).
@@ -32,7 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from bench import cmc_data
-from bench.real_cmc_chain import Ground, score, serve
+from bench.real_cmc_chain import Ground, TrueAssociation, score, serve
 from bench.real_cmc_setup import (
     ROOT,
     VARIANTS,
@@ -52,6 +53,7 @@ def evaluate(
     data: str | Path = DEFAULT_DATA,
     *,
     people_only: bool = False,
+    true_association: bool = False,
 ) -> dict[str, Any]:
     """Serve ``sequence``'s raw boxes with the model in ``model_dir`` through the daemon's chain
     and score it (per-frame ``moda``, ``precision``, ``recall``, ``modp``, ``matched_mean_m``,
@@ -60,14 +62,17 @@ def evaluate(
     and the evaluation pairing are rebuilt each call from ``data`` (cheap).
 
     ``people_only``: serve only the boxes the evaluation pairing gives to a true person (the
-    boxes of nobody removed), the bound a perfect validity gate would reach."""
+    boxes of nobody removed), the bound a perfect validity gate would reach.
+    ``true_association``: the association stage replaced by the evaluation pairing
+    (``bench.real_cmc_chain.TrueAssociation``): what the tracker makes of perfect clusters."""
     data = Path(data)
     replay = replay_path(data, sequence)
     ground = Ground.build(data, sequence, replay)
     if people_only:
         replay = ground.people_replay(replay.with_name(f"{replay.stem}_people.npz"))
         ground = Ground.build(data, sequence, replay)
-    return score(ground, serve(Path(model_dir), replay))
+    oracle = TrueAssociation(ground) if true_association else None
+    return score(ground, serve(Path(model_dir), replay, oracle))
 
 
 def train_models(data: str | Path = DEFAULT_DATA) -> dict[str, Path]:
@@ -102,6 +107,10 @@ def main(argv: list[str] | None = None) -> int:
     print("bench-real: dense on CMC2, boxes of people only ...", file=sys.stderr, flush=True)
     results["dense_people_only"] = {
         "CMC2": evaluate(models["dense"], "CMC2", args.data, people_only=True)
+    }
+    print("bench-real: dense on CMC2, true association ...", file=sys.stderr, flush=True)
+    results["dense_true_association"] = {
+        "CMC2": evaluate(models["dense"], "CMC2", args.data, true_association=True)
     }
     results["anchors"] = real_cmc_report.anchors(args.data, models)
     results["models"] = {name: real_cmc_report.model_facts(path) for name, path in served.items()}

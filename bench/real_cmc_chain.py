@@ -10,6 +10,7 @@ evaluation pairing of ``bench.cmc_data`` for the error attribution (:class:`Grou
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -19,8 +20,10 @@ import numpy as np
 from bench import cmc_data
 from bench.real_cmc_score import GATE_M, FrameEval, score_frames
 from models.detections_replay import DetectionsReplay
+from models.detector.base import Detections
 from models.idf1 import identity_scores
 from models.stream_metrics import StreamFrame, StreamScorer
+from service.stages import Association, LocalizationModel
 
 
 @dataclass
@@ -37,9 +40,12 @@ class ServedFrame:
     xy: np.ndarray
 
 
-def serve(model_dir: Path, replay: Path) -> list[ServedFrame]:
+def serve(
+    model_dir: Path, replay: Path, oracle: TrueAssociation | None = None
+) -> list[ServedFrame]:
     """Every frame set of ``replay`` through the daemon's pipeline with the model of
-    ``model_dir``; one :class:`ServedFrame` per frame set."""
+    ``model_dir``; one :class:`ServedFrame` per frame set. ``oracle``: the association stage
+    replaced by the true association (everything else as served)."""
     from models.mom_runtime import MomRuntime
     from service import offline_track as offline
     from service.stages import FrameResult
@@ -50,9 +56,13 @@ def serve(model_dir: Path, replay: Path) -> list[ServedFrame]:
     pipeline = offline.offline_pipeline(settings, runtime, feed, model_dir)
     results: list[FrameResult] = []
     pipeline.add_listener(results.append)
+    if oracle is not None:
+        pipeline.associate = oracle
     out = []
     try:
         for frame, frame_set in feed.frame_sets:
+            if oracle is not None:
+                oracle.frame = frame
             pipeline.process(frame_set)
             r = results[-1]
             people = r.snapshot.people
@@ -213,3 +223,51 @@ def score(ground: Ground, served: list[ServedFrame]) -> dict[str, Any]:
     out.update(stream_scores(ground, {s.frame: (s.ids, s.xy) for s in served}))
     out["nobody_boxes_per_frame"], out["nobody_boxes_foot_outside"] = ground.nobody_boxes()
     return out
+
+
+class TrueAssociation:
+    """Association stage answering with the evaluation pairing (an oracle bound): one
+    association per true person with a box, localized by the model from exactly their boxes;
+    boxes of nobody are dropped. ``covariance`` is left to the pipeline's per-view default.
+    :func:`serve` sets :attr:`frame` before each frame set (the stage contract has no frame)."""
+
+    def __init__(self, ground: Ground) -> None:
+        self.ground = ground
+        self.frame = -1
+
+    def __call__(
+        self,
+        detections: Sequence[Detections],
+        runtime: LocalizationModel,
+        /,
+        *,
+        max_error_px: float,
+    ) -> list[Association]:
+        cameras = len(detections)
+        owners = [
+            self.ground.owner.get((self.frame, k), np.zeros(0, np.int64)) for k in range(cameras)
+        ]
+        people = sorted({int(i) for owner in owners for i in owner if i >= 0})
+        if not people:
+            return []
+        row = {person: p for p, person in enumerate(people)}
+        boxes = np.full((len(people), cameras, 4), np.nan, np.float32)
+        index: list[list[int | None]] = [[None] * cameras for _ in people]
+        for k, owner in enumerate(owners):
+            for j, person in enumerate(owner.tolist()):
+                if person >= 0:
+                    boxes[row[person], k] = detections[k].boxes[j]
+                    index[row[person]][k] = j
+        world = np.asarray(runtime.localize(boxes), np.float64)
+        errors = np.asarray(runtime.reprojection_error(boxes, world))
+        return [
+            Association(
+                boxes=boxes[p],
+                cameras=[k for k in range(cameras) if index[p][k] is not None],
+                world=world[p],
+                cost=0.0,
+                detection_index=index[p],
+                errors=errors[p],
+            )
+            for p in range(len(people))
+        ]

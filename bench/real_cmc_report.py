@@ -186,6 +186,12 @@ def markdown(results: dict[str, Any], seconds: float, argv: Sequence[str] | None
             results["dense_people_only"]["CMC2"],
         )
     )
+    rows.append(
+        _row(
+            "dense model, true association, daemon's tracker (association oracle)",
+            results["dense_true_association"]["CMC2"],
+        )
+    )
     sanity = [
         _row(f"{v} model on CMC1 (in-sample)", results[v]["CMC1"]) for v in ("dense", "marks9")
     ]
