@@ -136,18 +136,31 @@ class Ground:
                 out[k] = self.replay.at(frame, k)[0][hit[0]]
         return out
 
-    def nobody_boxes(self) -> tuple[float, float]:
-        """Boxes per frame (all cameras) that show no true person of the area, and the share
-        of them whose calibrated foot point (``cmc_data.floor_points``) lies outside it."""
-        count = outside = 0
+    def nobody_boxes(self) -> dict[str, float]:
+        """Boxes per frame (all cameras) that show no true person of the area; the share of
+        them whose calibrated foot point (``cmc_data.floor_points``) lies outside it; and of
+        those inside, the share overlapping a true person's expected box (IoU >= 0.1: a second
+        or fragment box of someone already paired, which the 0.3 pairing gate leaves unowned)."""
+        count = outside = overlapping = 0
         for f in self.frames.tolist():
+            rows = self.truth.at(f)
             for k in range(self.replay.num_cameras):
                 boxes = self.replay.at(f, k)[0][self.owner[(f, k)] < 0].astype(np.float64)
+                inside = cmc_data.in_area(cmc_data.floor_points(self.matrices[k], boxes))
                 count += len(boxes)
-                outside += int(
-                    (~cmc_data.in_area(cmc_data.floor_points(self.matrices[k], boxes))).sum()
-                )
-        return count / len(self.frames), outside / count if count else float("nan")
+                outside += int((~inside).sum())
+                if inside.any() and len(rows):
+                    expected = cmc_data.expected_boxes(
+                        self.matrices[k], self.truth.world[rows], self.truth.z_c[rows]
+                    )
+                    overlapping += int((cmc_data.iou(boxes[inside], expected).max(1) >= 0.1).sum())
+        return {
+            "nobody_boxes_per_frame": count / len(self.frames),
+            "nobody_boxes_foot_outside": outside / count if count else float("nan"),
+            "nobody_boxes_inside_overlapping_person": overlapping / (count - outside)
+            if count > outside
+            else float("nan"),
+        }
 
     def frame_eval(
         self,
@@ -221,7 +234,7 @@ def score(ground: Ground, served: list[ServedFrame]) -> dict[str, Any]:
         evals.append(ground.frame_eval(f, s.world, people, [len(c) for c in s.cameras]))
     out = score_frames(evals)
     out.update(stream_scores(ground, {s.frame: (s.ids, s.xy) for s in served}))
-    out["nobody_boxes_per_frame"], out["nobody_boxes_foot_outside"] = ground.nobody_boxes()
+    out.update(ground.nobody_boxes())
     return out
 
 

@@ -170,7 +170,10 @@ def reading(results: dict[str, Any]) -> str:
             "",
             f"- Boxes of nobody in the area: {dense['nobody_boxes_per_frame']:.1f} per frame "
             f"(all cameras), {100 * dense['nobody_boxes_foot_outside']:.0f} % of them with a "
-            f"calibrated foot point outside it; they make {dense['fp_breakdown']['nobody']} of "
+            f"calibrated foot point outside it (of those inside, "
+            f"{100 * dense['nobody_boxes_inside_overlapping_person']:.0f} % overlap a true "
+            "person's expected box: second or fragment boxes of people already paired); they "
+            f"make {dense['fp_breakdown']['nobody']} of "
             f"the dense model's {dense['fp']} per-frame FPs ({policy} policy) and "
             f"{encoder['fp_breakdown']['nobody']} of {encoder['fp']} served by its encoder alone "
             f"(MODA {dense['moda']:.1f} vs {encoder['moda']:.1f} %).",
