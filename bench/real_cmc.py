@@ -14,6 +14,11 @@ For fast iteration on the chain (association, tracker, validity gate)::
     result = evaluate(".cache/real_cmc/model_dense_<key>", "CMC2")  # or train_models()["dense"]
     print(result["moda"], result["mota"], result["fp_breakdown"])
 
+Served variants: ``dense`` and ``marks9`` (``bench.real_cmc_setup``) on CMC2 and, in-sample,
+CMC1; ``dense_encoder`` (the dense model served by its encoder alone) and
+``dense_people_only`` (fed only the boxes of true people: a perfect validity gate) and
+``dense_true_association`` (the association replaced by the true one) on CMC2.
+
 Figures live in ``bench/results/real_cmc.md`` (and ``real_cmc.json``, read by the simulator's
 validation: keep its keys).
 """
@@ -28,25 +33,46 @@ from pathlib import Path
 from typing import Any
 
 from bench import cmc_data
-from bench.real_cmc_chain import Ground, score, serve
-from bench.real_cmc_setup import ROOT, VARIANTS, labelled_dataset, replay_path, trained_model
+from bench.real_cmc_chain import Ground, TrueAssociation, score, serve
+from bench.real_cmc_setup import (
+    ROOT,
+    VARIANTS,
+    encoder_only,
+    labelled_dataset,
+    replay_path,
+    trained_model,
+)
 
 DEFAULT_DATA = ROOT.parent / "shared" / "data"
 SEQUENCES = ("CMC2", "CMC1")
 
 
 def evaluate(
-    model_dir: str | Path, sequence: str = "CMC2", data: str | Path = DEFAULT_DATA
+    model_dir: str | Path,
+    sequence: str = "CMC2",
+    data: str | Path = DEFAULT_DATA,
+    *,
+    people_only: bool = False,
+    true_association: bool = False,
 ) -> dict[str, Any]:
     """Serve ``sequence``'s raw boxes with the model in ``model_dir`` through the daemon's chain
     and score it (per-frame ``moda``, ``precision``, ``recall``, ``modp``, ``matched_mean_m``,
     their split ``*_by_cameras``, ``fp_breakdown`` / ``fn_breakdown``; streamed ``mota``,
-    ``idf1``, ``id_switches``, ``acc_0_3``). Takes ~1 min for CMC2 on a busy core; the replay
-    and the evaluation pairing are rebuilt each call from ``data`` (cheap)."""
+    ``idf1``, ``id_switches``, ``acc_0_3``). Takes 1-2 min for CMC2 on a busy core; the replay
+    and the evaluation pairing are rebuilt each call from ``data`` (cheap).
+
+    ``people_only``: serve only the boxes the evaluation pairing gives to a true person (the
+    boxes of nobody removed), the bound a perfect validity gate would reach.
+    ``true_association``: the association stage replaced by the evaluation pairing
+    (``bench.real_cmc_chain.TrueAssociation``): what the tracker makes of perfect clusters."""
     data = Path(data)
     replay = replay_path(data, sequence)
     ground = Ground.build(data, sequence, replay)
-    return score(ground, serve(Path(model_dir), replay))
+    if people_only:
+        replay = ground.people_replay(replay.with_name(f"{replay.stem}_people.npz"))
+        ground = Ground.build(data, sequence, replay)
+    oracle = TrueAssociation(ground) if true_association else None
+    return score(ground, serve(Path(model_dir), replay, oracle))
 
 
 def train_models(data: str | Path = DEFAULT_DATA) -> dict[str, Path]:
@@ -72,12 +98,22 @@ def main(argv: list[str] | None = None) -> int:
 
     start = time.perf_counter()
     models = train_models(args.data)
+    served = {**models, "dense_encoder": encoder_only(models["dense"])}
     results: dict[str, Any] = {}
-    for variant, model_dir in models.items():
-        for sequence in SEQUENCES:
+    for variant, model_dir in served.items():
+        for sequence in SEQUENCES if variant in VARIANTS else SEQUENCES[:1]:
             print(f"bench-real: {variant} on {sequence} ...", file=sys.stderr, flush=True)
             results.setdefault(variant, {})[sequence] = evaluate(model_dir, sequence, args.data)
+    print("bench-real: dense on CMC2, boxes of people only ...", file=sys.stderr, flush=True)
+    results["dense_people_only"] = {
+        "CMC2": evaluate(models["dense"], "CMC2", args.data, people_only=True)
+    }
+    print("bench-real: dense on CMC2, true association ...", file=sys.stderr, flush=True)
+    results["dense_true_association"] = {
+        "CMC2": evaluate(models["dense"], "CMC2", args.data, true_association=True)
+    }
     results["anchors"] = real_cmc_report.anchors(args.data, models)
+    results["models"] = {name: real_cmc_report.model_facts(path) for name, path in served.items()}
     out = real_cmc_report.write(results, args.out, time.perf_counter() - start, argv)
     print(f"bench-real: wrote {out} and its .json")
     print(json.dumps({v: results[v]["CMC2"]["moda"] for v in VARIANTS}))

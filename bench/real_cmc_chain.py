@@ -10,6 +10,7 @@ evaluation pairing of ``bench.cmc_data`` for the error attribution (:class:`Grou
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -19,8 +20,10 @@ import numpy as np
 from bench import cmc_data
 from bench.real_cmc_score import GATE_M, FrameEval, score_frames
 from models.detections_replay import DetectionsReplay
+from models.detector.base import Detections
 from models.idf1 import identity_scores
 from models.stream_metrics import StreamFrame, StreamScorer
+from service.stages import Association, LocalizationModel
 
 
 @dataclass
@@ -37,9 +40,12 @@ class ServedFrame:
     xy: np.ndarray
 
 
-def serve(model_dir: Path, replay: Path) -> list[ServedFrame]:
+def serve(
+    model_dir: Path, replay: Path, oracle: TrueAssociation | None = None
+) -> list[ServedFrame]:
     """Every frame set of ``replay`` through the daemon's pipeline with the model of
-    ``model_dir``; one :class:`ServedFrame` per frame set."""
+    ``model_dir``; one :class:`ServedFrame` per frame set. ``oracle``: the association stage
+    replaced by the true association (everything else as served)."""
     from models.mom_runtime import MomRuntime
     from service import offline_track as offline
     from service.stages import FrameResult
@@ -50,9 +56,13 @@ def serve(model_dir: Path, replay: Path) -> list[ServedFrame]:
     pipeline = offline.offline_pipeline(settings, runtime, feed, model_dir)
     results: list[FrameResult] = []
     pipeline.add_listener(results.append)
+    if oracle is not None:
+        pipeline.associate = oracle
     out = []
     try:
         for frame, frame_set in feed.frame_sets:
+            if oracle is not None:
+                oracle.frame = frame
             pipeline.process(frame_set)
             r = results[-1]
             people = r.snapshot.people
@@ -81,6 +91,7 @@ class Ground:
     replay: DetectionsReplay
     owner: dict[tuple[int, int], np.ndarray]
     frames: np.ndarray
+    matrices: np.ndarray
 
     @classmethod
     def build(cls, data: Path, sequence: str, replay_path: Path) -> Ground:
@@ -95,7 +106,18 @@ class Ground:
                 boxes, _ = replay.at(f, k)
                 who = cmc_data.pair_boxes(matrices[k], truth.world[rows], truth.z_c[rows], boxes)
                 owner[(f, k)] = np.where(who >= 0, truth.id[rows][np.maximum(who, 0)], -1)
-        return cls(truth, replay, owner, frames)
+        return cls(truth, replay, owner, frames, matrices)
+
+    def people_replay(self, path: Path) -> Path:
+        """The replay without the boxes of nobody, written to ``path`` (an oracle's input)."""
+        keep = np.zeros(self.replay.n, bool)
+        for (f, k), owner in self.owner.items():
+            keep[self.replay.rows(f, k)[owner >= 0]] = True
+        r = self.replay
+        DetectionsReplay(
+            r.frame[keep], r.camera[keep], r.boxes[keep], r.scores[keep], r.image_size, r.fps
+        ).save(path)
+        return path
 
     def views(self, frame: int) -> np.ndarray:
         """Per truth row of ``frame``: cameras with a box of that person."""
@@ -114,16 +136,31 @@ class Ground:
                 out[k] = self.replay.at(frame, k)[0][hit[0]]
         return out
 
-    def nobody_boxes(self) -> float:
-        """Boxes per frame (all cameras) that show no true person of the area."""
-        return float(
-            np.mean(
-                [
-                    sum(int((self.owner[(f, k)] < 0).sum()) for k in range(self.replay.num_cameras))
-                    for f in self.frames.tolist()
-                ]
-            )
-        )
+    def nobody_boxes(self) -> dict[str, float]:
+        """Boxes per frame (all cameras) that show no true person of the area; the share of
+        them whose calibrated foot point (``cmc_data.floor_points``) lies outside it; and of
+        those inside, the share overlapping a true person's expected box (IoU >= 0.1: a second
+        or fragment box of someone already paired, which the 0.3 pairing gate leaves unowned)."""
+        count = outside = overlapping = 0
+        for f in self.frames.tolist():
+            rows = self.truth.at(f)
+            for k in range(self.replay.num_cameras):
+                boxes = self.replay.at(f, k)[0][self.owner[(f, k)] < 0].astype(np.float64)
+                inside = cmc_data.in_area(cmc_data.floor_points(self.matrices[k], boxes))
+                count += len(boxes)
+                outside += int((~inside).sum())
+                if inside.any() and len(rows):
+                    expected = cmc_data.expected_boxes(
+                        self.matrices[k], self.truth.world[rows], self.truth.z_c[rows]
+                    )
+                    overlapping += int((cmc_data.iou(boxes[inside], expected).max(1) >= 0.1).sum())
+        return {
+            "nobody_boxes_per_frame": count / len(self.frames),
+            "nobody_boxes_foot_outside": outside / count if count else float("nan"),
+            "nobody_boxes_inside_overlapping_person": overlapping / (count - outside)
+            if count > outside
+            else float("nan"),
+        }
 
     def frame_eval(
         self,
@@ -177,6 +214,7 @@ def stream_scores(
         "stream_precision": result["precision"],
         "stream_recall": result["recall"],
         "stream_matched_mean_m": result["mean"],
+        "stream_recall_by_cameras": {c: v["recall"] for c, v in result["by_views"].items()},
     }
 
 
@@ -196,5 +234,53 @@ def score(ground: Ground, served: list[ServedFrame]) -> dict[str, Any]:
         evals.append(ground.frame_eval(f, s.world, people, [len(c) for c in s.cameras]))
     out = score_frames(evals)
     out.update(stream_scores(ground, {s.frame: (s.ids, s.xy) for s in served}))
-    out["nobody_boxes_per_frame"] = ground.nobody_boxes()
+    out.update(ground.nobody_boxes())
     return out
+
+
+class TrueAssociation:
+    """Association stage answering with the evaluation pairing (an oracle bound): one
+    association per true person with a box, localized by the model from exactly their boxes;
+    boxes of nobody are dropped. ``covariance`` is left to the pipeline's per-view default.
+    :func:`serve` sets :attr:`frame` before each frame set (the stage contract has no frame)."""
+
+    def __init__(self, ground: Ground) -> None:
+        self.ground = ground
+        self.frame = -1
+
+    def __call__(
+        self,
+        detections: Sequence[Detections],
+        runtime: LocalizationModel,
+        /,
+        *,
+        max_error_px: float,
+    ) -> list[Association]:
+        cameras = len(detections)
+        owners = [
+            self.ground.owner.get((self.frame, k), np.zeros(0, np.int64)) for k in range(cameras)
+        ]
+        people = sorted({int(i) for owner in owners for i in owner if i >= 0})
+        if not people:
+            return []
+        row = {person: p for p, person in enumerate(people)}
+        boxes = np.full((len(people), cameras, 4), np.nan, np.float32)
+        index: list[list[int | None]] = [[None] * cameras for _ in people]
+        for k, owner in enumerate(owners):
+            for j, person in enumerate(owner.tolist()):
+                if person >= 0:
+                    boxes[row[person], k] = detections[k].boxes[j]
+                    index[row[person]][k] = j
+        world = np.asarray(runtime.localize(boxes), np.float64)
+        errors = np.asarray(runtime.reprojection_error(boxes, world))
+        return [
+            Association(
+                boxes=boxes[p],
+                cameras=[k for k in range(cameras) if index[p][k] is not None],
+                world=world[p],
+                cost=0.0,
+                detection_index=index[p],
+                errors=errors[p],
+            )
+            for p in range(len(people))
+        ]

@@ -18,6 +18,7 @@ of the training code, so a re-run reuses them and any change retrains. Two varia
 from __future__ import annotations
 
 import hashlib
+import json
 import shutil
 from pathlib import Path
 
@@ -158,4 +159,23 @@ def trained_model(dataset: MomDataset, variant: str, cache: Path = CACHE) -> Pat
     shutil.rmtree(tmp, ignore_errors=True)
     train_model(rows, tmp, seed=SEED, progress=False)
     atomic_write_json(tmp / "bench_rows.json", {"rows": rows.n, "variant": variant})
+    return replace_folder(tmp, out)
+
+
+def encoder_only(model_dir: Path) -> Path:
+    """A copy of ``model_dir`` served by its encoder alone (``floor_prior`` policy ``"mom"``).
+
+    Why: ``models.prior_policy`` picks the serving policy on validation rows inside the labelled
+    area, so a small change in the labels flips a dense model between "encoder" and "blend";
+    the bench serves both to show what that choice does to boxes from outside the area.
+    """
+    out = model_dir.with_name(model_dir.name + "_encoder")
+    if (out / "model.json").is_file():
+        return out
+    tmp = out.with_name(out.name + ".partial")
+    shutil.rmtree(tmp, ignore_errors=True)
+    shutil.copytree(model_dir, tmp)
+    meta = json.loads((model_dir / "model.json").read_text())
+    meta["floor_prior"] = {**meta["floor_prior"], "policy": "mom", "weights": [0.0, 0.0, 0.0]}
+    atomic_write_json(tmp / "model.json", meta)
     return replace_folder(tmp, out)

@@ -66,3 +66,27 @@ def test_a_dataset_without_keypoints_feeds_boxes_only(tmp_path):
     assert not feed.detect.keypoints
     _, frame_set = next(iter(feed.frame_sets))
     assert all(d.keypoints is None for d in feed.detect(frame_set))
+
+
+def test_a_replay_feeds_every_box_in_source_order_at_its_own_fps(tmp_path):
+    """A detections replay (momloc import): boxes of nobody included, no shuffling (its rows
+    carry no identity), frames without boxes as empty sets, the replay's fps by default."""
+    from models.detections_replay import DetectionsReplay
+
+    replay = DetectionsReplay(
+        frame=np.array([3, 3, 3, 5]),
+        camera=np.array([0, 0, 1, 1]),
+        boxes=np.array([[10, 10, 20, 40], [50, 10, 60, 40], [1, 1, 2, 2], [5, 5, 9, 9]], float),
+        scores=np.array([0.9, 0.3, 0.5, 0.7]),
+        image_size=np.array([[640, 480], [320, 240]]),
+        fps=4.0,
+    )
+    feed = detections_feed(replay.save(tmp_path / "r.npz"), fps=None)
+    assert feed.total == 3 and feed.image_sizes == [(640, 480), (320, 240)]
+    assert not feed.detect.keypoints
+    seen = {}
+    for frame, frame_set in feed.frame_sets:
+        assert [f.timestamp for f in frame_set.frames] == [frame / 4.0] * 2
+        seen[frame] = [d.boxes[:, 0].tolist() for d in feed.detect(frame_set)]
+    assert seen == {3: [[10.0, 50.0], [1.0]], 4: [[], []], 5: [[], [5.0]]}
+    assert detections_feed(tmp_path / "r.npz", fps=10.0).total == 3
