@@ -57,7 +57,7 @@ def serve(
     results: list[FrameResult] = []
     pipeline.add_listener(results.append)
     if oracle is not None:
-        pipeline.associate = oracle
+        pipeline.chain.associate = oracle
     out = []
     try:
         for frame, frame_set in feed.frame_sets:
@@ -241,7 +241,7 @@ def score(ground: Ground, served: list[ServedFrame]) -> dict[str, Any]:
 class TrueAssociation:
     """Association stage answering with the evaluation pairing (an oracle bound): one
     association per true person with a box, localized by the model from exactly their boxes;
-    boxes of nobody are dropped. ``covariance`` is left to the pipeline's per-view default.
+    boxes of nobody are dropped; each with the model's covariance, as the real association.
     :func:`serve` sets :attr:`frame` before each frame set (the stage contract has no frame)."""
 
     def __init__(self, ground: Ground) -> None:
@@ -273,6 +273,8 @@ class TrueAssociation:
                     index[row[person]][k] = j
         world = np.asarray(runtime.localize(boxes), np.float64)
         errors = np.asarray(runtime.reprojection_error(boxes, world))
+        covariance = getattr(runtime, "covariance", None)
+        cov = None if covariance is None else np.asarray(covariance(boxes), np.float64)
         return [
             Association(
                 boxes=boxes[p],
@@ -281,6 +283,7 @@ class TrueAssociation:
                 cost=0.0,
                 detection_index=index[p],
                 errors=errors[p],
+                covariance=None if cov is None else cov[p],
             )
             for p in range(len(people))
         ]
