@@ -180,3 +180,24 @@ def test_train_stops_and_leaves_no_partial_model(tmp_path, signum):
     # the model is written atomically at the end: a stopped training leaves none, not half of one
     assert not (out / "model.json").exists()
     assert not list(tmp_path.rglob(".*.tmp"))  # models.atomic's temporary files
+
+
+@pytest.mark.parametrize("signum", SIGNALS, ids=lambda s: signal.Signals(s).name)
+def test_track_stops_and_keeps_the_former_output(tmp_path, signum):
+    data = tmp_path / "scene.npz"
+    simulate(DEMO_PRESET, frames=1500, seed=0).dataset.save(data)
+    out = tmp_path / "positions.jsonl"
+    out.write_text("the former run's positions\n")
+    proc = start_ignoring_sigint(
+        "track", "--detections", data, "--model", DEMO_MODEL_DIR, "--out", out
+    )
+    try:
+        read_until(proc.stderr, r"tracking:.*\b[1-9]\d*/1500", proc)  # the progress bar moves
+        _, stderr = stop(proc, signum)
+    finally:
+        proc.kill()
+    assert proc.returncode == 128 + signum, stderr[-2000:]
+    assert "Traceback" not in stderr
+    # positions are written atomically: a stopped run leaves the former file, no temporary one
+    assert out.read_text() == "the former run's positions\n"
+    assert not list(tmp_path.glob(".*.tmp"))
