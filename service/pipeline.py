@@ -348,10 +348,7 @@ class Pipeline:
         path = Path(model_dir) if model_dir is not None else self.model_dir
         if path is None:
             raise MomlocError("no model directory configured")
-        try:
-            runtime = self._load_runtime(path)  # MomRuntime.load runs the model once
-        except MomlocError as error:
-            raise MomlocError(f"{error}; keeping the current model") from None
+        runtime = self._load_runtime(path)  # MomRuntime.load runs the model once
         problem = self._incompatibility(runtime)
         if problem is not None:
             raise MomlocError(f"{path}: {problem}; keeping the current model")

@@ -71,8 +71,7 @@ def run_server(daemon: Daemon, host: str, port: int, on_ready: Any = None) -> No
         # uvicorn shut down on SIGINT/SIGTERM, then re-raised it to the handlers it found
         # (service.stop_signals): for a daemon that is the normal end, exit 0
         log.info("momloc: stopped")
-    finally:
-        _exit_soon_if_stuck(GRACEFUL_SHUTDOWN_S + 5)
+    _exit_soon_if_stuck(GRACEFUL_SHUTDOWN_S + 5)
 
 
 def _exit_soon_if_stuck(seconds: float) -> None:
