@@ -33,6 +33,7 @@ if TYPE_CHECKING:
     from onnxruntime import InferenceSession
 
 MODEL_FORMAT = "mom-model-v1"  # same literal as models.export (which imports torch)
+PROBE_JOINTS = 17  # COCO-17, what keypoint models read (models.keypoints)
 
 
 class MomRuntime:
@@ -104,11 +105,63 @@ class MomRuntime:
             raise MomlocError(f"{shown}: encoder file {schema.encoder.file} is missing")
         session = open_session(onnx_path, threads, what="ONNX encoder")
         try:
-            return cls(meta, session, model_dir)
+            runtime = cls(meta, session, model_dir)
         except (KeyError, TypeError, ValueError) as error:
             raise MomlocError(
                 shorten(f"{shown}/model.json: malformed model description ({error})", 300)
             ) from None
+        runtime.self_test()
+        return runtime
+
+    def self_test(self) -> None:
+        """Run the model once on its own cameras and observation; :class:`MomlocError` if it
+        cannot serve them.
+
+        Why: an ONNX file that loads is not an encoder that runs. Any graph in place of
+        ``encoder.onnx`` (the detector's, another model's) used to load, pass the camera checks
+        and then fail on every frame set it was given. A made-up person in the middle of every
+        camera's image, seen by all cameras and by each alone (the shapes serving produces),
+        goes through the encoder and the served path; the outputs must be one finite floor
+        position per row. Costs a few milliseconds, once per load.
+        """
+        boxes, keypoints = self._probe()
+        shown = f"{shorten(self.model_dir)}/{self.meta['encoder']['file']}"
+        try:
+            encoded = self.encode(boxes, keypoints)
+            world = self.localize(boxes, keypoints)
+            self.reprojection_error(boxes, world, keypoints)
+        except Exception as error:  # onnxruntime's own errors: wrong inputs, shapes, types
+            raise MomlocError(
+                shorten(
+                    f"{shown}: does not run as this model's encoder "
+                    f"({self.num_cameras} cameras, {self.observation}): "
+                    f"{type(error).__name__}: {error}",
+                    300,
+                )
+            ) from None
+        for name, out in (("encoder", encoded), ("model", world)):
+            if np.shape(out) != (len(boxes), 2) or not np.isfinite(out).all():
+                raise MomlocError(
+                    f"{shown}: the {name} gives {np.shape(out)} values with NaN or infinity "
+                    f"for {len(boxes)} people in view, not one floor position each"
+                )
+
+    def _probe(self) -> tuple[np.ndarray, np.ndarray | None]:
+        """Boxes [K+1, K, 4] (all cameras, then each alone) of a standing person in the middle
+        of each image, and keypoints [K+1, K, 17, 3] from the head to the feet down its middle."""
+        k = self.num_cameras
+        w, h = self.image_sizes[:, 0].astype(np.float32), self.image_sizes[:, 1].astype(np.float32)
+        box = np.stack([w / 2 - h / 16, h / 3, w / 2 + h / 16, h * 2 / 3], axis=1)  # [K, 4]
+        seen = np.vstack([np.ones((1, k), bool), np.eye(k, dtype=bool)])  # [K+1, K]
+        boxes = np.where(seen[..., None], box[None], np.nan).astype(np.float32)
+        if self.observation != "keypoints":
+            return boxes, None
+        joints = np.linspace(0.0, 1.0, PROBE_JOINTS, dtype=np.float32)  # top to bottom
+        x = np.broadcast_to(((box[:, 0] + box[:, 2]) / 2)[:, None], (k, PROBE_JOINTS))
+        y = box[:, 1:2] + joints[None] * (box[:, 3:4] - box[:, 1:2])
+        keypoints = np.stack([x, y, np.ones_like(y)], axis=-1)  # [K, J, 3]
+        keypoints = np.where(seen[..., None, None], keypoints[None], np.nan)
+        return boxes, keypoints.astype(np.float32)
 
     # ------------------------------------------------------------------ checks
     def _check_boxes(self, boxes: np.ndarray) -> np.ndarray:

@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
 
 from models.errors import MomlocError, shorten
+from service.stop_signals import Stopped, handle_stop_signals
 
 COMMANDS = (
     "demo",
@@ -42,6 +44,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    with handle_stop_signals():  # Ctrl-C and SIGTERM, however the command was started
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
     try:
         return int(args.func(args) or 0)
     except MomlocError as error:
@@ -53,9 +60,11 @@ def main(argv: list[str] | None = None) -> int:
         where = f"{shorten(error.filename, 160)}: " if error.filename else ""
         print(f"momloc {args.command}: error: {where}{error.strerror}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"momloc {args.command}: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as stop:  # the command cleaned up: say so, exit as shells expect
+        signum = stop.signum if isinstance(stop, Stopped) else signal.SIGINT
+        name = signal.Signals(signum).name
+        print(f"momloc {args.command}: interrupted ({name}), stopped", file=sys.stderr)
+        return 128 + signum
 
 
 if __name__ == "__main__":

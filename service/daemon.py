@@ -219,7 +219,9 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
         setup=session,
     )
     daemon.training = TrainingJob(lambda: session.data_dir, pipeline.reload_model)
-    verifier = Verifier(hub.latest, lambda: pipeline.model_dir if pipeline.runtime else None)
+    verifier = Verifier(
+        hub.latest, lambda: pipeline.model_dir if pipeline.runtime else None, settings.data_dir
+    )
     daemon.verifier = verifier
     if player is not None:  # synthetic.follow_setup: the simulated person obeys /setup
         from models.simulate.following import FollowingWalker

@@ -4,8 +4,9 @@ The watcher polls the signature (size and modification time) of ``encoder.onnx``
 ``model.json`` in the pipeline's current model directory. A change is acted on only once the
 signature has stayed the same for one more poll, so a model still being written is never loaded
 half-way. The swap goes through :meth:`Pipeline.reload_model`, which refuses a model that does not
-fit the running cameras and keeps the old one; the outcome is kept for ``/v1/health``. A refused
-set of files is not retried until it changes again.
+fit the running cameras or does not run (``MomRuntime.load``'s test inference) and keeps the old
+one; the outcome is kept for ``/v1/health``. A refused set of files is not retried until it
+changes again.
 """
 
 from __future__ import annotations

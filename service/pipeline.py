@@ -27,8 +27,9 @@ person at two different places and may split them into two).
 
 The MoM runtime is held by reference and swapped whole by :meth:`Pipeline.reload_model`; the next
 iteration picks up the new one. A model that cannot serve these cameras (camera count, image
-sizes, or keypoints from a detector that has none) is refused with a :class:`MomlocError` and the
-running model stays.
+sizes, or keypoints from a detector that has none) or whose encoder does not run (the test
+inference of ``MomRuntime.load``) is refused with a :class:`MomlocError` and the running model
+stays. A frame set that fails anyway is logged once, then counted (``service.failure_log``).
 """
 
 from __future__ import annotations
@@ -47,6 +48,7 @@ from capture.worker import CameraState, Frame
 from models.errors import MomlocError
 from service.association import DEFAULT_MAX_ERROR_PX
 from service.chain import Chain, OutsideArea, served_inside
+from service.failure_log import FailureLog
 from service.frame_listeners import CameraView, CameraWatch, DetectionTap, Previews, Throughput
 from service.hub import Hub, Snapshot
 from service.setup.camera_monitor import CameraMoved
@@ -135,6 +137,7 @@ class Pipeline:
         self.views_left_out = 0  # frames left out of fusion by the skew rule
         self.failures = 0
         self.last_failure: str | None = None
+        self.failure_log = FailureLog(log, "frame sets")
         # the standard listeners (service.frame_listeners); more via add_listener
         self.camera_watch = CameraWatch(num_cameras, shift_threaded=shift_threaded)
         self.previews = Previews(num_cameras)
@@ -187,12 +190,16 @@ class Pipeline:
         previous: FrameSet | None = None
         while not self._stop.is_set():
             try:
-                previous = self._step(previous)
+                processed = self._step(previous)
             except Exception as exc:  # keep serving; the error shows in /v1/health
                 self.error = self.last_failure = f"pipeline: {type(exc).__name__}: {exc}"
                 self.failures += 1
-                log.exception("pipeline iteration failed")
+                self.failure_log.failed(exc)  # once with its traceback, then counted
                 self._stop.wait(0.1)
+                continue
+            if processed is not previous:
+                self.failure_log.succeeded()
+            previous = processed
 
     def _step(self, previous: FrameSet | None) -> FrameSet | None:
         """Process the newest frame set if it is new; returns the set to wait after."""
@@ -304,7 +311,7 @@ class Pipeline:
         path = Path(model_dir) if model_dir is not None else self.model_dir
         if path is None:
             raise MomlocError("no model directory configured")
-        runtime = self._load_runtime(path)
+        runtime = self._load_runtime(path)  # MomRuntime.load runs the model once
         problem = self._incompatibility(runtime)
         if problem is not None:
             raise MomlocError(f"{path}: {problem}; keeping the current model")

@@ -35,6 +35,7 @@ from capture.rig import FrameSet
 from capture.worker import Frame
 from models.errors import MomlocError
 from service.settings import Settings, SyntheticCamera
+from service.stop_signals import deferred
 
 NO_FRAMES_S = 10.0  # no camera delivered anything this long: the rig is dead, stop with an error
 PROGRESS_EVERY_S = 0.5
@@ -108,12 +109,13 @@ def record_live(
                 )
                 progress.flush()
     except KeyboardInterrupt:
-        pass  # stopping by hand is the normal end of an open-ended recording
+        pass  # Ctrl-C or SIGTERM (service.stop_signals) is the normal end of an open recording
     finally:
-        rig.stop()
-        writer.close()
-        if progress is not None:
-            progress.write("\n")
+        with deferred():  # a signal now waits until the manifest is written
+            rig.stop()
+            writer.close()
+            if progress is not None:
+                progress.write("\n")
     elapsed = 0.0 if start is None else clock() - start
     return RecordSummary(Path(out), writer.frame_sets, elapsed, writer.counts)
 

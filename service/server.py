@@ -65,7 +65,12 @@ def run_server(daemon: Daemon, host: str, port: int, on_ready: Any = None) -> No
     server = make_server(daemon, host, port)
     if on_ready is not None:
         on_ready(sock.getsockname()[1])
-    server.run(sockets=[sock])
+    try:
+        server.run(sockets=[sock])
+    except KeyboardInterrupt:
+        # uvicorn shut down on SIGINT/SIGTERM, then re-raised it to the handlers it found
+        # (service.stop_signals): for a daemon that is the normal end, exit 0
+        log.info("momloc: stopped")
     _exit_soon_if_stuck(GRACEFUL_SHUTDOWN_S + 5)
 
 

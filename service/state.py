@@ -18,7 +18,7 @@ from service.pipeline import Pipeline
 from service.setup.camera_monitor import CameraMoved
 from service.setup.session import SetupSession
 from service.setup.training import TrainingJob
-from service.setup.verify import Verifier, stored_verification
+from service.setup.verify import Verifier
 
 NO_MODEL = "no model yet: record floor marks at /setup"
 
@@ -74,7 +74,7 @@ class Daemon:
         cameras = self.camera_states()
         model = self.pipeline.model_info()
         pipeline = self.pipeline.stats()
-        model["verification"] = stored_verification(self.pipeline.model_dir)
+        model["verification"] = None if self.verifier is None else self.verifier.stored()
         if self.setup_mode:
             model["message"] = NO_MODEL
         ok = (

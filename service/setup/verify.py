@@ -2,9 +2,9 @@
 
 After training, the user stands on some marks (the recording's, or new ones typed now and never
 used in training, the honest test) and the page shows how far the served position is from each
-mark, live, and a summary ("median 0.09 m over 4 marks"). The summary is stored in the model's
-``model.json`` (key ``verification``, written atomically) and shown in ``/v1/health``, so the
-number stays with the model it describes.
+mark, live, and a summary ("median 0.09 m over 4 marks"). The summary is kept with the model it
+describes, in its ``model.json`` when the daemon trained it, else in ``data_dir`` (never in a
+shipped or foreign file: :mod:`service.setup.check_store`), and shown in ``/v1/health``.
 
 How a mark is measured: after the move and countdown, the published snapshots of ``seconds`` are
 read (the hub's newest, polled at 10 Hz: the verifier must never slow the pipeline) and scored by
@@ -21,9 +21,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from models.atomic import atomic_write_json
 from models.errors import MomlocError
 from service.setup.check_score import mark_error, nearest_error, summarise
+from service.setup.check_store import store_check, stored_check
 from service.setup.marks import FloorMark
 
 POLL_S = 0.1
@@ -36,9 +36,12 @@ class Cancelled(Exception):
 class Verifier:
     """At most one check at a time, on the daemon's published positions."""
 
-    def __init__(self, latest: Callable[[], Any], model_dir: Callable[[], Path | None]) -> None:
+    def __init__(
+        self, latest: Callable[[], Any], model_dir: Callable[[], Path | None], data_dir: Path
+    ) -> None:
         self._latest = latest  # the hub's newest snapshot
         self._model_dir = model_dir  # the model being served (None: no model)
+        self.data_dir = Path(data_dir)  # where results of models not the daemon's own go
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
         self._lock = threading.Lock()
@@ -117,15 +120,15 @@ class Verifier:
         return errors
 
     def _store(self, summary: dict[str, Any]) -> str | None:
-        """Add the summary to the served model's ``model.json`` (atomic rewrite)."""
+        """Keep the summary for the served model (:mod:`service.setup.check_store`)."""
         model_dir = self._model_dir()
         if model_dir is None:
             return None
-        path = Path(model_dir) / "model.json"
-        meta = json.loads(path.read_text())
-        meta["verification"] = summary
-        atomic_write_json(path, meta)
-        return str(path)
+        return str(store_check(summary, Path(model_dir), self.data_dir))
+
+    def stored(self) -> dict[str, Any] | None:
+        """The summary kept for the served model, if it was ever checked."""
+        return stored_check(self._model_dir(), self.data_dir)
 
     def stop(self) -> dict[str, Any]:
         self._stop.set()
@@ -140,27 +143,3 @@ class Verifier:
 
     def status(self) -> dict[str, Any]:
         return json.loads(json.dumps(self._state))  # a deep copy: the thread keeps writing
-
-
-_read_cache: dict[Path, tuple[int, dict[str, Any] | None]] = {}
-
-
-def stored_verification(model_dir: Path | None) -> dict[str, Any] | None:
-    """The verification summary stored in ``model_dir/model.json``, if any (the file is read
-    again only when it changed: ``/v1/health`` asks every second and model.json is tens of kB)."""
-    if model_dir is None:
-        return None
-    path = Path(model_dir) / "model.json"
-    try:
-        stamp = path.stat().st_mtime_ns
-        cached = _read_cache.get(path)
-        if cached is not None and cached[0] == stamp:
-            return cached[1]
-        meta = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return None
-    value = meta.get("verification") if isinstance(meta, dict) else None
-    value = value if isinstance(value, dict) else None
-    _read_cache.clear()  # one model is served at a time
-    _read_cache[path] = (stamp, value)
-    return value
