@@ -1,0 +1,110 @@
+"""The product's chain on real geometry, and the oracle bounds that explain its misses.
+
+Shared by ``bench.real_multiviewx`` and ``bench.real_wildtrack``:
+
+- :func:`train_runtime` trains the way ``momloc train`` does (``models.train.train_model``
+  defaults, a time budget so a bench stays bounded) and loads the served model;
+- :func:`serve` runs the daemon's association (``service.association.associate``) on one frame
+  set's detections and returns the served floor positions;
+- :func:`match_people` pairs one camera's boxes with the true people projected through the real
+  calibration (the box's bottom centre near the projected floor point, in units of the person's
+  projected height), which gives the detector's recall and the *true association* of the boxes;
+- :func:`foot_point` is the calibrated reference a classical system would serve: each box's
+  bottom centre back-projected to the floor through the real calibration, averaged over the
+  cameras of one person.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from bench.real_data import Calibration
+from models.dataset import MomDataset
+from models.detector.base import Detections
+from models.mom_runtime import MomRuntime
+
+PERSON_HEIGHT_M = 1.8  # the annotation cylinders' height (Wildtrack, MultiviewX)
+MATCH_GATE = 0.3  # box bottom centre within 0.3 projected heights of the floor point
+
+
+def train_runtime(dataset: MomDataset, out: Path, seconds: float, seed: int = 0) -> MomRuntime:
+    """``momloc train`` on ``dataset`` with its adaptive schedule cut at ``seconds``."""
+    from models.train import train_model
+
+    train_model(dataset, out, seed=seed, progress=False, tuning={"time_budget_s": seconds})
+    return MomRuntime.load(out)
+
+
+def serve(detections: Sequence[Detections], runtime: Any) -> np.ndarray:
+    """Served floor positions [M, 2] of one frame set (the daemon's association)."""
+    from service.association import associate
+
+    found = associate(list(detections), runtime)
+    return np.array([a.world for a in found], dtype=np.float64).reshape(-1, 2)
+
+
+def projected_people(
+    calibration: Calibration, xy: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Floor point [P, 2] px, projected height [P] px and in-view flag [P] of people at ``xy``:
+    in view when the point at half the height is in front of the camera and inside the image."""
+    xy = np.asarray(xy, float).reshape(-1, 2)
+    zeros = np.zeros((len(xy), 1))
+    foot, depth = calibration.project(np.c_[xy, zeros])
+    head, _ = calibration.project(np.c_[xy, zeros + PERSON_HEIGHT_M])
+    middle, _ = calibration.project(np.c_[xy, zeros + PERSON_HEIGHT_M / 2])
+    w, h = calibration.image_size
+    inside = (middle[:, 0] >= 0) & (middle[:, 0] < w) & (middle[:, 1] >= 0) & (middle[:, 1] < h)
+    height = np.linalg.norm(head - foot, axis=1)
+    return foot, height, (depth > 0.1) & inside
+
+
+def match_people(
+    boxes: np.ndarray, calibration: Calibration, xy: np.ndarray, gate: float = MATCH_GATE
+) -> np.ndarray:
+    """[M] index of the true person each box [M, 4] belongs to (-1: nobody), one to one."""
+    boxes = np.asarray(boxes, float).reshape(-1, 4)
+    out = np.full(len(boxes), -1, np.int64)
+    foot, height, seen = projected_people(calibration, xy)
+    if not len(boxes) or not seen.any():
+        return out
+    bottom = np.c_[(boxes[:, 0] + boxes[:, 2]) / 2, boxes[:, 3]]
+    cost = np.linalg.norm(bottom[:, None] - foot[None], axis=2) / np.maximum(height, 1.0)[None]
+    cost = np.where(seen[None] & (cost <= gate), cost, 1e6)
+    rows, cols = linear_sum_assignment(cost)
+    keep = cost[rows, cols] <= gate
+    out[rows[keep]] = cols[keep]
+    return out
+
+
+def true_tuples(
+    boxes: Sequence[np.ndarray], labels: Sequence[np.ndarray], people: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The boxes grouped by true person: tuples [B, K, 4] (NaN: not seen) of the B people at
+    least one camera's box belongs to, and their person indices [B]."""
+    tuples = np.full((people, len(boxes), 4), np.nan)
+    for k, (b, lab) in enumerate(zip(boxes, labels, strict=True)):
+        mine = lab >= 0
+        tuples[lab[mine], k] = np.asarray(b, float).reshape(-1, 4)[mine]
+    found = np.flatnonzero(np.isfinite(tuples).all(axis=2).any(axis=1))
+    return tuples[found], found
+
+
+def foot_point(tuples: np.ndarray, calibrations: Sequence[Calibration]) -> np.ndarray:
+    """Calibrated reference [B, 2]: each seen box's bottom centre through the inverse floor
+    homography of its camera (z = 0), averaged over the cameras of the tuple."""
+    points = np.full((*tuples.shape[:2], 2), np.nan)
+    for k, cal in enumerate(calibrations):
+        floor = cal.K @ np.c_[cal.R[:, :2], cal.t]  # floor (x, y, 1) -> pixels
+        inverse = np.linalg.inv(floor)
+        b = tuples[:, k]
+        pixels = np.c_[(b[:, 0] + b[:, 2]) / 2, b[:, 3], np.ones(len(b))]
+        world = pixels @ inverse.T
+        points[:, k] = world[:, :2] / world[:, 2:3]
+    with np.errstate(invalid="ignore"):
+        return np.nanmean(points, axis=1)
