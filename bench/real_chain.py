@@ -5,7 +5,7 @@ Shared by ``bench.real_multiviewx`` and ``bench.real_wildtrack``:
 - :func:`train_runtime` trains the way ``momloc train`` does (``models.train.train_model``
   defaults, a time budget so a bench stays bounded) and loads the served model;
 - :func:`serve` runs the daemon's association (``service.association.associate``) on one frame
-  set's detections and returns the served floor positions;
+  set's detections, and :func:`breakdown` says why each wrong or missing position is one;
 - :func:`match_people` pairs one camera's boxes with the true people projected through the real
   calibration (the box's bottom centre near the projected floor point, in units of the person's
   projected height), which gives the detector's recall and the *true association* of the boxes;
@@ -16,6 +16,7 @@ Shared by ``bench.real_multiviewx`` and ``bench.real_wildtrack``:
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -27,6 +28,7 @@ from bench.real_data import Calibration
 from models.dataset import MomDataset
 from models.detector.base import Detections
 from models.mom_runtime import MomRuntime
+from service.stages import Association
 
 PERSON_HEIGHT_M = 1.8  # the annotation cylinders' height (Wildtrack, MultiviewX)
 MATCH_GATE = 0.3  # box bottom centre within 0.3 projected heights of the floor point
@@ -40,12 +42,62 @@ def train_runtime(dataset: MomDataset, out: Path, seconds: float, seed: int = 0)
     return MomRuntime.load(out)
 
 
-def serve(detections: Sequence[Detections], runtime: Any) -> np.ndarray:
-    """Served floor positions [M, 2] of one frame set (the daemon's association)."""
+def serve(detections: Sequence[Detections], runtime: Any) -> list[Association]:
+    """The daemon's association of one frame set's detections (what it localizes and tracks)."""
     from service.association import associate
 
-    found = associate(list(detections), runtime)
-    return np.array([a.world for a in found], dtype=np.float64).reshape(-1, 2)
+    return associate(list(detections), runtime)
+
+
+def positions(associations: Sequence[Association]) -> np.ndarray:
+    """Served floor positions [M, 2]."""
+    return np.array([a.world for a in associations], dtype=np.float64).reshape(-1, 2)
+
+
+FP_CAUSES = ("no true person", "mixed people", "duplicate", "one person, off > 0.5 m")
+FN_CAUSES = ("no box in any camera", "boxed, not served within 0.5 m")
+
+
+def breakdown(
+    associations: Sequence[Association],
+    labels: Sequence[np.ndarray],
+    matched: np.ndarray,
+    truth_matched: np.ndarray,
+    people: int,
+) -> tuple[Counter[str], Counter[str], Counter[str]]:
+    """Why each unmatched served position (FP) and unmatched true person (FN) is one.
+
+    ``labels[k]`` is the true person of each of camera k's boxes (-1: nobody,
+    :func:`match_people`); ``matched`` [M] the served positions scoring a TP, ``truth_matched``
+    the true people they matched. FP: all its boxes belong to nobody; it fuses boxes of two
+    people (or a person and a false box); its person is already served by another position; or
+    it is one person placed more than 0.5 m off. FN: no camera has a box of them, or they have
+    one but no position within 0.5 m. Also counts the FPs by how many cameras they fuse."""
+    fp: Counter[str] = Counter()
+    fn: Counter[str] = Counter()
+    fp_views: Counter[str] = Counter()
+    is_tp = np.zeros(len(associations), bool)
+    is_tp[matched] = True
+    served_people = set(np.asarray(truth_matched).tolist())
+    for a, tp in zip(associations, is_tp, strict=True):
+        if tp:
+            continue
+        who = {int(labels[k][j]) for k, j in enumerate(a.detection_index) if j is not None}
+        fp_views[str(min(len(a.cameras), 3)) + ("+" if len(a.cameras) >= 3 else "")] += 1
+        if who == {-1}:
+            fp[FP_CAUSES[0]] += 1
+        elif len(who) > 1:
+            fp[FP_CAUSES[1]] += 1
+        elif who <= served_people:
+            fp[FP_CAUSES[2]] += 1
+        else:
+            fp[FP_CAUSES[3]] += 1
+    boxed = set(np.concatenate([np.asarray(lab) for lab in labels] or [np.zeros(0)]).tolist())
+    for p in range(people):
+        if p in served_people:
+            continue
+        fn[FN_CAUSES[0] if p not in boxed else FN_CAUSES[1]] += 1
+    return fp, fn, fp_views
 
 
 def projected_people(

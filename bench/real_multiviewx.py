@@ -32,14 +32,20 @@ from __future__ import annotations
 import argparse
 import tempfile
 import time
+from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from bench.real_chain import (
+    FN_CAUSES,
+    FP_CAUSES,
+    breakdown,
     foot_point,
     match_people,
+    positions,
     projected_people,
     serve,
     train_runtime,
@@ -111,21 +117,29 @@ def inside_floor(xy: np.ndarray) -> np.ndarray:
     return (xy[:, 0] >= 0) & (xy[:, 0] <= FLOOR_M[0]) & (xy[:, 1] >= 0) & (xy[:, 1] <= FLOOR_M[1])
 
 
-def score_frames(detections, positions, calibrations, runtime) -> dict[str, object]:
+def score_frames(detections, truth_frames, calibrations, runtime) -> dict[str, Any]:
     """The served chain and the oracle bounds over all frames (see the module docstring)."""
-    served, served_in = DetectionScore(), DetectionScore()
+    served, served_in, served_multi = DetectionScore(), DetectionScore(), DetectionScore()
     oracle, foot = DetectionScore(), DetectionScore()
+    fp: Counter[str] = Counter()
+    fn: Counter[str] = Counter()
+    fp_views: Counter[str] = Counter()
     per_frame = []
     views = found_views = people = found_people = boxes_total = boxes_matched = 0
-    for dets, truth in zip(detections, positions, strict=True):
+    for dets, truth in zip(detections, truth_frames, strict=True):
         xy = truth.xy
-        positions_served = serve(dets, runtime)
+        found = serve(dets, runtime)
+        where = positions(found)
         frame = DetectionScore()
-        frame.add(positions_served, xy)
-        served.add(positions_served, xy)
-        served_in.add(positions_served[inside_floor(positions_served)], xy)
+        frame.add(where, xy)
+        rows, matched = served.add(where, xy)
+        served_in.add(where[inside_floor(where)], xy)
+        served_multi.add(where[[len(a.cameras) >= 2 for a in found]], xy)
         per_frame.append((truth.frame, len(xy), sum(len(d.boxes) for d in dets), frame.result()))
         labels = [match_people(d.boxes, c, xy) for d, c in zip(dets, calibrations, strict=True)]
+        causes = breakdown(found, labels, rows, matched, len(xy))
+        for total, counts in zip((fp, fn, fp_views), causes, strict=True):
+            total.update(counts)
         for lab, cal in zip(labels, calibrations, strict=True):
             seen = projected_people(cal, xy)[2]
             views += int(seen.sum())
@@ -135,18 +149,18 @@ def score_frames(detections, positions, calibrations, runtime) -> dict[str, obje
         tuples, who = true_tuples([d.boxes for d in dets], labels, len(xy))
         people += len(xy)
         found_people += len(who)
-        if len(who):
-            # the true association: the model on each person's boxes, scored against everyone
-            oracle.add(runtime.localize(tuples.astype(np.float32)), xy)
-            foot.add(foot_point(tuples, calibrations), xy)
-        else:
-            oracle.add(np.zeros((0, 2)), xy)
-            foot.add(np.zeros((0, 2)), xy)
+        # the true association: the model on each person's boxes, scored against everyone
+        oracle.add(runtime.localize(tuples.astype(np.float32)) if len(who) else tuples[:, 0], xy)
+        foot.add(foot_point(tuples, calibrations) if len(who) else tuples[:, 0], xy)
     return {
         "served": served.result(),
         "served_inside": served_in.result(),
+        "served_multi": served_multi.result(),
         "oracle": oracle.result(),
         "foot": foot.result(),
+        "fp": fp,
+        "fn": fn,
+        "fp_views": fp_views,
         "per_frame": per_frame,
         "view_recall": 100.0 * found_views / max(views, 1),
         "views": views,
@@ -167,6 +181,7 @@ def report(result: dict, header: str, command: str) -> str:
     names = {
         "served": "**product end to end** (NanoDet → association → MoM), all served positions",
         "served_inside": "product end to end, served positions inside the 25 × 16 m floor",
+        "served_multi": "product end to end, positions fused from 2+ cameras only",
         "oracle": "true association + the same MoM model (oracle)",
         "foot": "true association + calibrated foot point (P known)",
     }
@@ -185,6 +200,14 @@ def report(result: dict, header: str, command: str) -> str:
         )
     rows.append(["MVDet (calibrated, trained on MultiviewX's full training split)",
                  f"{MVDET_MODA:.1f}", "", "", "", "", ""])  # fmt: skip
+    fp, fn, views = result["fp"], result["fn"], result["fp_views"]
+    causes = [[f"FP: {c}", fp.get(c, 0)] for c in FP_CAUSES]
+    causes += [[f"FP fused from {v} camera(s)", views.get(v, 0)] for v in ("1", "2", "3+")]
+    causes += [[f"FN: {c}", fn.get(c, 0)] for c in FN_CAUSES]
+    fp, fn, views = result["fp"], result["fn"], result["fp_views"]
+    causes = [[f"FP: {c}", fp.get(c, 0)] for c in FP_CAUSES]
+    causes += [[f"FP fused from {v} camera(s)", views.get(v, 0)] for v in ("1", "2", "3+")]
+    causes += [[f"FN: {c}", fn.get(c, 0)] for c in FN_CAUSES]
     per_frame = [
         [f, n, b, _f(m["moda"]), _f(m["precision"]), _f(m["recall"]), _f(m["mean"], 3)]
         for f, n, b, m in result["per_frame"]
@@ -218,6 +241,15 @@ def report(result: dict, header: str, command: str) -> str:
             "GT, MODP = mean(1 − d / 0.5 m) over the matches (MVDet's definitions). Ground truth: "
             "every annotated person in the frame.",
             "",
+            "## Where the product's errors come from",
+            "",
+            "Each served position left unmatched (FP) and each person left unmatched (FN), by "
+            "the true person of each box (`bench.real_chain.breakdown`; a box belongs to the "
+            "person whose projected floor point is within 0.3 projected heights of its bottom "
+            "centre, one to one).",
+            "",
+            markdown_table(["cause", "count"], causes),
+            "",
             "## Per frame (product end to end)",
             "",
             markdown_table(FRAME_COLUMNS, per_frame),
@@ -241,15 +273,15 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     from models.simulate import simulate
 
-    positions = load_positions(folder, GRID)
-    floor_xy = np.concatenate([p.xy for p in positions])
+    truth_frames = load_positions(folder, GRID)
+    floor_xy = np.concatenate([p.xy for p in truth_frames])
     floor = np.c_[floor_xy, np.zeros(len(floor_xy))]
     calibrations = [
         c.facing(floor) for c in load_calibrations(folder, list(CAMERAS), "intrinsic", IMAGE_SIZE)
     ]
     paths = image_sets(folder)
-    if len(paths) != len(positions):
-        raise SystemExit(f"{folder}: {len(paths)} image sets but {len(positions)} annotations")
+    if len(paths) != len(truth_frames):
+        raise SystemExit(f"{folder}: {len(paths)} image sets but {len(truth_frames)} annotations")
     _log(f"detecting {len(paths)} frame sets")
     detections, detector = detect_all(paths)
     config = scene_config(calibrations, args.people, args.fps)
@@ -260,7 +292,7 @@ def main(argv: list[str] | None = None) -> int:
         runtime = train_runtime(setup, Path(tmp) / "model", args.train_seconds, args.seed)
         trained = time.monotonic() - started
         _log(f"trained in {trained:.0f} s, policy {runtime.policy}")
-        result = score_frames(detections, positions, calibrations, runtime)
+        result = score_frames(detections, truth_frames, calibrations, runtime)
     header = (
         f"Images: {len(paths)} frame sets × {len(CAMERAS)} cameras {IMAGE_SIZE[0]}×"
         f"{IMAGE_SIZE[1]} (image `NNNN.jpg` of every camera ↔ the NNNN-th annotation file in name "

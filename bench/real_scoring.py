@@ -43,16 +43,16 @@ class DetectionScore:
     fn: int = 0
     distances: list[float] = field(default_factory=list)
 
-    def add(self, served: np.ndarray, truth: np.ndarray) -> np.ndarray:
-        """Score one frame; returns the truth indices that were matched."""
+    def add(self, served: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Score one frame; returns the matched served and truth indices."""
         served = np.asarray(served, float).reshape(-1, 2)
         truth = np.asarray(truth, float).reshape(-1, 2)
-        _, matched, dist = match_floor(served, truth, self.gate_m)
+        rows, matched, dist = match_floor(served, truth, self.gate_m)
         self.tp += len(matched)
         self.fp += len(served) - len(matched)
         self.fn += len(truth) - len(matched)
         self.distances.extend(dist.tolist())
-        return matched
+        return rows, matched
 
     @property
     def gt(self) -> int:

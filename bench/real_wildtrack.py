@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.real_chain import serve, train_runtime
+from bench.real_chain import positions, serve, train_runtime
 from bench.real_data import (
     DEFAULT_DATA,
     CalibratedSpec,
@@ -74,15 +74,26 @@ def observe_all(scene: Scene, frames: int) -> list[FrameObservation]:
     return [scene.observe(i) for i in range(frames)]
 
 
-def rows_of(observations: Sequence[FrameObservation], sizes: np.ndarray) -> MomDataset:
-    """Dataset v1 of the annotated people some camera's (simulated) detector reports."""
+def rows_of(
+    observations: Sequence[FrameObservation], sizes: np.ndarray, person: np.ndarray, truth: bool
+) -> MomDataset:
+    """Dataset v1 of the annotated people (tracks: their person index, ``person[frame, slot]``)
+    some camera's (simulated) detector reports (a set-up recording), or with ``truth`` those in
+    some camera's view, reported or not (``service.stream_eval.in_view``: what the streamed run
+    is scored against)."""
+    from service.stream_eval import MIN_VISIBLE_FRACTION, in_view
+
     world, boxes, frame, track = [], [], [], []
     for obs in observations:
-        keep = np.isfinite(obs.world).all(axis=1) & np.isfinite(obs.boxes).all(axis=2).any(axis=1)
+        keep = np.isfinite(obs.world).all(axis=1)
+        if truth:
+            keep &= in_view(np.nan_to_num(obs.true_boxes), sizes, MIN_VISIBLE_FRACTION)
+        else:
+            keep &= np.isfinite(obs.boxes).all(axis=2).any(axis=1)
         world.append(obs.world[keep])
         boxes.append(obs.boxes[keep])
         frame.append(np.full(int(keep.sum()), obs.frame, np.int64))
-        track.append(obs.track[keep])
+        track.append(person[obs.frame, obs.track[keep]])
     return MomDataset(
         np.concatenate(world).astype(np.float32),
         np.concatenate(boxes).astype(np.float32),
@@ -113,7 +124,7 @@ def per_frame(observations: Sequence[FrameObservation], runtime, seed: int) -> d
     score = DetectionScore()
     for obs in observations:
         present = np.isfinite(obs.world).all(axis=1)
-        score.add(serve(frame_detections(obs, rng), runtime), obs.world[present])
+        score.add(positions(serve(frame_detections(obs, rng), runtime)), obs.world[present])
     return score.result()
 
 
@@ -173,15 +184,15 @@ def run_rig(
         f"wildtrack-{name}", (12.0, 36.0), cameras, fps=FPS, outdoor=True,
         detector_profile=args.profile,
     )  # fmt: skip
-    scene = replay_scene(config, xy, args.seed)
+    scene, walkers = replay_scene(config, xy, args.seed)
     observations = observe_all(scene, len(xy))
     split = round(args.train_fraction * len(xy))
     sizes = scene.image_sizes
     train, test = observations[:split], observations[split:]
-    dense = rows_of(train, sizes)
+    dense = rows_of(train, sizes, walkers.person, truth=False)
     marks = near_marks(dense, mark_grid(dense.world[:, :2]))
-    truth = rows_of(test, sizes)
-    _log(f"{name}: dense {dense.n} rows, 9 marks {marks.n} rows, test {truth.n} rows seen")
+    truth = rows_of(test, sizes, walkers.person, truth=True)
+    _log(f"{name}: dense {dense.n} rows, 9 marks {marks.n} rows, test {truth.n} in view")
     rows = []
     for label, data in (("dense", dense), ("9 marks", marks)):
         model_dir = work / f"{name}-{label.replace(' ', '')}"
