@@ -7,7 +7,7 @@ PIP := $(PY) -m pip install --quiet
 HOST ?= 127.0.0.1
 PORT ?= 8765
 
-.PHONY: demo test lint format bench bench-model bench-detector bench-service bench-setup bench-keypoints test-keypoints test-floors test-docker clean
+.PHONY: demo test lint format bench bench-model bench-detector bench-service bench-setup bench-keypoints bench-real test-keypoints test-floors test-docker clean
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -66,6 +66,12 @@ bench-setup: $(VENV)/.stamp-dev
 	$(PY) -m bench.floor_prior_study
 	$(PY) -m bench.setup_study
 	$(PY) -m bench.setup_stream
+
+# Real data (../shared/data, evaluation only; each bench prints one line and exits 0 without it).
+bench-real: $(VENV)/.stamp-dev
+	$(PY) -m bench.real_multiviewx
+	$(PY) -m bench.real_wildtrack
+	$(PY) -m bench.real_shelf
 
 # mediapipe pins numpy<2, so its keypoint tests run in an environment of their own.
 KP_VENV := .venv-keypoints
