@@ -10,8 +10,9 @@ Shared by ``bench.real_multiviewx`` and ``bench.real_wildtrack``:
   calibration (the box's bottom centre near the projected floor point, in units of the person's
   projected height), which gives the detector's recall and the *true association* of the boxes;
 - :func:`foot_point` is the calibrated reference a classical system would serve: each box's
-  bottom centre back-projected to the floor through the real calibration, averaged over the
-  cameras of one person.
+  bottom centre back-projected to the floor through the real calibration
+  (:func:`floor_points`), averaged over the cameras of one person; the same back-projection
+  serves as an oracle *validity gate* (keep only the boxes whose foot lies on the set-up floor).
 """
 
 from __future__ import annotations
@@ -34,12 +35,15 @@ PERSON_HEIGHT_M = 1.8  # the annotation cylinders' height (Wildtrack, MultiviewX
 MATCH_GATE = 0.3  # box bottom centre within 0.3 projected heights of the floor point
 
 
-def train_runtime(dataset: MomDataset, out: Path, seconds: float, seed: int = 0) -> MomRuntime:
-    """``momloc train`` on ``dataset`` with its adaptive schedule cut at ``seconds``."""
+def train_runtime(
+    dataset: MomDataset, out: Path, seconds: float, seed: int = 0
+) -> tuple[MomRuntime, int]:
+    """``momloc train`` on ``dataset`` with its adaptive schedule cut at ``seconds`` of wall
+    time (so on a busy machine fewer epochs run: the count is returned to be reported)."""
     from models.train import train_model
 
-    train_model(dataset, out, seed=seed, progress=False, tuning={"time_budget_s": seconds})
-    return MomRuntime.load(out)
+    info = train_model(dataset, out, seed=seed, progress=False, tuning={"time_budget_s": seconds})
+    return MomRuntime.load(out), int(info["epochs_run"])
 
 
 def serve(detections: Sequence[Detections], runtime: Any) -> list[Association]:
@@ -147,16 +151,19 @@ def true_tuples(
     return tuples[found], found
 
 
+def floor_points(boxes: np.ndarray, calibration: Calibration) -> np.ndarray:
+    """Each box's [M, 4] bottom centre through the inverse floor homography (z = 0) → [M, 2]."""
+    b = np.asarray(boxes, float).reshape(-1, 4)
+    floor = calibration.K @ np.c_[calibration.R[:, :2], calibration.t]  # floor (x, y, 1) -> px
+    pixels = np.c_[(b[:, 0] + b[:, 2]) / 2, b[:, 3], np.ones(len(b))]
+    world = pixels @ np.linalg.inv(floor).T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return world[:, :2] / world[:, 2:3]
+
+
 def foot_point(tuples: np.ndarray, calibrations: Sequence[Calibration]) -> np.ndarray:
-    """Calibrated reference [B, 2]: each seen box's bottom centre through the inverse floor
-    homography of its camera (z = 0), averaged over the cameras of the tuple."""
-    points = np.full((*tuples.shape[:2], 2), np.nan)
-    for k, cal in enumerate(calibrations):
-        floor = cal.K @ np.c_[cal.R[:, :2], cal.t]  # floor (x, y, 1) -> pixels
-        inverse = np.linalg.inv(floor)
-        b = tuples[:, k]
-        pixels = np.c_[(b[:, 0] + b[:, 2]) / 2, b[:, 3], np.ones(len(b))]
-        world = pixels @ inverse.T
-        points[:, k] = world[:, :2] / world[:, 2:3]
+    """Calibrated reference [B, 2]: :func:`floor_points` of each seen box of a tuple [B, K, 4],
+    averaged over its cameras."""
+    points = np.stack([floor_points(tuples[:, k], c) for k, c in enumerate(calibrations)], axis=1)
     with np.errstate(invalid="ignore"):
         return np.nanmean(points, axis=1)
