@@ -57,6 +57,7 @@ from bench.real_data import (
     CalibratedSpec,
     Calibration,
     FloorGrid,
+    FramePositions,
     data_folder,
     load_calibrations,
     load_positions,
@@ -64,6 +65,8 @@ from bench.real_data import (
 from bench.real_scoring import GATE_M, DetectionScore
 from bench.report import RESULTS, command_line, machine_line, markdown_table
 from models.detector.base import Detections
+from models.mom_runtime import MomRuntime
+from models.simulate import SceneConfig
 
 CAMERAS = tuple(f"Camera{k}" for k in range(1, 7))
 IMAGE_SIZE = (1920, 1080)
@@ -85,10 +88,8 @@ def _log(message: str) -> None:
     print(f"[{time.strftime('%H:%M:%S')}] {message}", flush=True)
 
 
-def scene_config(calibrations: Sequence[Calibration], people: int, fps: float):
+def scene_config(calibrations: Sequence[Calibration], people: int, fps: float) -> SceneConfig:
     """The simulated set-up: MultiviewX's cameras over its 25 × 16 m floor."""
-    from models.simulate import SceneConfig
-
     cameras = tuple(CalibratedSpec.of(c) for c in calibrations)
     return SceneConfig("multiviewx", FLOOR_M, cameras, people=people, fps=fps, outdoor=True)
 
@@ -99,7 +100,7 @@ def image_sets(folder: Path) -> list[list[Path]]:
     return [[folder / "Image_subsets" / f"C{k}" / n for k in range(1, 7)] for n in names]
 
 
-def detect_all(paths: list[list[Path]]) -> tuple[list[list], str]:
+def detect_all(paths: list[list[Path]]) -> tuple[list[list[Detections]], str]:
     """Every frame set through the detector the daemon builds by default (one thread)."""
     import cv2
 
@@ -111,7 +112,9 @@ def detect_all(paths: list[list[Path]]) -> tuple[list[list], str]:
     out = []
     for frame in paths:
         images = [cv2.imread(str(p), cv2.IMREAD_COLOR) for p in frame]
-        out.append(detector.detect(images))
+        if any(image is None for image in images):
+            raise SystemExit(f"cannot read one of {[str(p) for p in frame]}")
+        out.append(detector.detect([np.asarray(image) for image in images]))
     return out, detector.describe()
 
 
@@ -119,7 +122,12 @@ def inside_floor(xy: np.ndarray) -> np.ndarray:
     return (xy[:, 0] >= 0) & (xy[:, 0] <= FLOOR_M[0]) & (xy[:, 1] >= 0) & (xy[:, 1] <= FLOOR_M[1])
 
 
-def score_frames(detections, truth_frames, calibrations, runtime) -> dict[str, Any]:
+def score_frames(
+    detections: Sequence[Sequence[Detections]],
+    truth_frames: Sequence[FramePositions],
+    calibrations: Sequence[Calibration],
+    runtime: MomRuntime,
+) -> dict[str, Any]:
     """The served chain and the oracle bounds over all frames (see the module docstring)."""
     served, served_in, served_multi = DetectionScore(), DetectionScore(), DetectionScore()
     gated, gated_multi = DetectionScore(), DetectionScore()
@@ -336,7 +344,7 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def setup_profile(config) -> str:
+def setup_profile(config: SceneConfig) -> str:
     """The detector profile's name the set-up scene used."""
     profile = config.detector_profile
     return profile if isinstance(profile, str) else str(getattr(profile, "name", profile))

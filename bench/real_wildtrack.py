@@ -35,6 +35,7 @@ import tempfile
 import time
 from collections.abc import Iterator, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -51,7 +52,10 @@ from bench.real_data import (
 from bench.real_replay import replay_scene, trajectories
 from bench.real_scoring import DetectionScore
 from bench.report import RESULTS, command_line, machine_line, markdown_table
+from capture.rig import FrameSet
 from models.dataset import MomDataset
+from models.detector.base import Detections
+from models.mom_runtime import MomRuntime
 from models.simulate import FrameObservation, Scene
 
 CAMERAS = ("CVLab1", "CVLab2", "CVLab3", "CVLab4", "IDIAP1", "IDIAP2", "IDIAP3")
@@ -117,7 +121,9 @@ def near_marks(data: MomDataset, marks: np.ndarray, radius: float = MARK_RADIUS_
     return data.subset(np.flatnonzero(dist <= radius))
 
 
-def oracle_bound(observations: Sequence[FrameObservation], runtime) -> tuple[dict, float]:
+def oracle_bound(
+    observations: Sequence[FrameObservation], runtime: MomRuntime
+) -> tuple[dict[str, float], float]:
     """The same model on each person's own boxes (the true association, no false boxes), scored
     against every annotated person, and the percent of them some camera reports (a recall cap
     for any chain on these boxes)."""
@@ -148,17 +154,20 @@ class ReportedBoxes:
         self.rng = np.random.default_rng([seed, 13])
         self.frame_detections = frame_detections
 
-    def __call__(self, frame_set) -> list:
+    def __call__(self, frame_set: FrameSet) -> list[Detections]:
         seq = next(f.seq for f in frame_set.frames if f is not None)
         return self.frame_detections(self.observations[int(seq)], self.rng)
 
 
 def streamed(
-    observations: Sequence[FrameObservation], runtime, model_dir: Path, truth: MomDataset, seed: int
-) -> tuple[dict, dict[str, float]]:
+    observations: Sequence[FrameObservation],
+    runtime: MomRuntime,
+    model_dir: Path,
+    truth: MomDataset,
+    seed: int,
+) -> tuple[dict[str, Any], dict[str, float]]:
     """The daemon's pipeline over the frames at 2 fps (``momloc track``), its tracks scored on
     ``truth`` and, per frame, its associations' positions against every annotated person."""
-    from capture.rig import FrameSet
     from capture.worker import Frame
     from service import offline_track as offline
     from service.stages import FrameResult
@@ -191,7 +200,11 @@ def streamed(
 
 
 def run_rig(
-    name: str, calibrations: Sequence[Calibration], xy: np.ndarray, args, work: Path
+    name: str,
+    calibrations: Sequence[Calibration],
+    xy: np.ndarray,
+    args: argparse.Namespace,
+    work: Path,
 ) -> list[list[object]]:
     """Both models of one rig: table rows."""
     from models.simulate import SceneConfig
