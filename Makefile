@@ -72,6 +72,7 @@ bench-real: $(VENV)/.stamp-dev
 	$(PY) -m bench.real_multiviewx
 	$(PY) -m bench.real_wildtrack
 	$(PY) -m bench.real_shelf
+	$(PY) -m bench.real_shelf_stream
 
 # mediapipe pins numpy<2, so its keypoint tests run in an environment of their own.
 KP_VENV := .venv-keypoints

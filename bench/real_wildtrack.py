@@ -33,7 +33,7 @@ from __future__ import annotations
 import argparse
 import tempfile
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -51,10 +51,9 @@ from bench.real_data import (
 )
 from bench.real_replay import replay_scene, trajectories
 from bench.real_scoring import DetectionScore
+from bench.real_stream import stream_chain
 from bench.report import RESULTS, command_line, machine_line, markdown_table
-from capture.rig import FrameSet
 from models.dataset import MomDataset
-from models.detector.base import Detections
 from models.mom_runtime import MomRuntime
 from models.simulate import FrameObservation, Scene
 
@@ -141,24 +140,6 @@ def oracle_bound(
     return oracle.result(), 100.0 * boxed / max(total, 1)
 
 
-class ReportedBoxes:
-    """Detection stage of the offline pipeline: each frame set answered with the scene's report
-    for its frame index (people and false boxes, shuffled), as a detector would."""
-
-    keypoints = False
-
-    def __init__(self, observations: dict[int, FrameObservation], seed: int) -> None:
-        from service.stream_eval import frame_detections
-
-        self.observations = observations
-        self.rng = np.random.default_rng([seed, 13])
-        self.frame_detections = frame_detections
-
-    def __call__(self, frame_set: FrameSet) -> list[Detections]:
-        seq = next(f.seq for f in frame_set.frames if f is not None)
-        return self.frame_detections(self.observations[int(seq)], self.rng)
-
-
 def streamed(
     observations: Sequence[FrameObservation],
     runtime: MomRuntime,
@@ -166,37 +147,26 @@ def streamed(
     truth: MomDataset,
     seed: int,
 ) -> tuple[dict[str, Any], dict[str, float]]:
-    """The daemon's pipeline over the frames at 2 fps (``momloc track``), its tracks scored on
-    ``truth`` and, per frame, its associations' positions against every annotated person."""
-    from capture.worker import Frame
-    from service import offline_track as offline
-    from service.stages import FrameResult
-    from service.track_output import TruthScore
+    """The daemon's pipeline over the frames at 2 fps (:func:`bench.real_stream.stream_chain`),
+    each frame set answered with the scene's report (people and false boxes, shuffled)."""
+    from service.stream_eval import frame_detections
 
-    sizes = [(int(w), int(h)) for w, h in truth.image_size]
     frames = {obs.frame: obs for obs in observations}
+    rng = np.random.default_rng([seed, 13])
 
-    def sets() -> Iterator[tuple[int, FrameSet]]:
-        for f in sorted(frames):
-            cams: list[Frame | None] = [
-                Frame(camera=k, image=None, timestamp=f / FPS, seq=f) for k in range(len(sizes))
-            ]
-            yield f, FrameSet(frames=cams, skew=0.0, stale=[False] * len(sizes))
+    def annotated(f: int) -> np.ndarray:
+        world = frames[f].world
+        return world[np.isfinite(world).all(axis=1)]
 
-    feed = offline.Feed(sets(), len(frames), sizes, ReportedBoxes(frames, seed), "wildtrack")
-    settings = offline.offline_settings(None, ["wildtrack"] * len(sizes))
-    pipeline = offline.offline_pipeline(settings, runtime, feed, model_dir)
-    score = TruthScore(truth, len(sizes), len(frames))
-    detection = DetectionScore()
-
-    def per_frame(result: FrameResult) -> None:
-        obs = frames[int(next(f.seq for f in result.frame_set.frames if f is not None))]
-        served = np.array([a.world for a in result.associations], float).reshape(-1, 2)
-        detection.add(served, obs.world[np.isfinite(obs.world).all(axis=1)])
-
-    pipeline.add_listener(per_frame)
-    offline.run_track(pipeline, feed, model_dir / "track.jsonl", score=score, progress=False)
-    return score.result(), detection.result()
+    return stream_chain(
+        sorted(frames),
+        FPS,
+        lambda f: frame_detections(frames[f], rng),
+        annotated,
+        runtime,
+        model_dir,
+        truth,
+    )
 
 
 def run_rig(
