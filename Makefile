@@ -62,10 +62,14 @@ bench-service: $(VENV)/.stamp-dev
 	$(PY) -m bench.stream_bound
 	$(PY) -m bench.offline_track
 
-# Real rooms (../shared/data, evaluation only): one line and exit 0 when the data is absent.
+# Real data (../shared/data, evaluation only; each bench prints one line and exits 0 without it).
 DATA ?= ../shared/data
 bench-real: $(VENV)/.stamp-dev
 	nice -n 10 $(PY) -m bench.real_cmc --data $(DATA)
+	$(PY) -m bench.real_multiviewx --data $(DATA)
+	$(PY) -m bench.real_wildtrack --data $(DATA)
+	$(PY) -m bench.real_shelf --data $(DATA)
+	$(PY) -m bench.real_shelf_stream --data $(DATA)
 
 bench-setup: $(VENV)/.stamp-dev
 	$(PY) -m bench.floor_prior_study
