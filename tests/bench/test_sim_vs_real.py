@@ -58,6 +58,7 @@ def test_table_flags_ratios_beyond_twenty_percent() -> None:
     }
     sim = {
         "dense.moda": 55.0, "dense.mota": 1.0, "marks9.moda": 70.0, "marks9.mota": 60.0,
+        "dense.precision": 1.0, "dense.recall": 1.0, "marks9.precision": 1.0, "marks9.recall": 1.0,
         "cameras": [0.0, 0.1, 0.3, 0.3, 0.3], "outside": 7.0,
     }  # fmt: skip
     rows = {r[0]: r for r in sim_vs_real.table(real, sim)}
