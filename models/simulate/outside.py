@@ -4,8 +4,9 @@ Why: a real room is not empty outside the floor the marks cover. In the CMC room
 IEEE TPAMI 2020) the detector returns ~9 boxes per frame of people outside the authors' tracking
 area, and a model that never saw them localizes them inside its area (issue 23). A simulator
 without them hides that failure, so a scene can put ``SceneConfig.outside_people`` extra people
-in the *outside region*: the room grown by ``outside_band`` metres on every side (open space
-beyond the walls; 0 = the room itself) minus the set-up ``area``. That region is cut into up to
+in the *outside region*: ``outside_region`` when given (where people stand in a particular
+room), else the room grown by ``outside_band`` metres on every side (open space beyond the
+walls; 0 = the room itself), minus the set-up ``area``. That region is cut into up to
 four strips (left and right of the area over the whole depth, then below and above it between
 them); each outside person is put in one strip (probability proportional to its floor area)
 and wanders there like the tracked people do (:class:`~models.simulate.people.Walkers`), so
@@ -60,25 +61,36 @@ class Together:
 _KEYS = ("position", "heading", "phase", "amplitude")
 
 
-def strips(room: tuple[float, float], area: Rect, band: float) -> list[Rect]:
-    """The outside region (room grown by ``band`` minus ``area``) as up to four rectangles at
-    least :data:`MIN_STRIP` wide each way: left, right, below, above."""
-    x0, x1, y0, y1 = -band, room[0] + band, -band, room[1] + band
+def strips(
+    room: tuple[float, float], area: Rect, band: float, region: Rect | None = None
+) -> list[Rect]:
+    """The outside region (``region``, or the room grown by ``band``) minus ``area`` as up to
+    four rectangles at least :data:`MIN_STRIP` wide each way: left, right, below, above."""
+    x0, x1, y0, y1 = (
+        region if region is not None else (-band, room[0] + band, -band, room[1] + band)
+    )
     ax0, ax1, ay0, ay1 = area
+    mx0, mx1 = max(ax0, x0), min(ax1, x1)  # the area's columns inside the region
     out = [
-        (x0, ax0, y0, y1),
-        (ax1, x1, y0, y1),
-        (ax0, ax1, y0, ay0),
-        (ax0, ax1, ay1, y1),
+        (x0, min(ax0, x1), y0, y1),
+        (max(ax1, x0), x1, y0, y1),
+        (mx0, mx1, y0, min(ay0, y1)),
+        (mx0, mx1, max(ay1, y0), y1),
     ]
     return [r for r in out if r[1] - r[0] >= MIN_STRIP and r[3] - r[2] >= MIN_STRIP]
 
 
 def outside_walkers(
-    room: tuple[float, float], area: Rect, band: float, count: int, fps: float, seed: int
+    room: tuple[float, float],
+    area: Rect,
+    band: float,
+    count: int,
+    fps: float,
+    seed: int,
+    region: Rect | None = None,
 ) -> Walking:
     """``count`` people wandering the outside region, each kept to one strip."""
-    rects = strips(room, area, band)
+    rects = strips(room, area, band, region)
     if not rects:
         raise MomlocError(
             f"outside people: no floor outside the set-up area {area} in room {room} "

@@ -98,6 +98,7 @@ class SceneConfig:
     area: tuple[float, float, float, float] | None = None
     outside_people: int = 0
     outside_band: float = 0.0
+    outside_region: tuple[float, float, float, float] | None = None  # None: room + band
 
     def __post_init__(self) -> None:
         if not 1 <= len(self.cameras) <= MAX_CAMERAS:
@@ -155,7 +156,7 @@ class Scene:
         if config.outside_people:
             self.outsiders = outside_walkers(
                 config.room, config.setup_area, config.outside_band, config.outside_people,
-                config.fps, self.seed,
+                config.fps, self.seed, config.outside_region,
             )  # fmt: skip
         self._perturbed: dict[int, list[tuple[int, PinholeCamera]]] = {}
         for p in sorted(config.perturbations, key=lambda q: q.start_frame):

@@ -102,6 +102,12 @@ def test_band_beyond_the_room_when_the_area_is_the_whole_room() -> None:
 def test_strips_and_bad_areas() -> None:
     assert strips((10.0, 10.0), AREA, 0.0) == [(0.0, 3.0, 0.0, 10.0), (7.0, 10.0, 0.0, 10.0)]
     assert len(strips((10.0, 10.0), (2.0, 8.0, 2.0, 8.0), 0.0)) == 4
+    # a region of its own: only its part outside the area
+    assert strips((10.0, 10.0), AREA, 0.0, (1.0, 5.0, 2.0, 8.0)) == [(1.0, 3.0, 2.0, 8.0)]
+    assert strips((10.0, 10.0), (2.0, 8.0, 2.0, 8.0), 0.0, (3.0, 5.0, 0.0, 10.0)) == [
+        (3.0, 5.0, 0.0, 2.0),
+        (3.0, 5.0, 8.0, 10.0),
+    ]
     with pytest.raises(MomlocError, match="area"):
         _config(1, area=(3.0, 12.0, 0.0, 10.0))
     with pytest.raises(MomlocError, match="outside"):
@@ -121,6 +127,8 @@ def test_cmc_room_preset_copies_the_real_room() -> None:
     assert config.room == (7.67, 3.41) and config.fps == 4.0 and config.num_cameras == 4
     assert config.area == (2.03, 6.3, 0.0, 3.41) and config.outside_people > 0
     scene = Scene(config, seed=0)
+    outside = scene.observe_block(0)["outside_world"].reshape(-1, 2)
+    assert (outside[:, 0] >= 0.25).all() and (outside[:, 0] <= 2.03).all()
     assert scene.image_sizes.tolist() == [[1920, 1024]] * 4
     for camera in scene.cameras:  # every camera sees the middle of the set-up area
         pixels, front = camera.project(np.array([4.0, 1.7, 0.9]))
