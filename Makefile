@@ -70,20 +70,15 @@ bench-real: $(VENV)/.stamp-dev
 	$(PY) -m bench.real_wildtrack --data $(DATA)
 	$(PY) -m bench.real_shelf --data $(DATA)
 	$(PY) -m bench.real_shelf_stream --data $(DATA)
+	# the simulator against the real CMC room (issue 23, deliverable 4)
+	$(PY) -m bench.cmc_detector --data $(DATA)
+	$(PY) -m bench.detector_profiles
+	$(PY) -m bench.sim_vs_real --data $(DATA)
 
 bench-setup: $(VENV)/.stamp-dev
 	$(PY) -m bench.floor_prior_study
 	$(PY) -m bench.setup_study
 	$(PY) -m bench.setup_stream
-
-# Real multi-camera data (../shared/data, DATA=...): each bench skips with one line when absent.
-DATA ?= ../shared/data
-.PHONY: bench-real
-bench-real: $(VENV)/.stamp-dev
-	# the simulator against the real CMC room (issue 23, deliverable 4)
-	$(PY) -m bench.cmc_detector --data $(DATA)
-	$(PY) -m bench.detector_profiles
-	$(PY) -m bench.sim_vs_real --data $(DATA)
 
 # mediapipe pins numpy<2, so its keypoint tests run in an environment of their own.
 KP_VENV := .venv-keypoints
