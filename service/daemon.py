@@ -200,7 +200,7 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
         image_sizes=lambda: _known_sizes(pipeline),
         attach=pipeline.add_detection_listener,
         detach=pipeline.remove_detection_listener,
-    )
+    )  # its state machine (record / train / verify, one at a time) is given to the other two
     daemon = Daemon(
         hub=hub,
         pipeline=pipeline,
@@ -217,8 +217,10 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
         allowed_origins=list(settings.allowed_origins),
         setup=session,
     )
-    daemon.training = TrainingJob(lambda: session.data_dir, pipeline.reload_model)
-    verifier = Verifier(hub.latest, lambda: pipeline.model_dir if pipeline.runtime else None)
+    daemon.training = TrainingJob(lambda: session.data_dir, pipeline.reload_model, session.steps)
+    verifier = Verifier(
+        hub.latest, lambda: pipeline.model_dir if pipeline.runtime else None, session.steps
+    )
     daemon.verifier = verifier
     if player is not None:  # synthetic.follow_setup: the simulated person obeys /setup
         from models.simulate.following import FollowingWalker
