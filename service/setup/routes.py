@@ -42,7 +42,10 @@ class StartRequest(BaseModel):
         json_schema_extra={"anyOf": [{"required": ["marks"]}, {"required": ["grid", "room"]}]},
     )
     marks: list[MarkIn] | None = Field(
-        None, max_length=MAX_MARKS, description=f"Explicit floor marks (at most {MAX_MARKS})."
+        None,
+        min_length=1,
+        max_length=MAX_MARKS,
+        description=f"Explicit floor marks (1 to {MAX_MARKS}).",
     )
     grid: str | None = Field(
         None, max_length=32, pattern=_GRID, description="Grid of marks RxC, e.g. 3x3."
@@ -99,7 +102,10 @@ class VerifyRequest(BaseModel):
 
     model_config = ConfigDict(extra="forbid", strict=True)
     marks: list[MarkIn] | None = Field(
-        None, max_length=MAX_MARKS, description="Marks to stand on; new ones are the best test."
+        None,
+        min_length=1,
+        max_length=MAX_MARKS,
+        description="Marks to stand on; new ones are the best test.",
     )
     seconds: float = Field(5.0, gt=0, le=120, description="Seconds measured on each mark.")
     move_seconds: float = Field(5.0, ge=0, le=120, description="Time to reach each mark.")
