@@ -36,8 +36,8 @@ from service.setup.marks import FloorMark
 from service.setup.quality import MarkQuality
 from service.setup.steps import SetupConflict, SetupSteps
 
-# Matched with fullmatch: ``$`` with ``match`` also accepts a trailing newline ("zz.npz\n").
 log = logging.getLogger("momloc.setup")
+# Matched with fullmatch: ``$`` with ``match`` also accepts a trailing newline ("zz.npz\n").
 SAFE_RECORDING_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,80}\.npz")
 
 
