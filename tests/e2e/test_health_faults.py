@@ -21,7 +21,7 @@ from models.dataset import MomDataset
 from service.daemon import build_daemon
 from service.server import serve_in_thread
 from service.settings import DEMO_MODEL_DIR, load_settings
-from tests.e2e.mqtt_broker import free_port
+from tests.e2e.mqtt_broker import Broker, ensure_mosquitto, free_port
 from tests.e2e.server import running_server
 
 pytestmark = pytest.mark.timeout(300)
@@ -95,21 +95,31 @@ def test_a_full_disk_during_recording_is_reported_with_the_rows_on_disk(
     assert len(logged) == 1 and logged[0].levelno == logging.ERROR, logged
 
 
-def test_health_is_degraded_and_names_mqtt_while_the_broker_is_down():
-    port = free_port()  # nothing listens there: the broker is down
+def mqtt_daemon(port: int) -> Any:
+    """The demo scene's daemon publishing to an MQTT broker at ``port`` (real uvicorn)."""
     settings = load_settings(
         None,
         cameras=[{"type": "synthetic", "index": 0}, {"type": "synthetic", "index": 1}],
         model_dir=DEMO_MODEL_DIR,
         synthetic={"preset": "indoor-2cam", "seed": 7, "people": 1, "fps": 30.0},
-        mqtt={"host": "127.0.0.1", "port": port, "room": "down", "reconnect_max_s": 1.0},
-    )
-    daemon = build_daemon(settings)
-    background = serve_in_thread(daemon)
+        mqtt={
+            "host": "127.0.0.1", "port": port, "room": f"down{port}",
+            "reconnect_min_s": 0.2, "reconnect_max_s": 1.0,
+        },
+    )  # fmt: skip
+    return serve_in_thread(build_daemon(settings))
+
+
+def health_of(background: Any) -> dict[str, Any]:
+    return httpx.get(f"http://127.0.0.1:{background.port}/v1/health", timeout=30).json()
+
+
+def test_health_is_degraded_and_names_mqtt_while_the_broker_is_down():
+    port = free_port()  # nothing listens there: the broker is down
+    background = mqtt_daemon(port)
     try:
-        url = f"http://127.0.0.1:{background.port}/v1/health"
         health = wait_for(
-            lambda: httpx.get(url, timeout=30).json(),
+            lambda: health_of(background),
             lambda h: h["mqtt"]["error"] is not None,
             60,
             "a failed connection attempt",
@@ -120,3 +130,26 @@ def test_health_is_degraded_and_names_mqtt_while_the_broker_is_down():
     reason = health["degraded"]["mqtt"]
     assert f"127.0.0.1:{port}" in reason and "not connected" in reason, reason
     assert health["mqtt"]["connected"] is False
+
+
+def test_health_follows_a_broker_that_goes_down_and_comes_back():
+    broker = Broker(ensure_mosquitto()).start()
+    background = mqtt_daemon(broker.port)
+    try:
+        up = wait_for(
+            lambda: health_of(background), lambda h: h["mqtt"]["connected"], 60, "connected"
+        )
+        assert "mqtt" not in up["degraded"], up["degraded"]
+        broker.stop()
+        down = wait_for(
+            lambda: health_of(background), lambda h: "mqtt" in h["degraded"], 60, "degraded"
+        )
+        assert down["status"] == "degraded" and f":{broker.port}" in down["degraded"]["mqtt"]
+        broker.start()  # same port
+        back = wait_for(
+            lambda: health_of(background), lambda h: h["mqtt"]["connected"], 60, "reconnected"
+        )
+        assert "mqtt" not in back["degraded"], back["degraded"]
+    finally:
+        background.stop()
+        broker.close()
