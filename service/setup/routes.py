@@ -16,18 +16,28 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, HTTPException
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from models.errors import MomlocError
 from service.api_errors import error_responses
 from service.setup.marks import MAX_MARKS, MarkIn, grid_marks, marks_from_entries
-from service.setup.session import SetupSession, check_recording_name
+from service.setup.session import SAFE_RECORDING_NAME, SetupSession
 from service.setup.steps import SetupConflict
 from service.setup.training import TrainingJob
 from service.setup.verify import Verifier
 
 # The schema's form of session.SAFE_RECORDING_NAME (JSON Schema's $ is the end of the text).
+# Declared in the schema, checked by plain_npz: pydantic's own pattern message shows the regex.
 RECORDING_NAME = r"^[A-Za-z0-9][A-Za-z0-9._-]{0,80}\.npz$"
+
+
+def plain_npz(name: str | None) -> str | None:
+    """A recording name: a plain file name in the data directory, ending in .npz."""
+    if name is not None and not SAFE_RECORDING_NAME.fullmatch(name):
+        raise ValueError("use a plain file name ending in .npz (letters, digits, '.', '_', '-')")
+    return name
+
+
 _GRID = r"^\s*[0-9]{1,6}\s*[xX×]\s*[0-9]{1,6}\s*$"
 _ROOM = r"^\s*[0-9]{1,6}(\.[0-9]{1,6})?\s*[xX×]\s*[0-9]{1,6}(\.[0-9]{1,6})?\s*$"
 
@@ -57,10 +67,10 @@ class StartRequest(BaseModel):
     walk: bool = Field(False, description="Also record walks between marks (interpolated).")
     countdown: float = Field(3.0, ge=0, le=30, description="Seconds before recording starts.")
     move_seconds: float = Field(5.0, ge=0, le=120, description="Time to reach each mark.")
-    out: str = Field(
+    out: Annotated[str, AfterValidator(plain_npz)] = Field(
         "setup.npz",
         max_length=90,
-        pattern=RECORDING_NAME,
+        json_schema_extra={"pattern": RECORDING_NAME},
         description="File name in the daemon's data directory (a plain name ending in .npz).",
     )
 
@@ -76,10 +86,10 @@ class TrainRequest(BaseModel):
     is required, like every state change's (a body-less POST may be a cross-site form)."""
 
     model_config = ConfigDict(extra="forbid", strict=True)
-    recording: str | None = Field(
+    recording: Annotated[str | None, AfterValidator(plain_npz)] = Field(
         None,
         max_length=90,
-        pattern=RECORDING_NAME,
+        json_schema_extra={"pattern": RECORDING_NAME},
         description="Recording file name in the daemon's data directory; default: the last one.",
     )
     epochs: int | None = Field(
@@ -177,7 +187,7 @@ def create_setup_router(
     def train(body: Annotated[TrainRequest, Body()]) -> JSONResponse:
         try:
             if body.recording is not None:
-                recording = session.data_dir / check_recording_name(body.recording, "recording")
+                recording = session.data_dir / body.recording  # a plain name (plain_npz)
             elif session.last_recording is not None:
                 recording = session.last_recording
             else:
