@@ -6,7 +6,7 @@ newest. Policies, in one place:
 
 - **Newest frame only.** The worker keeps a single slot; a new frame replaces the old one. A slow
   consumer therefore skips frames and never makes the worker queue them (no growing latency).
-- **Timestamps** are wall-clock (``time.time()``) at capture: the source's ``last_timestamp`` if
+- **Timestamps** are wall-clock (``clock.time()``) at capture: the source's ``last_timestamp`` if
   it has one (V4L2 stamps after ``grab()``, before MJPG decoding), else when ``read()`` returned.
 - **Watchdog.** The expected frame interval is measured (nominal ``source.fps`` until enough
   frames came). A camera with no frame for ``stall_intervals`` (2) intervals (but at least
@@ -18,6 +18,10 @@ newest. Policies, in one place:
   after ``backoff`` seconds doubling up to ``max_backoff`` until a frame arrives again (a camera
   that opens but never streams is also retried with back-off). A failing
   camera never touches the other cameras' workers.
+- **Time is injected** (``clock``, a :class:`Clock`): the wall clock for timestamps, ages and the
+  measured rate, and the waits of the back-off and the watchdog. :class:`SystemClock` is the real
+  one; a test gives a clock it advances itself, so how many reconnects happen in a second of
+  back-off is a fact of the policy, not of the machine's load (as ``DetectionScheduler``'s clock).
 """
 
 from __future__ import annotations
@@ -26,12 +30,35 @@ import threading
 import time
 from collections import deque
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
 from capture.sources import FrameSource
 
 FPS_WINDOW = 2.0  # seconds of timestamps the measured frame rate averages over
+
+
+class Clock(Protocol):
+    """Where a worker's time comes from."""
+
+    def time(self) -> float:
+        """Wall-clock seconds (frame timestamps are compared across cameras and processes)."""
+        ...
+
+    def wait(self, stop: threading.Event, seconds: float) -> bool:
+        """Wait ``seconds`` or until ``stop`` is set; whether it was set."""
+        ...
+
+
+class SystemClock:
+    """The real clock: ``time.time`` and ``Event.wait``."""
+
+    def time(self) -> float:
+        return time.time()
+
+    def wait(self, stop: threading.Event, seconds: float) -> bool:
+        return stop.wait(seconds)
 
 
 @dataclass(frozen=True)
@@ -79,8 +106,10 @@ class CameraWorker:
         min_stall: float = 0.05,
         backoff: float = 0.1,
         max_backoff: float = 1.0,
+        clock: Clock | None = None,
     ) -> None:
         self.source = source
+        self.clock: Clock = SystemClock() if clock is None else clock
         self.camera = int(camera)
         self.name = getattr(source, "name", f"camera{camera}")
         self.stall_intervals, self.min_stall = float(stall_intervals), float(min_stall)
@@ -150,7 +179,7 @@ class CameraWorker:
         return max(self.stall_intervals * self.frame_interval(fps), self.min_stall)
 
     def state(self) -> CameraState:
-        now = time.time()
+        now = self.clock.time()
         frame = self._latest
         fps = self._measured_fps(now)
         age = now - frame.timestamp if frame is not None else None
@@ -175,7 +204,7 @@ class CameraWorker:
         delay = 0.0
         while not self._stop.is_set():
             if not self._open:
-                if delay and self._stop.wait(delay):
+                if delay and self.clock.wait(self._stop, delay):
                     break
                 self._try_open()
                 # Grows until a frame arrives, so a camera that opens but never streams is
@@ -195,11 +224,11 @@ class CameraWorker:
 
     def _watch(self) -> None:
         """Counts stalls as they happen (state() reports them itself, at query time)."""
-        while not self._stop.wait(min(self.frame_interval() / 2, 0.05)):
+        while not self.clock.wait(self._stop, min(self.frame_interval() / 2, 0.05)):
             frame = self._latest
             if frame is None or not self._open:
                 continue
-            stalled = time.time() - frame.timestamp > self.stall_timeout()
+            stalled = self.clock.time() - frame.timestamp > self.stall_timeout()
             if stalled and not self._stalled:
                 self._stalls += 1
             self._stalled = stalled
@@ -231,7 +260,7 @@ class CameraWorker:
 
     def _publish(self, image: np.ndarray) -> None:
         stamp = getattr(self.source, "last_timestamp", None)
-        timestamp = float(stamp) if stamp is not None else time.time()
+        timestamp = float(stamp) if stamp is not None else self.clock.time()
         with self._cond:
             frame = Frame(self.camera, image, timestamp, self._seq)
             self._seq += 1
@@ -241,7 +270,7 @@ class CameraWorker:
             self._cond.notify_all()
 
     def _measured_fps(self, now: float | None = None) -> float:
-        now = time.time() if now is None else now
+        now = self.clock.time() if now is None else now
         with self._cond:
             stamps = list(self._stamps)
         recent = [t for t in stamps if now - t <= FPS_WINDOW]

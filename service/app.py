@@ -53,7 +53,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from models.errors import MomlocError
 from service.api_errors import error_response, error_responses, install_error_handlers
 from service.metrics import metrics_text
-from service.request_guard import BodyTooLarge, RequestGuard
+from service.request_guard import EmptyBody, RequestGuard
 from service.routes_zones import create_zones_router, outputs_running
 from service.setup.routes import create_setup_router
 from service.snapshot_image import render_camera_jpeg
@@ -65,19 +65,16 @@ WS_BAD_REQUEST_CLOSE = 4400
 
 
 class ReloadRequest(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    """``{}`` reloads the current model. The body is required, like every state change's: a
+    body-less POST may be a cross-site form (``service.request_guard`` answers it 415)."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
     model_dir: str | None = Field(
         None,
         min_length=1,
         max_length=4096,
         description="Model directory; default: the current one.",
     )
-
-
-class EmptyBody(BaseModel):
-    """State-changing routes without parameters still take a JSON object (``{}``)."""
-
-    model_config = ConfigDict(extra="forbid")
 
 
 def _token_of(request_headers: Any, query: Any) -> str | None:
@@ -131,20 +128,17 @@ def create_app(daemon: Daemon, *, manage_pipeline: bool = True) -> FastAPI:
         lifespan=lifespan,
     )
     install_error_handlers(app)
-
-    async def too_large(request: Request, exc: Exception) -> JSONResponse:
-        return error_response(413, "request body too large")
-
-    app.add_exception_handler(BodyTooLarge, too_large)
     app.add_middleware(
         RequestGuard,
         bind_host=daemon.bind_host,
         allowed_hosts=daemon.allowed_hosts,
         allowed_origins=daemon.allowed_origins,
+        routes=app.router.routes,
     )
     secured = [Depends(require_token)]
     auth = error_responses(401, 403)
-    change = error_responses(401, 403, 413, 415, 422)
+    # 400: a body that is not text (invalid UTF-8), which FastAPI refuses before validation
+    change = error_responses(400, 401, 403, 413, 415, 422)
     app.mount("/web", StaticFiles(directory=WEB_DIR), name="web")
 
     @app.get("/", include_in_schema=False)
@@ -168,7 +162,8 @@ def create_app(daemon: Daemon, *, manage_pipeline: bool = True) -> FastAPI:
         app.include_router(router, dependencies=secured, responses=auth)
     # zones, events, MQTT (own auth, lifespan); the guard covers its WebSocket and POST too
     app.include_router(
-        create_zones_router(daemon), responses=error_responses(401, 403, 409, 413, 415, 422, 503)
+        create_zones_router(daemon),
+        responses=error_responses(400, 401, 403, 409, 413, 415, 422, 503),
     )
 
     @app.get("/v1/positions", dependencies=secured, responses=auth, summary="Newest snapshot")
@@ -234,9 +229,9 @@ def create_app(daemon: Daemon, *, manage_pipeline: bool = True) -> FastAPI:
         responses={**change, **error_responses(409)},
         summary="Hot-swap the MoM model",
     )
-    def reload_model(body: Annotated[ReloadRequest | None, Body()] = None) -> JSONResponse:
+    def reload_model(body: Annotated[ReloadRequest, Body()]) -> JSONResponse:
         try:
-            info = daemon.pipeline.reload_model(body.model_dir if body else None)
+            info = daemon.pipeline.reload_model(body.model_dir)
         except MomlocError as error:
             return error_response(409, str(error))
         return JSONResponse(info)

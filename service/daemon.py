@@ -201,7 +201,7 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
         image_sizes=lambda: _known_sizes(pipeline),
         attach=pipeline.add_detection_listener,
         detach=pipeline.remove_detection_listener,
-    )
+    )  # its state machine (record / train / verify, one at a time) is given to the other two
     daemon = Daemon(
         hub=hub,
         pipeline=pipeline,
@@ -218,9 +218,12 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
         allowed_origins=list(settings.allowed_origins),
         setup=session,
     )
-    daemon.training = TrainingJob(lambda: session.data_dir, pipeline.reload_model)
+    daemon.training = TrainingJob(lambda: session.data_dir, pipeline.reload_model, session.steps)
     verifier = Verifier(
-        hub.latest, lambda: pipeline.model_dir if pipeline.runtime else None, settings.data_dir
+        hub.latest,
+        lambda: pipeline.model_dir if pipeline.runtime else None,
+        settings.data_dir,
+        session.steps,
     )
     daemon.verifier = verifier
     if player is not None:  # synthetic.follow_setup: the simulated person obeys /setup

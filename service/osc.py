@@ -153,6 +153,7 @@ class OscPublisher:
                 occupancy = self._occupancy() if self._occupancy else None
                 target[0].sendto(build_bundle(snapshot, occupancy), target[1])
                 self.counters["bundles_sent"] += 1
+                self.last_error = None  # delivering again (health shows only current trouble)
             except OSError as error:  # would block, no route, too large: drop this one
                 self.counters["send_errors"] += 1
                 self.last_error = f"send failed: {error}"

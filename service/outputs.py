@@ -33,6 +33,18 @@ class Outputs:
             out["osc"] = self.osc.stats()
         return out
 
+    def degraded(self) -> dict[str, str]:
+        """Each configured output that is not delivering now, with why (``/v1/health`` lists
+        them and says ``degraded``: positions that reach no broker are not "ok")."""
+        out: dict[str, str] = {}
+        if self.mqtt is not None and not self.mqtt.connected:
+            broker = f"{self.mqtt.settings.host}:{self.mqtt.settings.port}"
+            why = self.mqtt.last_error or "connecting"
+            out["mqtt"] = f"not connected to the broker {broker} ({why})"
+        if self.osc is not None and self.osc.last_error is not None:
+            out["osc"] = self.osc.last_error
+        return out
+
     def remove_discovery(self) -> int:
         """Delete this room's Home Assistant entities (empty retained configs)."""
         if self.mqtt is None:

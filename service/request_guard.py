@@ -14,24 +14,36 @@ read REST answers as if it were same-origin. What careful local daemons do, in t
    ``allowed_origins`` is refused: a WebSocket is closed before it is accepted (the handshake gets
    403), any HTTP request gets 403. Requests without ``Origin`` (game engines, Python, curl) are
    not from a web page and pass; ``"*"`` in ``allowed_origins`` turns the check off.
-3. **JSON bodies.** POST/PUT/PATCH/DELETE need ``Content-Type: application/json`` (415 otherwise):
-   a cross-site HTML form cannot send that type, and a script can only after a CORS preflight,
-   which the daemon never grants.
-4. **Size.** Request bodies above ``max_body`` bytes are refused (413) while being read.
+3. **JSON bodies.** POST/PUT/PATCH/DELETE on a route that takes them need ``Content-Type:
+   application/json`` (415 otherwise): a cross-site HTML form cannot send that type, and a script
+   can only after a CORS preflight, which the daemon never grants. A method the path does not
+   have is left to the app, which answers 405 (or 404): the route table (``routes``) says which.
+4. **Size.** Request bodies above ``max_body`` bytes are refused (413): at once from
+   ``Content-Length``, else (chunked) while the body is read here, before the app sees any of
+   it. Read here because FastAPI turns any error raised while it reads a body into a 400.
 """
 
 from __future__ import annotations
 
 import ipaddress
 import socket
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from typing import Any
 from urllib.parse import urlsplit
+
+from pydantic import BaseModel, ConfigDict
+from starlette.routing import BaseRoute, Match
 
 from service.api_errors import error_response
 
 MAX_BODY_BYTES = 1 << 20  # settings and floor marks are a few kB; 1 MiB is generous
 STATE_CHANGING = {"POST", "PUT", "PATCH", "DELETE"}
+
+
+class EmptyBody(BaseModel):
+    """The body of a state-changing route without parameters: a JSON object, ``{}`` (rule 3)."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
 
 
 def host_name(host_header: str) -> str:
@@ -67,9 +79,11 @@ class RequestGuard:
         allowed_hosts: Iterable[str] = (),
         allowed_origins: Iterable[str] = (),
         max_body: int = MAX_BODY_BYTES,
+        routes: Sequence[BaseRoute] = (),
     ) -> None:
         self.app = app
         self.max_body = max_body
+        self.routes = routes  # the app's route table (the live list: routes added later count)
         hosts = {h.strip().lower() for h in allowed_hosts}
         self.any_host = "*" in hosts
         machine = socket.gethostname().lower()
@@ -105,21 +119,32 @@ class RequestGuard:
             )
         elif not self.origin_allowed(origin, host):
             problem = f"origin '{(origin or '')[:80]}' is not allowed; add it to allowed_origins"
-        elif scope["type"] == "http" and scope["method"] in STATE_CHANGING:
+        elif scope["type"] == "http" and scope["method"] in STATE_CHANGING and self._routed(scope):
             kind = headers.get("content-type", "").split(";")[0].strip().lower()
             if kind != "application/json":
                 problem, status = (
                     "this route takes a JSON body (Content-Type: application/json)",
                     415,
                 )
-            elif _length(headers.get("content-length")) > self.max_body:
+        if problem is None and scope["type"] == "http":
+            if _length(headers.get("content-length")) > self.max_body:
                 problem, status = f"request body larger than {self.max_body} bytes", 413
+            else:
+                body = await self._read_body(receive)
+                if body is None:
+                    problem, status = f"request body larger than {self.max_body} bytes", 413
+                else:
+                    receive = _replay(body, receive)
         if problem is not None:
             await self._refuse(scope, receive, send, status, problem)
             return
-        if scope["type"] == "http":
-            receive = self._bounded(receive)
         await self.app(scope, receive, send)
+
+    def _routed(self, scope: dict) -> bool:
+        """Whether a route takes this method at this path (with no route table: assume so)."""
+        if not self.routes:
+            return True
+        return any(route.matches(scope)[0] == Match.FULL for route in self.routes)
 
     async def _refuse(self, scope: dict, receive: Any, send: Any, status: int, text: str) -> None:
         if scope["type"] == "websocket":
@@ -128,27 +153,35 @@ class RequestGuard:
             return
         await error_response(status, text)(scope, receive, send)
 
-    def _bounded(self, receive: Any) -> Any:
-        """``receive`` that stops a chunked body past ``max_body`` (no Content-Length to check)."""
-        seen = 0
-        limit = self.max_body
-
-        async def wrapped() -> dict:
-            nonlocal seen
+    async def _read_body(self, receive: Any) -> bytes | None:
+        """The whole request body, or None once it passes ``max_body`` (then unread further:
+        the refusal closes the connection). A disconnect ends it as an empty body."""
+        chunks: list[bytes] = []
+        size = 0
+        while True:
             message = await receive()
-            if message["type"] == "http.request":
-                seen += len(message.get("body", b""))
-                if seen > limit:
-                    raise BodyTooLarge
-            return message
+            if message["type"] != "http.request":
+                return b""
+            chunk = message.get("body", b"")
+            size += len(chunk)
+            if size > self.max_body:
+                return None
+            chunks.append(chunk)
+            if not message.get("more_body", False):
+                return b"".join(chunks)
 
-        return wrapped
+
+def _replay(body: bytes, receive: Any) -> Any:
+    """``receive`` for the app: the body read by the guard, then the server's own messages
+    (the disconnect the app may wait for)."""
+    pending = [{"type": "http.request", "body": body, "more_body": False}]
+
+    async def replayed() -> dict:
+        return pending.pop() if pending else await receive()
+
+    return replayed
 
 
 def _length(value: str | None) -> int:
     """Content-Length as a number (the HTTP parser has already refused malformed ones)."""
     return int(value) if value and value.strip().isdigit() else 0
-
-
-class BodyTooLarge(Exception):
-    """A chunked request body went past the limit (answered 413 by the app's handler)."""

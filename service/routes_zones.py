@@ -3,7 +3,7 @@
 - ``GET  /v1/zones`` polygons, current occupancy (count, ids) and the last events.
 - ``WS   /v1/events`` one enter/leave event JSON per message (schema in ``service.zones``); a
   client that falls 1000 events behind loses the oldest (see ``service.zone_monitor``).
-- ``POST /v1/mqtt/discovery/remove`` deletes this room's Home Assistant entities.
+- ``POST /v1/mqtt/discovery/remove`` ``{}`` deletes this room's Home Assistant entities.
 
 The router carries its own lifespan (FastAPI merges it into the app's, inside it): the MQTT
 publisher connects after the pipeline has started and publishes ``offline`` before it stops.
@@ -18,9 +18,19 @@ import contextlib
 import secrets
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
-from typing import Any
+from typing import Annotated, Any
 
-from fastapi import APIRouter, Depends, HTTPException, Request, WebSocket, WebSocketDisconnect
+from fastapi import (
+    APIRouter,
+    Body,
+    Depends,
+    HTTPException,
+    Request,
+    WebSocket,
+    WebSocketDisconnect,
+)
+
+from service.request_guard import EmptyBody
 
 WS_AUTH_CLOSE = 4401
 
@@ -80,7 +90,7 @@ def create_zones_router(daemon: Any) -> APIRouter:
         dependencies=secured,
         summary="Remove this room's Home Assistant entities (empty retained configs)",
     )
-    def remove_discovery() -> dict[str, Any]:
+    def remove_discovery(body: Annotated[EmptyBody, Body()]) -> dict[str, Any]:
         if outputs is None or outputs.mqtt is None:
             raise HTTPException(409, "mqtt is not configured")
         if not outputs.mqtt.connected:

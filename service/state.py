@@ -77,15 +77,18 @@ class Daemon:
         model["verification"] = None if self.verifier is None else self.verifier.stored()
         if self.setup_mode:
             model["message"] = NO_MODEL
+        degraded = self.degraded()
         ok = (
             all(c["connected"] and not (c["alignment"] or {}).get("moved") for c in cameras)
             and model["loaded"]
             and model.get("compatible", False)
             and pipeline["running"]
             and pipeline["error"] is None
+            and not degraded
         )
         return {
             "status": "setup" if self.setup_mode else "ok" if ok else "degraded",
+            "degraded": degraded,
             "setup_mode": self.setup_mode,
             "uptime_s": round(time.time() - self.started, 1),
             "cameras": cameras,
@@ -97,6 +100,15 @@ class Daemon:
             **({} if self.outputs is None else self.outputs.health()),
             **self.extras,
         }
+
+    def degraded(self) -> dict[str, str]:
+        """Parts that work but not as they should, each with why: outputs that deliver nowhere
+        (MQTT broker down) and the set-up's last recording when a write failed (full disk)."""
+        out = {} if self.outputs is None else dict(self.outputs.degraded())
+        fault = None if self.setup is None else self.setup.fault()
+        if fault is not None:
+            out["setup_recording"] = fault
+        return out
 
     def public_config(self) -> dict[str, Any]:
         return {

@@ -176,6 +176,7 @@ class DatasetAppender:
     _legacy_rows: int = 0
     _done_keys: set[tuple[int, int]] = field(default_factory=set)
     _progress_dirty: bool = False
+    saved_rows: int = 0  # new rows on disk (the last successful flush), what a status reports
 
     def __post_init__(self) -> None:
         self.path = Path(self.path)
@@ -266,6 +267,7 @@ class DatasetAppender:
             old["world"] = old["world"][:, :2]
             new = {key: np.concatenate([old[key], new[key]]) for key in new}
         MomDataset(image_size=self.image_sizes, **new).save(self.path)
+        self.saved_rows = len(self._rows["world"])
 
 
 def forget_mark(path: Path, mark: FloorMark) -> int:

@@ -16,14 +16,27 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, HTTPException
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from models.errors import MomlocError
 from service.api_errors import error_responses
 from service.setup.marks import MAX_MARKS, MarkIn, grid_marks, marks_from_entries
 from service.setup.session import SAFE_RECORDING_NAME, SetupSession
+from service.setup.steps import SetupConflict
 from service.setup.training import TrainingJob
 from service.setup.verify import Verifier
+
+# The schema's form of session.SAFE_RECORDING_NAME (JSON Schema's $ is the end of the text).
+# Declared in the schema, checked by plain_npz: pydantic's own pattern message shows the regex.
+RECORDING_NAME = r"^[A-Za-z0-9][A-Za-z0-9._-]{0,80}\.npz$"
+
+
+def plain_npz(name: str | None) -> str | None:
+    """A recording name: a plain file name in the data directory, ending in .npz."""
+    if name is not None and not SAFE_RECORDING_NAME.fullmatch(name):
+        raise ValueError("use a plain file name ending in .npz (letters, digits, '.', '_', '-')")
+    return name
+
 
 _GRID = r"^\s*[0-9]{1,6}\s*[xX×]\s*[0-9]{1,6}\s*$"
 _ROOM = r"^\s*[0-9]{1,6}(\.[0-9]{1,6})?\s*[xX×]\s*[0-9]{1,6}(\.[0-9]{1,6})?\s*$"
@@ -34,11 +47,15 @@ class StartRequest(BaseModel):
 
     model_config = ConfigDict(
         extra="forbid",
+        strict=True,  # a number where a number is meant: no true, no "5" (issue 25)
         # the either-or in the schema too, so /docs and schema-driven clients know it
         json_schema_extra={"anyOf": [{"required": ["marks"]}, {"required": ["grid", "room"]}]},
     )
     marks: list[MarkIn] | None = Field(
-        None, max_length=MAX_MARKS, description=f"Explicit floor marks (at most {MAX_MARKS})."
+        None,
+        min_length=1,
+        max_length=MAX_MARKS,
+        description=f"Explicit floor marks (1 to {MAX_MARKS}).",
     )
     grid: str | None = Field(
         None, max_length=32, pattern=_GRID, description="Grid of marks RxC, e.g. 3x3."
@@ -50,24 +67,29 @@ class StartRequest(BaseModel):
     walk: bool = Field(False, description="Also record walks between marks (interpolated).")
     countdown: float = Field(3.0, ge=0, le=30, description="Seconds before recording starts.")
     move_seconds: float = Field(5.0, ge=0, le=120, description="Time to reach each mark.")
-    out: str = Field(
-        "setup.npz", max_length=90, description="File name in the daemon's data directory."
+    out: Annotated[str, AfterValidator(plain_npz)] = Field(
+        "setup.npz",
+        max_length=90,
+        json_schema_extra={"pattern": RECORDING_NAME},
+        description="File name in the daemon's data directory (a plain name ending in .npz).",
     )
 
 
 class StopRequest(BaseModel):
     """No parameters: a JSON object ``{}`` (state changes take JSON bodies, see request_guard)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", strict=True)
 
 
 class TrainRequest(BaseModel):
-    """Everything optional: the last recording, the adaptive schedule."""
+    """Every field optional (``{}``: the last recording, the adaptive schedule); the body itself
+    is required, like every state change's (a body-less POST may be a cross-site form)."""
 
-    model_config = ConfigDict(extra="forbid")
-    recording: str | None = Field(
+    model_config = ConfigDict(extra="forbid", strict=True)
+    recording: Annotated[str | None, AfterValidator(plain_npz)] = Field(
         None,
         max_length=90,
+        json_schema_extra={"pattern": RECORDING_NAME},
         description="Recording file name in the daemon's data directory; default: the last one.",
     )
     epochs: int | None = Field(
@@ -81,16 +103,19 @@ class TrainRequest(BaseModel):
 
 
 class RecordAgainRequest(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", strict=True)
     mark: str = Field(min_length=1, max_length=40, description="Name of the mark, e.g. B2.")
 
 
 class VerifyRequest(BaseModel):
     """Marks to check (default: up to four of the last recording's), and the timing."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", strict=True)
     marks: list[MarkIn] | None = Field(
-        None, max_length=MAX_MARKS, description="Marks to stand on; new ones are the best test."
+        None,
+        min_length=1,
+        max_length=MAX_MARKS,
+        description="Marks to stand on; new ones are the best test.",
     )
     seconds: float = Field(5.0, gt=0, le=120, description="Seconds measured on each mark.")
     move_seconds: float = Field(5.0, ge=0, le=120, description="Time to reach each mark.")
@@ -112,7 +137,7 @@ def create_setup_router(
     @router.post(
         "/start",
         summary="Start a guided collection at floor marks",
-        responses=error_responses(409, 413, 415, 422),
+        responses=error_responses(400, 409, 413, 415, 422),
     )
     def start(request: Annotated[StartRequest, Body()]) -> dict[str, Any]:
         try:
@@ -131,7 +156,7 @@ def create_setup_router(
                 move_s=request.move_seconds,
             )
         except MomlocError as error:
-            raise HTTPException(409 if "already" in str(error) else 422, str(error)) from None
+            raise refused(error) from None
 
     @router.get("/status", summary="Collection, training and check; what each camera sees")
     def status() -> dict[str, Any]:
@@ -145,42 +170,37 @@ def create_setup_router(
     @router.post(
         "/record-again",
         summary="Forget one mark's frames in the last recording and record that mark again",
-        responses=error_responses(409, 413, 415, 422),
+        responses=error_responses(400, 409, 413, 415, 422),
     )
     def record_again(request: Annotated[RecordAgainRequest, Body()]) -> dict[str, Any]:
         try:
             return session.record_again(request.mark)
         except MomlocError as error:
-            raise HTTPException(409 if "running" in str(error) else 422, str(error)) from None
+            raise refused(error) from None
 
     @router.post(
         "/train",
         status_code=202,
         summary="Train a model on a recording (background process; follow it in /status)",
-        responses=error_responses(409, 413, 415, 422),
+        responses=error_responses(400, 409, 413, 415, 422),
     )
-    def train(body: Annotated[TrainRequest | None, Body()] = None) -> JSONResponse:
-        body = body or TrainRequest()
-        if session.status().get("state") == "running":
-            raise HTTPException(409, "a collection is running; wait for it to finish")
-        if body.recording is not None:
-            if not SAFE_RECORDING_NAME.match(body.recording):
-                raise HTTPException(422, f"recording '{body.recording}': a plain .npz file name")
-            recording = session.data_dir / body.recording
-        elif session.last_recording is not None:
-            recording = session.last_recording
-        else:
-            recording = session.data_dir / "setup.npz"
+    def train(body: Annotated[TrainRequest, Body()]) -> JSONResponse:
         try:
+            if body.recording is not None:
+                recording = session.data_dir / body.recording  # a plain name (plain_npz)
+            elif session.last_recording is not None:
+                recording = session.last_recording
+            else:
+                recording = session.data_dir / "setup.npz"
             started = training.start(Path(recording), body.epochs, body.first_model)
             return JSONResponse(started, status_code=202)
         except MomlocError as error:
-            raise HTTPException(409 if "already" in str(error) else 422, str(error)) from None
+            raise refused(error) from None
 
     @router.post(
         "/train/cancel",
         summary="Stop the running training (the served model stays)",
-        responses=error_responses(413, 415, 422),
+        responses=error_responses(400, 413, 415, 422),
     )
     def cancel_training(body: Annotated[StopRequest, Body()]) -> dict[str, Any]:
         return training.cancel()
@@ -188,7 +208,7 @@ def create_setup_router(
     @router.post(
         "/verify",
         summary="Check the served model: stand on marks, see the error at each",
-        responses=error_responses(409, 413, 415, 422),
+        responses=error_responses(400, 409, 413, 415, 422),
     )
     def verify(request: Annotated[VerifyRequest, Body()]) -> dict[str, Any]:
         try:
@@ -198,21 +218,29 @@ def create_setup_router(
                 marks = spread(session.marks(), VERIFY_DEFAULT_MARKS)
             return verifier.start(marks, request.seconds, request.move_seconds, request.countdown)
         except MomlocError as error:
-            raise HTTPException(409 if "already" in str(error) else 422, str(error)) from None
+            raise refused(error) from None
 
-    @router.post("/verify/stop", summary="Stop the check", responses=error_responses(413, 415, 422))
+    @router.post(
+        "/verify/stop", summary="Stop the check", responses=error_responses(400, 413, 415, 422)
+    )
     def stop_verify(body: Annotated[StopRequest, Body()]) -> dict[str, Any]:
         return verifier.stop()
 
     @router.post(
         "/stop",
         summary="Stop the collection, keeping what was recorded",
-        responses=error_responses(413, 415, 422),
+        responses=error_responses(400, 413, 415, 422),
     )
     def stop(body: Annotated[StopRequest, Body()]) -> dict[str, Any]:
         return session.stop()
 
     return router
+
+
+def refused(error: MomlocError) -> HTTPException:
+    """409 when the request conflicts with the set-up's state (a step runs, the marks are all
+    recorded), 422 when the request itself is wrong."""
+    return HTTPException(409 if isinstance(error, SetupConflict) else 422, str(error))
 
 
 def spread(marks: list[Any], count: int) -> list[Any]:

@@ -10,6 +10,7 @@ A :class:`SetupSession` runs one collection at a time in a thread; the page poll
 
 from __future__ import annotations
 
+import logging
 import re
 import threading
 import time
@@ -20,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from models.errors import MomlocError
+from models.errors import MomlocError, shorten
 from service.setup.arrival import Arrival
 from service.setup.collector import (
     DatasetAppender,
@@ -33,8 +34,18 @@ from service.setup.collector import (
 )
 from service.setup.marks import FloorMark
 from service.setup.quality import MarkQuality
+from service.setup.steps import SetupConflict, SetupSteps
 
-SAFE_RECORDING_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,80}\.npz$")
+log = logging.getLogger("momloc.setup")
+# Matched with fullmatch: ``$`` with ``match`` also accepts a trailing newline ("zz.npz\n").
+SAFE_RECORDING_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,80}\.npz")
+
+
+def check_recording_name(name: str, field: str) -> str:
+    """``name`` when it is a plain ``.npz`` file name in the data directory, else MomlocError."""
+    if not SAFE_RECORDING_NAME.fullmatch(name):
+        raise MomlocError(f"{field} '{shorten(name, 90)}': use a plain file name ending in .npz")
+    return name
 
 
 class Cancelled(Exception):
@@ -86,10 +97,19 @@ class DetectionTap:
 
 
 class SetupSession:
-    """At most one web-driven collection; writes ``data_dir/<name>.npz``."""
+    """At most one web-driven collection; writes ``data_dir/<name>.npz``. ``steps`` is the
+    set-up's state machine shared with training and the check (:mod:`service.setup.steps`)."""
 
-    def __init__(self, data_dir: Path, image_sizes: Any, attach: Any, detach: Any) -> None:
+    def __init__(
+        self,
+        data_dir: Path,
+        image_sizes: Any,
+        attach: Any,
+        detach: Any,
+        steps: SetupSteps | None = None,
+    ) -> None:
         self.data_dir = Path(data_dir)
+        self.steps = SetupSteps() if steps is None else steps
         self._image_sizes = image_sizes  # callable: the cameras' current [K, 2] sizes
         self._attach, self._detach = attach, detach  # register/unregister a tap on the pipeline
         self._lock = threading.Lock()
@@ -113,11 +133,25 @@ class SetupSession:
         countdown_s: float = 3.0,
         move_s: float = 5.0,
     ) -> dict[str, Any]:
-        if not SAFE_RECORDING_NAME.match(name):
-            raise MomlocError(f"out '{name}': use a plain file name ending in .npz")
+        check_recording_name(name, "out")
+        self.steps.begin("record")
+        try:
+            return self._launch(marks, seconds, name, walk, countdown_s, move_s)
+        except BaseException:
+            self.steps.end("record")
+            raise
+
+    def _launch(
+        self,
+        marks: list[FloorMark],
+        seconds: float,
+        name: str,
+        walk: bool,
+        countdown_s: float,
+        move_s: float,
+    ) -> dict[str, Any]:
+        """Start the collection thread; the caller holds the ``record`` step."""
         with self._lock:
-            if self._thread is not None and self._thread.is_alive():
-                raise MomlocError("a collection is already running; stop it first")
             sizes = self._image_sizes()
             if sizes is None:
                 raise MomlocError("cameras have not delivered frames yet; try again in a moment")
@@ -126,7 +160,7 @@ class SetupSession:
             done = [writer.has_mark(m) for m in marks]  # one pass: marks are bounded, rows not
             todo = [m for m, d in zip(marks, done, strict=True) if not d]
             if not todo:
-                raise MomlocError(f"all marks are already recorded in {name}")
+                raise SetupConflict(f"all marks are already recorded in {name}")
             steps = plan_steps(
                 todo,
                 seconds,
@@ -168,23 +202,42 @@ class SetupSession:
     def _run(
         self, tap: DetectionTap, steps: list[Step], writer: DatasetAppender, quality: MarkQuality
     ) -> None:
+        error: str | None = None
         try:
             collect(tap, steps, quality.counting(writer), on_progress=self._on_progress)
             final = "done"
         except Cancelled:
             final = "stopped"
-        except Exception as error:  # shown on the page; the rows recorded are on disk
-            final = f"failed: {error}"
+        except OSError as failure:  # a full disk, a removed folder: stop, say what is on disk
+            final, error = "failed", f"writing {writer.path.name} failed: {shorten(failure, 300)}"
+        except Exception as failure:  # shown on the page; the rows recorded are on disk
+            final, error = "failed", shorten(failure, 300)
         finally:
             self._detach(tap.push)
             quality.finish()
-        self._state.update(
-            state=final.split(":")[0],
-            error=final if final.startswith("failed") else None,
-            new_rows=writer.new_rows,
-            total_rows=writer.existing_rows + writer.new_rows,
-            instruction="all marks recorded" if final == "done" else "collection stopped",
-        )
+        try:
+            # rows on disk, not rows attempted: after a failed write the two differ
+            unsaved = writer.new_rows - writer.saved_rows
+            if error is not None:
+                error = f"failed: {error}; {writer.saved_rows} new rows are on disk" + (
+                    f", {unsaved} were not saved" if unsaved else ""
+                )
+                log.error("set-up recording %s %s", writer.path, error)  # once per collection
+            self._state.update(
+                state=final,
+                error=error,
+                new_rows=writer.saved_rows,
+                unsaved_rows=unsaved,
+                total_rows=writer.existing_rows + writer.saved_rows,
+                instruction="all marks recorded" if final == "done" else "collection stopped",
+            )
+        finally:
+            self.steps.end("record")  # the status is final: the next step may start
+
+    def fault(self) -> str | None:
+        """Why the last collection failed, if it did (``/v1/health`` shows it until the next)."""
+        state = self._state
+        return state.get("error") if state.get("state") == "failed" else None
 
     def _on_progress(self, progress: Progress) -> None:
         step = progress.step
@@ -246,20 +299,33 @@ class SetupSession:
         return None if target is None else (float(target[0]), float(target[1]))
 
     def record_again(self, mark_name: str) -> dict[str, Any]:
-        """Forget ``mark_name``'s rows in the last recording and record it alone again."""
-        with self._lock:
-            if self._thread is not None and self._thread.is_alive():
-                raise MomlocError("a collection is running; wait for it or stop it first")
-        mark = next((m for m in self._marks if m.name == mark_name), None)
-        if mark is None or self.last_recording is None:
-            known = ", ".join(m.name for m in self._marks) or "none: record marks first"
-            raise MomlocError(f"mark: '{mark_name}' is not a mark of the last recording ({known})")
-        if self.last_recording.exists():
-            forget_mark(self.last_recording, mark)
-        marks, options = list(self._marks), dict(self._options)
-        earlier = [q for q in self.status()["quality"] if q["mark"] != mark.name]
-        finished = {q["mark"] for q in earlier}
-        done = (self._done | finished) - {mark.name}
-        self.start([mark], options.pop("seconds"), options.pop("name"), **options)
+        """Forget ``mark_name``'s rows in the last recording and record it alone again (one
+        ``record`` step from the forgetting to the end, so nothing reads the file in between)."""
+        self.steps.begin("record")
+        try:
+            mark = next((m for m in self._marks if m.name == mark_name), None)
+            if mark is None or self.last_recording is None:
+                known = ", ".join(m.name for m in self._marks) or "none: record marks first"
+                raise MomlocError(
+                    f"mark: '{shorten(mark_name, 40)}' is not a mark of the last recording "
+                    f"({known})"
+                )
+            if self.last_recording.exists():
+                forget_mark(self.last_recording, mark)
+            marks, options = list(self._marks), dict(self._options)
+            earlier = [q for q in self.status()["quality"] if q["mark"] != mark.name]
+            finished = {q["mark"] for q in earlier}
+            done = (self._done | finished) - {mark.name}
+            self._launch(
+                [mark],
+                options["seconds"],
+                options["name"],
+                options["walk"],
+                options["countdown_s"],
+                options["move_s"],
+            )
+        except BaseException:
+            self.steps.end("record")
+            raise
         self._marks, self._done, self._earlier_quality = marks, done, earlier
         return self.status()

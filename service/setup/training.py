@@ -24,6 +24,13 @@ model (the model directory and the runtime need an encoder; a second model forma
 service is not worth it), and one child that writes an intermediate model (a model directory
 written by a process that is still training is what the staging rename exists to avoid).
 
+What it trains on: a snapshot of the recording, copied when the run starts
+(``data_dir/model.recording/<name>.npz``), which every stage reads. Both stages then learn from the
+same rows whatever happens to the recording meanwhile (``momloc collect`` into the same file from
+a terminal; in the daemon the set-up's state machine, :mod:`service.setup.steps`, refuses
+recording while training runs). Before it, each stage re-read the file: a first model on 185 rows,
+the final on 258.
+
 A failure's reason is the child's last ``momloc train: error: ...`` line (the CLI's one-line
 errors), or a line that says what is missing (torch not installed).
 """
@@ -42,8 +49,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
 
-from models.atomic import replace_folder
+from models.atomic import atomic_write, replace_folder
 from models.errors import MomlocError, shorten
+from service.setup.steps import SetupSteps
 
 log = logging.getLogger("momloc.setup.training")
 NICE = 10
@@ -74,9 +82,15 @@ class TrainingJob:
     ``first_model`` what the first one gave.
     """
 
-    def __init__(self, data_dir: Callable[[], Path], on_model: Callable[[Path], Any]) -> None:
+    def __init__(
+        self,
+        data_dir: Callable[[], Path],
+        on_model: Callable[[Path], Any],
+        steps: SetupSteps | None = None,
+    ) -> None:
         self._data_dir = data_dir
         self._on_model = on_model
+        self.steps = SetupSteps() if steps is None else steps
         self._lock = threading.Lock()
         self._thread: threading.Thread | None = None
         self._process: subprocess.Popen[str] | None = None
@@ -87,13 +101,28 @@ class TrainingJob:
         self, recording: Path, epochs: int | None = None, first_model: bool | None = None
     ) -> dict[str, Any]:
         """Start training on ``recording``; MomlocError when one runs or the file is missing.
-        ``first_model`` (default: only with the adaptive schedule) adds the quick first stage."""
+        ``first_model`` (default: only with the adaptive schedule) adds the quick first stage.
+        Holds the set-up's ``train`` step until the run has ended."""
+        self.steps.begin("train")
+        try:
+            return self._launch(recording, epochs, first_model)
+        except BaseException:
+            self.steps.end("train")
+            raise
+
+    def _launch(
+        self, recording: Path, epochs: int | None, first_model: bool | None
+    ) -> dict[str, Any]:
         with self._lock:
-            if self._thread is not None and self._thread.is_alive():
-                raise MomlocError("training is already running; cancel it first")
             if not recording.is_file():
                 raise MomlocError(f"recording: {recording.name} does not exist; record marks first")
             final = model_path(self._data_dir())
+            # its own name, so that the child's messages name the file the user chose
+            snapshot = final.with_name(final.name + ".recording") / recording.name
+            try:
+                atomic_write(snapshot, lambda tmp: shutil.copyfile(recording, tmp))
+            except OSError as error:
+                raise MomlocError(f"recording: cannot take a copy to train on: {error}") from None
             stages: list[tuple[str, list[str]]] = []
             if epochs is None if first_model is None else first_model:
                 stages.append(("first", ["--time-budget", f"{FIRST_MODEL_S:g}"]))
@@ -111,14 +140,23 @@ class TrainingJob:
             }
             self._thread = threading.Thread(
                 target=self._run,
-                args=(recording, stages, final),
+                args=(snapshot, stages, final),
                 name="momloc-train-follow",
                 daemon=True,
             )
             self._thread.start()
         return self.status()
 
-    def _run(self, recording: Path, stages: list[tuple[str, list[str]]], final: Path) -> None:
+    def _run(self, snapshot: Path, stages: list[tuple[str, list[str]]], final: Path) -> None:
+        try:
+            self._stages(snapshot, stages, final)
+        except Exception as error:  # e.g. the child cannot be spawned: say so, never hang
+            self._finish("failed", error=shorten(f"training could not run: {error}", 300))
+        finally:
+            shutil.rmtree(snapshot.parent, ignore_errors=True)
+            self.steps.end("train")  # the status is final: the next step may start
+
+    def _stages(self, recording: Path, stages: list[tuple[str, list[str]]], final: Path) -> None:
         first_loaded = False
         for name, options in stages:
             with self._lock:

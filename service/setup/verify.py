@@ -25,6 +25,7 @@ from models.errors import MomlocError
 from service.setup.check_score import mark_error, nearest_error, summarise
 from service.setup.check_store import store_check, stored_check
 from service.setup.marks import FloorMark
+from service.setup.steps import SetupSteps
 
 POLL_S = 0.1
 
@@ -37,11 +38,16 @@ class Verifier:
     """At most one check at a time, on the daemon's published positions."""
 
     def __init__(
-        self, latest: Callable[[], Any], model_dir: Callable[[], Path | None], data_dir: Path
+        self,
+        latest: Callable[[], Any],
+        model_dir: Callable[[], Path | None],
+        data_dir: Path,
+        steps: SetupSteps | None = None,
     ) -> None:
         self._latest = latest  # the hub's newest snapshot
         self._model_dir = model_dir  # the model being served (None: no model)
         self.data_dir = Path(data_dir)  # where results of models not the daemon's own go
+        self.steps = SetupSteps() if steps is None else steps  # shared with record and train
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
         self._lock = threading.Lock()
@@ -50,9 +56,18 @@ class Verifier:
     def start(
         self, marks: list[FloorMark], seconds: float, move_s: float, countdown_s: float
     ) -> dict[str, Any]:
+        """Start the check; holds the set-up's ``verify`` step until it has ended."""
+        self.steps.begin("verify")
+        try:
+            return self._launch(marks, seconds, move_s, countdown_s)
+        except BaseException:
+            self.steps.end("verify")
+            raise
+
+    def _launch(
+        self, marks: list[FloorMark], seconds: float, move_s: float, countdown_s: float
+    ) -> dict[str, Any]:
         with self._lock:
-            if self._thread is not None and self._thread.is_alive():
-                raise MomlocError("a check is already running; stop it first")
             if self._model_dir() is None:
                 raise MomlocError("no model yet: record floor marks and train first")
             if not marks:
@@ -94,6 +109,8 @@ class Verifier:
             self._state.update(state="stopped", instruction="check stopped", target=None)
         except (MomlocError, OSError) as error:
             self._state.update(state="failed", error=str(error), target=None)
+        finally:
+            self.steps.end("verify")  # the status is final: the next step may start
 
     def _wait(self, instruction: str, kind: str, seconds: float) -> None:
         end = time.monotonic() + seconds

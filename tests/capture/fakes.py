@@ -78,6 +78,52 @@ class FaultySource:
         self.is_open = False
 
 
+class ManualClock:
+    """A :class:`capture.worker.Clock` whose time moves only when the test says.
+
+    ``wait`` blocks its thread until the test ends that wait with :meth:`step` (or the worker
+    stops); :meth:`step` waits for the next wait of a thread whose name starts with ``prefix``,
+    moves time to its end and releases it. A test thus walks the worker's back-off one wait
+    at a time and sees exactly the waits the policy asks for, on a fast or a loaded machine.
+    Other threads' waits (the watchdog's) end whenever time passes their end.
+    """
+
+    def __init__(self, start: float = 1_000_000.0) -> None:
+        self.now = start
+        self.waits: list[tuple[str, float]] = []  # (thread name, seconds), in order
+        self._cond = threading.Condition()
+        self._pending: dict[str, float] = {}  # sleeping thread -> when its wait ends
+
+    def time(self) -> float:
+        return self.now
+
+    def wait(self, stop: threading.Event, seconds: float) -> bool:
+        name = threading.current_thread().name
+        with self._cond:
+            end = self.now + seconds
+            self.waits.append((name, seconds))
+            self._pending[name] = end
+            self._cond.notify_all()
+            while self.now < end and not stop.is_set():
+                self._cond.wait(0.05)  # stop is an Event, not this condition: poll it
+            self._pending.pop(name, None)
+            return stop.is_set()
+
+    def step(self, prefix: str = "capture-", timeout: float = 10.0) -> float:
+        """End the next wait of a ``prefix`` thread; returns its length."""
+        with self._cond:
+            found = self._cond.wait_for(
+                lambda: any(n.startswith(prefix) for n in self._pending), timeout
+            )
+            assert found, f"no {prefix}* thread waited within {timeout} s"
+            name = next(n for n in self._pending if n.startswith(prefix))
+            end = self._pending.pop(name)  # popped: the next step waits for a new wait
+            seconds = next(s for n, s in reversed(self.waits) if n == name)
+            self.now = max(self.now, end)
+            self._cond.notify_all()
+            return seconds
+
+
 def wait_until(predicate, timeout: float = 10.0, step: float = 0.005) -> bool:
     """Poll ``predicate`` until true or ``timeout`` (a liveness bound, not a timing test)."""
     deadline = time.monotonic() + timeout

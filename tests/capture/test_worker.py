@@ -8,7 +8,7 @@ import time
 import pytest
 
 from capture import CameraWorker, VideoFileSource
-from tests.capture.fakes import FaultySource, frame_number, wait_until, write_mjpg
+from tests.capture.fakes import FaultySource, ManualClock, frame_number, wait_until, write_mjpg
 
 
 @pytest.fixture
@@ -53,7 +53,7 @@ def test_slow_consumer_gets_the_newest_frame_never_a_queue(workers):
         produced = source.reads
         frame = worker.latest()
         assert frame.seq >= produced - 2  # the newest (or the one being published), not old
-    assert worker.state().frames > 3 * 10
+    assert wait_until(lambda: worker.state().frames > 3 * 10)
 
 
 def test_stall_is_reported_within_two_intervals_and_recovers(workers):
@@ -100,33 +100,50 @@ def test_read_errors_reopen_the_source(workers):
     assert source.opens >= 4
 
 
+BACK_OFF = [0.05, 0.1, 0.2, 0.2, 0.2, 0.2]  # backoff=0.05 doubling up to max_backoff=0.2
+
+
+def capture_waits(clock: ManualClock, name: str) -> list[float]:
+    return [seconds for thread, seconds in clock.waits if thread == f"capture-{name}"]
+
+
 def test_vanished_camera_comes_back_and_others_keep_running(workers):
     flaky, steady = FaultySource("flaky"), FaultySource("steady")
-    a = workers(flaky, backoff=0.05, max_backoff=0.2)
+    clock = ManualClock()  # the flaky camera's time: its back-off, one wait at a time
+    a = workers(flaky, backoff=0.05, max_backoff=0.2, clock=clock)
     b = workers(steady)
     assert a.wait_for_frame(timeout=10.0) and b.wait_for_frame(timeout=10.0)
+    assert capture_waits(clock, "flaky") == []  # streaming: no waits
+    opens = flaky.opens
     flaky.gone.set()
-    assert wait_until(lambda: "open failed" in (a.state().error or ""))
+    # closed and reopened at once (a failed open), then retried after each back-off wait
+    assert [clock.step() for _ in BACK_OFF] == BACK_OFF
+    assert wait_until(lambda: flaky.opens == opens + 1 + len(BACK_OFF))
+    state = a.state()
+    assert not state.connected and "open failed" in state.error
+    # the flaky camera sits in a back-off wait; the other one streams on
     before = b.latest().seq
-    time.sleep(0.6)
-    assert b.latest().seq > before + 10 and b.state().connected  # unaffected
-    assert not a.state().connected
-    attempts = flaky.opens
-    assert 2 <= attempts <= 12  # retried with back-off, not in a busy loop
+    assert wait_until(lambda: b.latest().seq > before + 10) and b.state().connected
     flaky.gone.clear()
     last = a.latest().seq
+    assert clock.step() == 0.2  # the next attempt opens it
     assert a.wait_for_frame(last, timeout=10.0) is not None
     assert a.state().connected and a.state().reconnects == 1 and a.state().error is None
 
 
 def test_a_camera_that_opens_but_never_streams_is_retried_with_back_off(workers):
-    source = FaultySource()
+    source = FaultySource("mute")
     source.mute.set()
-    worker = workers(source, backoff=0.05, max_backoff=0.2)
-    time.sleep(1.0)
-    assert 3 <= source.opens <= 15  # 0.05, 0.1, 0.2, 0.2, ... s apart: no busy loop
+    clock = ManualClock()
+    worker = workers(source, backoff=0.05, max_backoff=0.2, clock=clock)
+    start = clock.time()
+    # each attempt opens, reads nothing and closes; then 0.05, 0.1, 0.2, 0.2, ... s of waiting
+    assert [clock.step() for _ in BACK_OFF] == BACK_OFF
+    assert clock.time() - start == pytest.approx(sum(BACK_OFF))  # 0.95 s: 7 opens, not a loop
+    assert wait_until(lambda: source.opens == 1 + len(BACK_OFF))  # then waits for the next step
     assert not worker.state().connected and "no frame" in worker.state().error
     source.mute.clear()
+    clock.step()
     assert worker.wait_for_frame(timeout=10.0) is not None
     assert worker.state().connected
 

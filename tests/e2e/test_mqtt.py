@@ -258,22 +258,27 @@ def test_a_broker_that_never_reads_does_not_slow_the_pipeline(mosquitto):
             sub.wait_for(lambda s: len(s.on(f"momloc/{room}/positions")) > 20)
             sub.close()
 
-            def frames_in(seconds: float) -> int:
-                start = server.daemon.pipeline.frames_processed
-                time.sleep(seconds)
-                return server.daemon.pipeline.frames_processed - start
-
-            before = frames_in(4.0)
             # the daemon's side of the link buffers little too (Linux would take megabytes)
             link = server.daemon.outputs.mqtt._client.socket()
             link.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 4096)
             proxy.stall()
-            time.sleep(2.0)  # socket buffers fill
-            during = frames_in(4.0)
-            mqtt = server.get("/v1/health").json()["mqtt"]
-        assert during >= 0.6 * before, (before, during)
-        assert mqtt["positions_dropped_backpressure"] > 0, json.dumps(mqtt)
-        assert mqtt["unsent"] <= 4, json.dumps(mqtt)
+
+            def mqtt() -> dict:
+                return server.get("/v1/health").json()["mqtt"]
+
+            # the buffers are full once positions are dropped for back-pressure; from then on
+            # the pipeline must keep going (a pipeline waiting on the socket would stop). How
+            # fast it goes is bench/mqtt_fanout.py's to measure, not a ratio of two wall-clock
+            # windows, which the machine's load sets (issue 25 item 7)
+            deadline = time.monotonic() + 60
+            while mqtt()["positions_dropped_backpressure"] == 0:
+                assert time.monotonic() < deadline, mqtt()
+                time.sleep(0.1)
+            seq = server.daemon.hub.latest().seq
+            server.wait_for_seq(seq + 90)  # 3 s of frames at 30 fps, however long they take
+            stalled = mqtt()
+        assert stalled["positions_dropped_backpressure"] > 0, json.dumps(stalled)
+        assert stalled["unsent"] <= 4, json.dumps(stalled)
     finally:
         proxy.close()
 

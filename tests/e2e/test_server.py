@@ -46,7 +46,9 @@ def test_stream_seq_increases_and_matches_snapshot_schema(server):
         for p in m["people"]:
             assert set(p) == {"id", "x", "y", "vx", "vy", "confidence", "cameras"}
             assert 0.0 <= p["confidence"] <= 1.0 and set(p["cameras"]) <= {0, 1}
-    assert time.time() - messages[-1]["t"] < 5.0  # t is wall-clock capture time
+    # t is wall-clock capture time (a monotonic one would be seconds since boot): since the
+    # daemon started, never in the future; no bound on the delay, which a loaded machine sets
+    assert server.daemon.started - 1.0 <= messages[0]["t"] <= messages[-1]["t"] <= time.time()
 
 
 def test_positions_follow_ground_truth():

@@ -191,7 +191,12 @@ def test_first_run_to_live_positions_through_the_api(tmp_path: Path) -> None:
         # Polled often: 60 epochs of four marks take about a second once the process is up.
         trained = wait_for(training, lambda t: t["state"] != "running", 300, "training", 0.02)
         assert trained["state"] == "done", trained
-        assert trained["epoch"] == 60 and trained["val_error_m"] > 0 and len(seen_epochs) >= 2
+        # 60 epochs, or fewer when early stopping ends it (patience 15): the rows a live
+        # recording keeps vary with the machine's load, and so does where the error stops falling
+        run = trained["metrics"]
+        assert trained["epoch"] == run["epochs_run"] <= 60, trained
+        assert run["stopped_by"] == "max_epochs" or run["stopped_by"] == "early_stopping", run
+        assert trained["val_error_m"] > 0 and len(seen_epochs) >= 2
         assert trained["val_median_m"] > 0, trained  # what the page shows
         first = trained["first_model"]
         assert first["epochs"] >= 1 and first["val_median_m"] > 0, first
