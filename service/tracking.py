@@ -140,6 +140,20 @@ single-view wait, no ghost check): 77.5 / 71.9 / 58.0 / 79.9 / 81.9 % against 79
 is the template-pose fallback, which :mod:`models.sampling` then rejected; the shipped
 keypoint models (no fallback) were not re-measured with these two tracker variants.
 
+The real room (issue 23; figures in ``bench/results/real_cmc.md``, tuned on CMC2, 10 people at
+4 fps, through ``bench.real_cmc.evaluate``): three settings joined ``RECOMMENDED``.
+
+- ``measurement_scale`` 9: the floor prior's covariance is ~3x overconfident in std (see
+  :mod:`service.measurements`); trusting it as given, tracks of people passing each other swapped
+  ids even with the true association (the association oracle: 41 id switches, 23 with the
+  scale; scale 4 and 25 were worse on the whole chain or on IDF1). On the simulated 30 fps
+  stream it costs ~2 cm of mean error and ~0.05 s of lag, not MOTA.
+- ``birth_clearance_m`` 0.8: a person whose boxes split into two clusters is not a second person;
+  no track is born that close to a confirmed or just-measured one (0.5 m gained less).
+- ``merge_m`` 0.35 / ``merge_s`` 0.5: two tracks that stay that close for half a second are one
+  person fed by both halves of a split association; the younger is dropped. 0.8 m merged real
+  neighbours in the crowd (recall fell to 66 %).
+
 ``meta`` (one dict per detection) is passed through: ``cameras`` is copied onto the track and the
 whole dict is kept as ``Track.meta``.
 
@@ -177,6 +191,11 @@ RECOMMENDED: dict[str, Any] = {
     "gate_growth_mps": 0.5,
     "assign_cost": "likelihood",
     "doubt_outside": True,
+    # the real CMC room, 10 people at 4 fps (bench/results/real_cmc.md; module docstring)
+    "measurement_scale": 9.0,
+    "birth_clearance_m": 0.8,
+    "merge_m": 0.35,
+    "merge_s": 0.5,
 }
 ASSIGN_COSTS = ("euclidean", "likelihood")
 MOTION_MODELS = {"cv": ConstantVelocity, "imm": StandOrWalk}
@@ -442,9 +461,7 @@ class Tracker:
         if self.birth_clearance_m <= 0 or not free or not self._tracks:
             return free
         held = [
-            tr.motion.mean[:2]
-            for tr in self._tracks
-            if tr.confirmed or tr.last_seen == self._time
+            tr.motion.mean[:2] for tr in self._tracks if tr.confirmed or tr.last_seen == self._time
         ]
         if not held:
             return free
@@ -458,8 +475,7 @@ class Tracker:
         kept: list[_State] = []
         for tr in sorted(self._tracks, key=lambda s: s.id):
             near = any(
-                np.linalg.norm(tr.motion.mean[:2] - older.motion.mean[:2])
-                < self.merge_m
+                np.linalg.norm(tr.motion.mean[:2] - older.motion.mean[:2]) < self.merge_m
                 for older in kept
             )
             tr.shadowed_s = tr.shadowed_s + dt if near else 0.0
