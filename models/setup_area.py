@@ -45,6 +45,9 @@ from models.errors import MomlocError
 DEFAULT_MARGIN_M = 0.5  # floor beyond the outermost label that still counts as set up
 IMAGE_MARGIN = 0.5  # box heights beyond the training foot points that still count as seen
 HEIGHT_FACTOR = 1.5  # box heights this much beyond the training range still count as seen
+HEIGHT_SIGMAS = 4.0  # a box this many robust stds off the height expected at its foot is odd
+MIN_LOG_TOLERANCE = float(np.log(1.3))  # ... and never closer than 30 % to it
+MIN_HEIGHT_ROWS = 24  # fewer training boxes: the height range alone
 _FORMAT = "setup-area-v1"
 
 
@@ -102,12 +105,46 @@ def _foot_and_height(boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return foot, boxes[..., 3] - boxes[..., 1]
 
 
+def _height_features(foot: np.ndarray) -> np.ndarray:
+    """Quadratic terms [N, 6] of the foot pixel (in thousands of pixels, for conditioning)."""
+    u, v = foot[:, 0] / 1000.0, foot[:, 1] / 1000.0
+    return np.stack([np.ones_like(u), v, u, v * v, u * v, u * u], axis=1)
+
+
+def _fit_height(foot: np.ndarray, height: np.ndarray) -> tuple[np.ndarray, float] | None:
+    """log box height as a quadratic function of the foot pixel, and the residuals' robust std
+    (1.4826 MAD): how tall a person standing there looks to this camera."""
+    ok = height > 1.0
+    if ok.sum() < MIN_HEIGHT_ROWS:
+        return None
+    x, y = _height_features(foot[ok]), np.log(height[ok])
+    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
+    residual = y - x @ coef
+    spread = 1.4826 * float(np.median(np.abs(residual - np.median(residual))))
+    return coef, spread
+
+
 @dataclass(frozen=True)
 class CameraRegion:
-    """Where one camera's training boxes stood in its image, and how tall they were."""
+    """Where one camera's training boxes stood in its image, and how tall they were: overall
+    and, with enough rows, as expected at each foot pixel (a box much shorter than a person
+    standing there is a fragment of an occluded body or a false box; much taller, two people
+    in one box)."""
 
     foot_hull: np.ndarray  # [V, 2] pixels, counter-clockwise
     height_range: tuple[float, float]  # pixels, as seen in training
+    height_model: np.ndarray | None = None  # [6] log-height coefficients (_height_features)
+    height_spread: float = 0.0  # robust std of the log-height residuals
+
+    def plausible_height(self, foot: np.ndarray, height: np.ndarray, factor: float) -> np.ndarray:
+        """[N] bool: the heights fit what this camera saw at those foot pixels."""
+        if self.height_model is None:
+            low, high = self.height_range
+            return (height >= low / factor) & (height <= high * factor)
+        expected = _height_features(foot) @ self.height_model
+        tolerance = max(HEIGHT_SIGMAS * self.height_spread, MIN_LOG_TOLERANCE)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.abs(np.log(np.maximum(height, 1e-6)) - expected) <= tolerance
 
 
 @dataclass(frozen=True)
@@ -142,7 +179,15 @@ class SetupArea:
                 regions.append(None)
                 continue
             foot, height = _foot_and_height(b)
-            regions.append(CameraRegion(_hull(foot), (float(height.min()), float(height.max()))))
+            model = _fit_height(foot, height)
+            regions.append(
+                CameraRegion(
+                    _hull(foot),
+                    (float(height.min()), float(height.max())),
+                    None if model is None else model[0],
+                    0.0 if model is None else model[1],
+                )
+            )
         return cls(_hull(xy), float(margin_m), tuple(regions))
 
     @property
@@ -173,8 +218,7 @@ class SetupArea:
                 continue
             foot, height = _foot_and_height(np.where(seen[:, None], boxes[:, k], 0.0))
             near = distance_outside(region.foot_hull, foot) <= self.image_margin * height
-            low, high = region.height_range
-            sized = (height >= low / self.height_factor) & (height <= high * self.height_factor)
+            sized = region.plausible_height(foot, height, self.height_factor)
             judged |= seen
             somewhere |= seen & near & sized
         return somewhere | ~judged
@@ -193,6 +237,8 @@ class SetupArea:
                 else {
                     "foot_hull": np.round(c.foot_hull, 2).tolist(),
                     "height_range": list(c.height_range),
+                    "height_model": None if c.height_model is None else c.height_model.tolist(),
+                    "height_spread": c.height_spread,
                 }
                 for c in self.cameras
             ],
@@ -210,6 +256,10 @@ class SetupArea:
                 else CameraRegion(
                     np.asarray(c["foot_hull"], np.float64).reshape(-1, 2),
                     (float(c["height_range"][0]), float(c["height_range"][1])),
+                    None
+                    if c.get("height_model") is None
+                    else np.asarray(c["height_model"], np.float64).reshape(6),
+                    float(c.get("height_spread", 0.0)),
                 )
                 for c in data["cameras"]
             )

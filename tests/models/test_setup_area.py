@@ -114,3 +114,27 @@ def test_models_without_an_area_count_everything_inside():
     runtime.setup_area = None
     data, _ = make_dataset(200, cameras=2, seed=32)
     assert runtime.inside(data.boxes, runtime.localize(data.boxes)).all()
+
+
+def test_a_box_much_shorter_than_a_person_standing_there_is_out_of_region():
+    """The height expected at a foot pixel is learned per camera: a fragment of an occluded
+    body (half as tall) or two people in one box (twice as tall) stands where people stood in
+    training, but is not what a person standing there looks like."""
+    rng = np.random.default_rng(0)
+    v = rng.uniform(200, 460, 200)  # foot rows: farther people stand higher in the image
+    u = rng.uniform(100, 540, 200)
+    h = (v - 120) * 1.4 * np.exp(rng.normal(0, 0.04, 200))  # perspective: taller when nearer
+    boxes = np.stack([u - 0.2 * h, v - h, u + 0.2 * h, v], axis=1)[:, None]
+    area = SetupArea.fit(np.c_[rng.uniform(0, 3, 200), rng.uniform(0, 3, 200)], boxes)
+    assert area.cameras[0].height_model is not None
+    foot_v, foot_u = 400.0, 300.0
+    person = (foot_v - 120) * 1.4
+    probe = np.array(
+        [
+            [[foot_u - 20, foot_v - height, foot_u + 20, foot_v]]
+            for height in (person, person / 2, person * 2)
+        ]
+    )
+    assert area.boxes_in_region(probe).tolist() == [True, False, False]
+    again = SetupArea.from_json(json.loads(json.dumps(area.to_json())))
+    assert again.boxes_in_region(probe).tolist() == [True, False, False]
