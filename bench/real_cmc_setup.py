@@ -39,6 +39,9 @@ TRAIN_SOURCES = (
     "models/mom_torch.py",
     "models/sampling.py",
     "models/prior_policy.py",
+    "models/floor_prior.py",
+    "models/setup_area.py",
+    "models/export.py",
 )
 
 
