@@ -54,8 +54,8 @@ its information matrix (long along that camera's line of sight, scaled by ``FLOO
 the prior's overconfidence), clusters are fused in information form, and two clusters merge only
 if the Mahalanobis rise of the fused χ² is at most ``max_floor_chi2`` (25): that is small only where
 the cameras' lines of sight meet, which the 2 m view gap cannot tell in a crowd. On the real CMC
-room (10 people, ``bench/results/real_cmc_chain_tuning.md``) it cut mixed clusters and lifted per-frame MODA by
-~3.6 points; 9 refused true merges (more duplicates), 60 let mixes through.
+room (10 people, ``bench/results/real_cmc_chain_tuning.md``) it cut mixed clusters and lifted
+per-frame MODA by ~3.6 points; 9 refused true merges (more duplicates), 60 let mixes through.
 
 A model with a ``covariance(boxes)`` method (``MomRuntime``: the floor prior's GLS covariance)
 also gives each association the covariance of its position, which the tracker takes as that

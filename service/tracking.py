@@ -140,8 +140,8 @@ single-view wait, no ghost check): 77.5 / 71.9 / 58.0 / 79.9 / 81.9 % against 79
 is the template-pose fallback, which :mod:`models.sampling` then rejected; the shipped
 keypoint models (no fallback) were not re-measured with these two tracker variants.
 
-The real room (issue 23; figures in ``bench/results/real_cmc_chain_tuning.md``, tuned on CMC2, 10 people at
-4 fps, through ``bench.real_cmc.evaluate``): three settings joined ``RECOMMENDED``.
+The real room (issue 23; figures in ``bench/results/real_cmc_chain_tuning.md``, tuned on CMC2,
+10 people at 4 fps, through ``bench.real_cmc.evaluate``): four settings joined ``RECOMMENDED``.
 
 - ``measurement_scale`` 9: the floor prior's covariance is ~3x overconfident in std (see
   :mod:`service.measurements`); trusting it as given, tracks of people passing each other swapped
