@@ -43,15 +43,20 @@ RECORDED = {  # gate 0.5 m, nanodet profile, service.tracking.RECOMMENDED fed th
     # 8 switches, mean 0.1619, Acc@0.3 88.69, single 0.182, jitter 0.0448, lag 0.045. Worse now
     # here: 11 switches (8), Acc@0.3 87.77 (88.69), jitter 0.0534 (0.0448); on the bench's 4
     # seeds MOTA 65.0 -> 71.0 %, id switches 18 -> 25, jitter 5.86 -> 4.26 cm.
-    "mota": 51.63,  # 10.3
-    "recall": 72.18,  # 71.2
-    "precision": 78.53,  # 54.3
-    "id_switches": 11,  # 13
-    "mean": 0.1636,  # 0.205
-    "acc@0.3": 87.77,  # 76.0
-    "single_mean": 0.182,  # 0.240
-    "jitter_m": 0.0534,  # 0.090
-    "lag_s": 0.024,  # 0.018
+    # Re-recorded 2026-12-03 (issue 23) with the nanodet profile rebuilt from tight-box evidence
+    # and the real-room defaults (association floor gate, tracker measurement_scale 9, birth
+    # clearance and merging: bench/results/real_cmc_chain_tuning.md). Before, in order: MOTA
+    # 51.63, recall 72.18, precision 78.53, 11 switches, mean 0.1636, Acc@0.3 87.77, single
+    # 0.182, jitter 0.0534, lag 0.024 (in brackets below: the tracker before issue 14).
+    "mota": 84.94,  # 10.3
+    "recall": 93.03,  # 71.2
+    "precision": 92.27,  # 54.3
+    "id_switches": 4,  # 13
+    "mean": 0.1534,  # 0.205
+    "acc@0.3": 91.87,  # 76.0
+    "single_mean": 0.179,  # 0.240
+    "jitter_m": 0.0260,  # 0.090
+    "lag_s": 0.040,  # 0.018
 }
 
 
