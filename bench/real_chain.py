@@ -4,8 +4,9 @@ Shared by ``bench.real_multiviewx`` and ``bench.real_wildtrack``:
 
 - :func:`train_runtime` trains the way ``momloc train`` does (``models.train.train_model``
   defaults, a time budget so a bench stays bounded) and loads the served model;
-- :func:`serve` runs the daemon's association (``service.association.associate``) on one frame
-  set's detections, and :func:`breakdown` says why each wrong or missing position is one;
+- :func:`serve` runs the daemon's association (``service.association.associate``) and set-up
+  area gate (``service.chain.gate_to_area``) on one frame set's detections, and
+  :func:`breakdown` says why each wrong or missing position is one;
 - :func:`match_people` pairs one camera's boxes with the true people projected through the real
   calibration (the box's bottom centre near the projected floor point, in units of the person's
   projected height), which gives the detector's recall and the *true association* of the boxes;
@@ -47,10 +48,12 @@ def train_runtime(
 
 
 def serve(detections: Sequence[Detections], runtime: Any) -> list[Association]:
-    """The daemon's association of one frame set's detections (what it localizes and tracks)."""
+    """The daemon's association of one frame set's detections and its set-up area gate (what
+    it localizes and tracks: ``service.chain``, people outside the area dropped)."""
     from service.association import associate
+    from service.chain import gate_to_area
 
-    return associate(list(detections), runtime)
+    return gate_to_area(associate(list(detections), runtime), runtime, "drop")
 
 
 def positions(associations: Sequence[Association]) -> np.ndarray:

@@ -130,18 +130,24 @@ class Chain:
     def _gate(
         self, associations: list[Association], runtime: LocalizationModel
     ) -> list[Association]:
-        """Mark each association inside or outside the set-up area; drop the outside ones
-        unless they are to be served flagged."""
-        if not associations or not isinstance(runtime, AreaAwareModel):
-            return associations
-        boxes = np.stack([a.boxes for a in associations])
-        world = np.stack([np.asarray(a.world, float)[:2] for a in associations])
-        inside = np.asarray(runtime.inside(boxes, world), dtype=bool)
-        for a, flag in zip(associations, inside.tolist(), strict=True):
-            a.inside = bool(flag)
-        if self.outside_area == "flag":
-            return associations
-        return [a for a in associations if a.inside]
+        return gate_to_area(associations, runtime, self.outside_area)
+
+
+def gate_to_area(
+    associations: list[Association], runtime: LocalizationModel, outside_area: OutsideArea
+) -> list[Association]:
+    """Mark each association inside or outside the model's set-up area; drop the outside ones
+    unless they are to be served flagged (``outside_area="flag"``)."""
+    if not associations or not isinstance(runtime, AreaAwareModel):
+        return associations
+    boxes = np.stack([a.boxes for a in associations])
+    world = np.stack([np.asarray(a.world, float)[:2] for a in associations])
+    inside = np.asarray(runtime.inside(boxes, world), dtype=bool)
+    for a, flag in zip(associations, inside.tolist(), strict=True):
+        a.inside = bool(flag)
+    if outside_area == "flag":
+        return associations
+    return [a for a in associations if a.inside]
 
 
 def served_inside(track: Track) -> bool:
