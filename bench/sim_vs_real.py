@@ -163,6 +163,7 @@ def real_figures(data: Path) -> dict[str, Any] | None:
         stored = json.loads(source.read_text())
         for variant in VARIANTS:
             block = stored.get(variant, {})
+            block = block.get("CMC2", block)  # real_cmc.json: per sequence; issue 23's: flat
             out["variants"][variant] = {k: block.get(k) for k in FIGURES}
     return out
 
