@@ -152,3 +152,15 @@ def match_to_truth(
             rows, cols = linear_sum_assignment(cost)
             errors.extend(cost[rows, cols])
     return np.array(errors), reported, visible
+
+
+def wait_for(read: Any, done: Any, timeout: float, what: str, every: float = 0.1) -> Any:
+    """``read()`` until ``done(value)``: a liveness bound (generous: the machine may be
+    loaded), not a timing assertion."""
+    deadline = time.monotonic() + timeout
+    while True:
+        value = read()
+        if done(value):
+            return value
+        assert time.monotonic() < deadline, f"{what}: {value}"
+        time.sleep(every)

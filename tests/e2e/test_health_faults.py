@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import errno
 import logging
-import time
 from pathlib import Path
 from typing import Any
 
@@ -22,20 +21,9 @@ from service.daemon import build_daemon
 from service.server import serve_in_thread
 from service.settings import DEMO_MODEL_DIR, load_settings
 from tests.e2e.mqtt_broker import Broker, ensure_mosquitto, free_port
-from tests.e2e.server import running_server
+from tests.e2e.server import running_server, wait_for
 
 pytestmark = pytest.mark.timeout(300)
-
-
-def wait_for(read: Any, done: Any, timeout: float, what: str) -> Any:
-    """A liveness bound (generous: the machine may be loaded), not a timing assertion."""
-    deadline = time.monotonic() + timeout
-    while True:
-        value = read()
-        if done(value):
-            return value
-        assert time.monotonic() < deadline, f"{what}: {value}"
-        time.sleep(0.1)
 
 
 class FillingDisk:

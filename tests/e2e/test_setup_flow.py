@@ -11,7 +11,6 @@ import signal
 import socket
 import subprocess
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +22,7 @@ from models.dataset import MomDataset
 from service.daemon import build_daemon
 from service.server import serve_in_thread
 from service.settings import load_settings
+from tests.e2e.server import wait_for
 
 pytestmark = pytest.mark.timeout(600)
 CAMERAS = "[{type: synthetic, index: 0}, {type: synthetic, index: 1}]"
@@ -32,16 +32,6 @@ def free_port() -> int:
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
         return sock.getsockname()[1]
-
-
-def wait_for(read: Any, done: Any, timeout: float, what: str, every: float = 0.25) -> Any:
-    deadline = time.time() + timeout
-    while True:
-        value = read()
-        if done(value):
-            return value
-        assert time.time() < deadline, f"{what}: {value}"
-        time.sleep(every)
 
 
 def test_serve_without_a_model_starts_in_setup_mode(tmp_path: Path) -> None:

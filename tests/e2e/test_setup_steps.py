@@ -7,7 +7,6 @@ whatever is written to the file meanwhile."""
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 from typing import Any
 
@@ -16,7 +15,7 @@ import pytest
 
 from models.simulate import simulate
 from service.setup import training
-from tests.e2e.server import running_server
+from tests.e2e.server import running_server, wait_for
 
 pytestmark = pytest.mark.timeout(300)
 MARKS = [{"name": "A", "x": 2.0, "y": 2.0}, {"name": "B", "x": 4.0, "y": 3.0}]
@@ -29,17 +28,6 @@ def post(server, path: str, body: Any) -> httpx.Response:
 
 def status(server) -> dict[str, Any]:
     return server.get("/v1/setup/status").json()
-
-
-def wait_for(read: Any, done: Any, timeout: float, what: str) -> Any:
-    """A liveness bound (generous: the machine may be loaded), not a timing assertion."""
-    deadline = time.monotonic() + timeout
-    while True:
-        value = read()
-        if done(value):
-            return value
-        assert time.monotonic() < deadline, f"{what}: {value}"
-        time.sleep(0.1)
 
 
 def ready(server) -> None:
