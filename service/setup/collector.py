@@ -240,8 +240,9 @@ class DatasetAppender:
         self.next_frame += 1
 
     def flush(self) -> None:
-        """Rewrite the file atomically with the old and the new rows, then the progress file."""
-        if self._rows["world"]:
+        """Rewrite the file atomically with the old and the new rows when rows were added since
+        the last write (an unchanged file is not written again), then the progress file."""
+        if len(self._rows["world"]) > self.saved_rows:
             if not self.path.exists():  # a new file: say "no mark complete" before any row lands
                 _write_progress(progress_path(self.path), [], 0)
             self._write_rows()

@@ -90,13 +90,13 @@ def test_a_failing_frame_set_is_logged_once_then_counted(caplog):
         def broken(*args, **kwargs):
             raise RuntimeError("association broke")
 
-        working, pipeline.associate = pipeline.associate, broken
+        working, pipeline.chain.associate = pipeline.chain.associate, broken
         began = time.monotonic()
         deadline = began + 60
         while pipeline.failures < 20 or time.monotonic() - began < 2.5:
             assert time.monotonic() < deadline, f"only {pipeline.failures} failures"
             time.sleep(0.05)
-        pipeline.associate = working
+        pipeline.chain.associate = working
         failed_for = time.monotonic() - began
         server.wait_for_seq(server.daemon.hub.latest().seq + 5)
         failures = pipeline.failures
