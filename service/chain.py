@@ -31,6 +31,7 @@ import numpy as np
 
 from models.detector.base import Detections
 from service.association import DEFAULT_MAX_ERROR_PX
+from service.association import associate as associate_people
 from service.measurements import coverage_function, measurement_covariances
 from service.stages import AssociateStage, Association, LocalizationModel, Track, TrackStage
 from service.view_bias import ViewBias
@@ -44,12 +45,6 @@ class AreaAwareModel(Protocol):
     """A model that knows where it was set up (``MomRuntime.inside``)."""
 
     def inside(self, boxes: np.ndarray, world: np.ndarray) -> np.ndarray: ...
-
-
-def _default_associate() -> AssociateStage:
-    from service.association import associate
-
-    return associate
 
 
 class Chain:
@@ -68,17 +63,17 @@ class Chain:
         if outside_area not in OUTSIDE_AREA_POLICIES:
             raise ValueError(f"outside_area {outside_area!r}: expected one of drop, flag")
         self.tracker = tracker
-        self.associate = associate if associate is not None else _default_associate()
+        self.associate: AssociateStage = associate if associate is not None else associate_people
         self.max_error_px = float(max_error_px)
         self.outside_area: OutsideArea = outside_area
         self.use_covariance = use_covariance
-        self._correct_lone_views = view_bias is not None
-        self.view_bias = ViewBias() if view_bias is True or view_bias is None else view_bias
+        # lone-view offsets (service.view_bias); None: single views are not corrected
+        self.view_bias: ViewBias | None = ViewBias() if view_bias is True else view_bias
         self.timings_ms: dict[str, float] = {}  # of the last call, per step
 
     def new_model(self) -> None:
         """Forget what was learned about the former model's localizer (lone-view offsets)."""
-        if self._correct_lone_views:
+        if self.view_bias is not None:
             self.view_bias = ViewBias()
 
     def __call__(
@@ -96,7 +91,7 @@ class Chain:
         associations: list[Association] = []
         if runtime is not None:
             found = self.associate(detections, runtime, max_error_px=self.max_error_px)
-            associations = self._gate(found, runtime)
+            associations = gate_to_area(found, runtime, self.outside_area)
         associated = time.perf_counter()
         meta = [
             {
@@ -112,7 +107,7 @@ class Chain:
             measurement_covariances(associations, runtime) if self.use_covariance else None
         )
         coverage = coverage_function(runtime, delivered)
-        if self._correct_lone_views:
+        if self.view_bias is not None:
             tracks = self.view_bias.update(
                 self.tracker, t, associations, runtime, meta, covariances, coverage
             )
@@ -126,11 +121,6 @@ class Chain:
             "track": (time.perf_counter() - associated) * 1e3,
         }
         return associations, tracks
-
-    def _gate(
-        self, associations: list[Association], runtime: LocalizationModel
-    ) -> list[Association]:
-        return gate_to_area(associations, runtime, self.outside_area)
 
 
 def gate_to_area(
