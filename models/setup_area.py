@@ -19,10 +19,13 @@ The area, fitted from the training rows:
   inside it). Rejected: the labels' bounding box (a diagonal walk or an L-shaped room would claim
   floor nobody stood on) and a concave hull (its shape depends on a radius chosen per room, and
   marks are sparse by design).
-- **per camera**: the convex hull of the box bottom centres it saw in training and the range of
-  box heights, widened by ``image_margin`` (box heights) and ``height_factor``. A row whose every
-  seen box lies outside its camera's region shows a person where no training box ever was: the
-  check that still works for a camera without a floor map.
+- **per camera**: the convex hull of the box bottom centres it saw in training, widened by
+  ``image_margin`` box heights, and how tall a person standing at each foot pixel looks (log
+  height quadratic in the foot pixel, fitted on the training boxes; with few rows the range of
+  heights widened by ``height_factor``). A row whose every seen box lies outside its camera's
+  region, or is far taller or shorter than a person there (a fragment of an occluded body, two
+  people in one box), shows no person the model was set up for: the check that still works for
+  a camera without a floor map.
 
 Serving: numpy only; ``to_json``/``from_json`` round-trip through ``model.json`` (key
 ``setup_area``); models written before it have no area and everything counts as inside.
@@ -202,9 +205,9 @@ class SetupArea:
 
     def boxes_in_region(self, boxes: np.ndarray) -> np.ndarray:
         """[B] bool: some seen box [B, K, 4] lies where its camera saw training boxes (foot
-        point within ``image_margin`` box heights of the training foot points, height within
-        the training range widened by ``height_factor``). A row with no seen box, or seen only
-        by cameras without a region, counts as in the region."""
+        point within ``image_margin`` box heights of the training foot points) and is as tall
+        as a person standing there (:meth:`CameraRegion.plausible_height`). A row with no seen
+        box, or seen only by cameras without a region, counts as in the region."""
         boxes = np.asarray(boxes, np.float64)
         if boxes.ndim != 3 or boxes.shape[1] != self.num_cameras:
             raise MomlocError(
