@@ -137,19 +137,23 @@ class _FloorFit:
             self._eta[(k, j)] = self._info[(k, j)] @ est[row, k]
 
     def chi2(self, pairs: Sequence[tuple[dict[int, int], dict[int, int]]]) -> np.ndarray | None:
-        """Merge cost per pair of clusters; NaN where either side has no floor information."""
+        """Merge cost per pair of clusters (one batched solve); NaN where either side has no
+        floor information (a camera without a fitted map)."""
         if not self.ok:
             return None
-        out = np.full(len(pairs), np.nan)
-        for i, (p, q) in enumerate(pairs):
-            (lp, ep), (lq, eq) = self._fused(p), self._fused(q)
-            try:
-                cov_p, cov_q = np.linalg.inv(lp), np.linalg.inv(lq)
-                d = cov_p @ ep - cov_q @ eq
-                out[i] = float(d @ np.linalg.solve(cov_p + cov_q, d))
-            except np.linalg.LinAlgError:
-                continue
-        return out
+        if not pairs:
+            return np.zeros(0)
+        sides = [self._fused(p) for p, _ in pairs], [self._fused(q) for _, q in pairs]
+        (lp, ep), (lq, eq) = (
+            (np.stack([f[0] for f in side]), np.stack([f[1] for f in side])) for side in sides
+        )
+        valid = (np.linalg.det(lp) > 1e-12) & (np.linalg.det(lq) > 1e-12)
+        eye = np.eye(2)
+        cov_p = np.linalg.inv(np.where(valid[:, None, None], lp, eye))
+        cov_q = np.linalg.inv(np.where(valid[:, None, None], lq, eye))
+        d = np.einsum("bij,bj->bi", cov_p, ep) - np.einsum("bij,bj->bi", cov_q, eq)
+        out = np.einsum("bi,bi->b", d, np.linalg.solve(cov_p + cov_q, d[..., None])[..., 0])
+        return np.where(valid, out, np.nan)
 
     def _fused(self, cluster: dict[int, int]) -> tuple[np.ndarray, np.ndarray]:
         info = sum((self._info[(k, j)] for k, j in cluster.items()), np.zeros((2, 2)))

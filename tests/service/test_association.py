@@ -282,3 +282,44 @@ def test_keypoint_models_associate_and_localize_from_keypoints():
         assert a.keypoints is not None and a.keypoints.shape == (2, 1, 3)
     with pytest.raises(MomlocError, match="keypoints"):
         associate([d.boxes for d in detections], runtime)  # boxes only: refused, one line
+
+
+def test_floor_gate_cost_is_the_mahalanobis_rise_of_the_fused_position() -> None:
+    """Each box on the floor by its own camera (long along that camera's line of sight); the
+    cost of merging two clusters is d^T (C_P + C_Q)^-1 d between their fused positions
+    (information scaled for the prior's overconfidence), NaN where a side has no floor
+    information. Two crossing views fix a point; a third view agrees with it only where its
+    line of sight passes through it."""
+    from service.association import FLOOR_INFO_SCALE, _FloorFit, _Views
+
+    along_x = np.diag([1.0**2, 0.05**2])  # cameras 0 and 2 know y well, x badly
+    along_y = np.diag([0.05**2, 1.0**2])  # camera 1 the other way round
+    rows = [(0, [1.0, 2.0], along_x), (1, [2.0, 1.2], along_y)]
+    rows += [(2, [1.5, 2.0], along_x), (2, [2.0, 3.5], along_x)]  # camera 2: y agrees / 1.5 m off
+    est = np.zeros((len(rows), 3, 2))
+    info = np.zeros((len(rows), 3, 2, 2))
+    for r, (k, xy, cov) in enumerate(rows):
+        est[r, k], info[r, k] = xy, np.linalg.inv(cov)
+
+    class Floor:
+        num_cameras = 3
+        image_sizes = np.array([[640, 480]] * 3)
+        observation = "bbox"
+
+        def floor_views(self, boxes, keypoints=None):
+            return est, info
+
+    box = np.array([[10, 10, 50, 200]], np.float32)
+    views = _Views([box, box, np.r_[box, box]], None)
+    pair = {0: 0, 1: 0}
+    cost = _FloorFit(views, Floor()).chi2([(pair, {2: 0}), (pair, {2: 1})])
+    scale = FLOOR_INFO_SCALE**2
+    lam = np.linalg.inv(along_x * scale) + np.linalg.inv(along_y * scale)
+    fused = np.linalg.solve(lam, np.linalg.inv(along_x * scale) @ est[0, 0]
+                            + np.linalg.inv(along_y * scale) @ est[1, 1])  # fmt: skip
+    for r, got in zip((2, 3), cost, strict=True):
+        d = fused - est[r, 2]
+        assert got == pytest.approx(d @ np.linalg.solve(np.linalg.inv(lam) + along_x * scale, d))
+    assert cost[0] < 1.0 < 25.0 < cost[1]  # the default gate admits the first, not the second
+    info[3, 2] = 0.0  # a camera without a floor map: no veto
+    assert np.isnan(_FloorFit(views, Floor()).chi2([(pair, {2: 1})])[0])
