@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import os
 import zipfile
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -119,22 +120,30 @@ class MomDataset:
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> MomDataset:
         """Read and validate a ``.npz`` file; every problem raises :class:`DatasetError`."""
-        path = Path(path)
-        if not path.is_file():
-            raise DatasetError(f"{path}: no such file")
-        if not zipfile.is_zipfile(path):
-            raise DatasetError(f"{path}: not a readable .npz file (not a zip archive)")
-        try:
-            with np.load(path, allow_pickle=False) as archive:
-                arrays = {key: archive[key] for key in archive.files}
-        except (zipfile.BadZipFile, OSError, EOFError) as error:
-            raise DatasetError(f"{path}: not a readable .npz file ({error})") from None
-        except ValueError as error:  # object arrays need pickle, which we never allow
-            raise DatasetError(f"{path}: unsupported array content ({error})") from None
+        arrays = read_npz(path, DatasetError)
         try:
             return cls(**validate_arrays(arrays))
         except DatasetError as error:
             raise DatasetError(f"{path}: {error}") from None
+
+
+def read_npz(
+    path: str | os.PathLike[str], error: type[MomlocError] = MomlocError
+) -> dict[str, np.ndarray]:
+    """All arrays of an ``.npz`` file (never unpickled); a missing or broken file raises
+    ``error`` (a :class:`MomlocError`) naming the file."""
+    path = Path(path)
+    if not path.is_file():
+        raise error(f"{path}: no such file")
+    if not zipfile.is_zipfile(path):
+        raise error(f"{path}: not a readable .npz file (not a zip archive)")
+    try:
+        with np.load(path, allow_pickle=False) as archive:
+            return {key: archive[key] for key in archive.files}
+    except (zipfile.BadZipFile, OSError, EOFError) as failure:
+        raise error(f"{path}: not a readable .npz file ({failure})") from None
+    except ValueError as failure:  # object arrays need pickle, which we never allow
+        raise error(f"{path}: unsupported array content ({failure})") from None
 
 
 def _as_dtype(key: str, value: object, kind: str, dtype: type) -> np.ndarray:
@@ -164,7 +173,7 @@ def _check_box_rows(boxes: np.ndarray) -> None:
         )
 
 
-def validate_arrays(arrays: dict[str, object]) -> dict[str, np.ndarray]:
+def validate_arrays(arrays: Mapping[str, object]) -> dict[str, np.ndarray]:
     """Check a key → array mapping against v1 and return it in v1 dtypes.
 
     Raises :class:`DatasetError` naming the first offending key.

@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from models.atomic import atomic_write
-from models.dataset import MAX_CAMERAS
+from models.dataset import MAX_CAMERAS, read_npz
 from models.errors import MomlocError
 
 FORMAT = "momloc detections v1"
@@ -148,20 +148,6 @@ class DetectionsReplay:
             )
         except (MomlocError, ValueError, TypeError) as error:
             raise MomlocError(f"{path}: {error}") from None
-
-
-def read_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
-    """All arrays of an ``.npz`` file (no pickle); a missing or broken file is a MomlocError."""
-    path = Path(path)
-    if not path.is_file():
-        raise MomlocError(f"{path}: no such file")
-    if not zipfile.is_zipfile(path):
-        raise MomlocError(f"{path}: not a readable .npz file (not a zip archive)")
-    try:
-        with np.load(path, allow_pickle=False) as archive:
-            return {key: archive[key] for key in archive.files}
-    except (zipfile.BadZipFile, OSError, EOFError, ValueError) as error:
-        raise MomlocError(f"{path}: not a readable .npz file ({error})") from None
 
 
 def is_replay(path: str | os.PathLike[str]) -> bool:
