@@ -204,8 +204,8 @@ class MomRuntime:
         and maps it into its training area.
         """
         boxes = self._check_boxes(boxes)
-        if self.floor_prior is None:
-            return self.encode(boxes, keypoints)
+        if self.floor_prior is None or (self.setup_area is None and max(self.prior_weights) == 0):
+            return self.encode(boxes, keypoints)  # no geometry to serve: not computed
         prior_keypoints = keypoints if self.observation == "keypoints" else None
         prior_xy, _ = self.floor_prior.predict(boxes, prior_keypoints)
         weight = self._served_weights(boxes, prior_xy)
