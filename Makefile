@@ -41,44 +41,44 @@ format: $(VENV)/.stamp-dev
 bench: bench-model bench-detector bench-service bench-setup bench-keypoints
 
 bench-model: $(VENV)/.stamp-dev
-	$(PY) -m bench.model_accuracy
-	$(PY) -m bench.encoder_speed
-	$(PY) -m bench.simulate_speed
+	$(PY) -m bench.model.model_accuracy
+	$(PY) -m bench.model.encoder_speed
+	$(PY) -m bench.model.simulate_speed
 
 bench-detector: $(VENV)/.stamp-dev
-	$(PY) -m bench.detector_speed
-	$(PY) -m bench.detector_accuracy
-	$(PY) -m bench.highres_recall
-	$(PY) -m bench.highres_localization
+	$(PY) -m bench.detector.speed
+	$(PY) -m bench.detector.accuracy
+	$(PY) -m bench.detector.highres_recall
+	$(PY) -m bench.detector.highres_localization
 
 bench-service: $(VENV)/.stamp-dev
-	$(PY) -m bench.service_latency
-	$(PY) -m bench.association
-	$(PY) -m bench.camera_shift
-	$(PY) -m bench.mqtt_fanout
-	$(PY) -m bench.realtime
-	$(PY) -m bench.stream_accuracy
-	$(PY) -m bench.stream_accuracy --observation keypoints --out bench/results/stream_accuracy_keypoints.md
-	$(PY) -m bench.stream_bound
-	$(PY) -m bench.offline_track
+	$(PY) -m bench.serving.latency
+	$(PY) -m bench.serving.association
+	$(PY) -m bench.serving.camera_shift
+	$(PY) -m bench.serving.mqtt_fanout
+	$(PY) -m bench.serving.realtime
+	$(PY) -m bench.serving.stream_accuracy
+	$(PY) -m bench.serving.stream_accuracy --observation keypoints --out bench/results/stream_accuracy_keypoints.md
+	$(PY) -m bench.serving.stream_bound
+	$(PY) -m bench.serving.offline_track
 
 # Real data (../shared/data, evaluation only; each bench prints one line and exits 0 without it).
 DATA ?= ../shared/data
 bench-real: $(VENV)/.stamp-dev
-	nice -n 10 $(PY) -m bench.real_cmc --data $(DATA)
-	$(PY) -m bench.real_multiviewx --data $(DATA)
-	$(PY) -m bench.real_wildtrack --data $(DATA)
-	$(PY) -m bench.real_shelf --data $(DATA)
-	$(PY) -m bench.real_shelf_stream --data $(DATA)
+	nice -n 10 $(PY) -m bench.real.cmc --data $(DATA)
+	$(PY) -m bench.real.multiviewx --data $(DATA)
+	$(PY) -m bench.real.wildtrack --data $(DATA)
+	$(PY) -m bench.real.shelf --data $(DATA)
+	$(PY) -m bench.real.shelf_stream --data $(DATA)
 	# the simulator against the real CMC room (issue 23, deliverable 4)
-	$(PY) -m bench.cmc_detector --data $(DATA)
-	$(PY) -m bench.detector_profiles
-	$(PY) -m bench.sim_vs_real --data $(DATA)
+	$(PY) -m bench.real.cmc_detector --data $(DATA)
+	$(PY) -m bench.detector.profiles
+	$(PY) -m bench.real.sim_vs_real --data $(DATA)
 
 bench-setup: $(VENV)/.stamp-dev
-	$(PY) -m bench.floor_prior_study
-	$(PY) -m bench.setup_study
-	$(PY) -m bench.setup_stream
+	$(PY) -m bench.setup.floor_prior_study
+	$(PY) -m bench.setup.setup_study
+	$(PY) -m bench.setup.setup_stream
 
 # mediapipe pins numpy<2, so its keypoint tests run in an environment of their own.
 KP_VENV := .venv-keypoints
@@ -88,7 +88,7 @@ $(KP_VENV)/.stamp: pyproject.toml
 	touch $@
 
 bench-keypoints: $(KP_VENV)/.stamp
-	$(KP_VENV)/bin/python -m bench.keypoint_noise
+	$(KP_VENV)/bin/python -m bench.keypoints.keypoint_noise
 
 test-keypoints: $(KP_VENV)/.stamp
 	MOMLOC_KEYPOINT_TESTS=1 $(KP_VENV)/bin/python -m pytest -q tests/models/test_keypoints.py

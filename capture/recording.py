@@ -21,7 +21,7 @@ Why the timestamps live in CSV beside the video and not in the container: AVI ha
 frame rate, webcams do not keep it (jitter, dropped frames); the recorded times are what
 tracking's velocities and time-outs must see again. The container's rate is the measured mean.
 
-``manifest.json`` is written last, atomically (:mod:`models.atomic`): a folder without it is an
+``manifest.json`` is written last, atomically (:mod:`common.atomic`): a folder without it is an
 interrupted recording and is refused by :class:`Recording`. ``momloc record`` finalises the
 manifest on Ctrl-C, so stopping a recording by hand keeps what was recorded.
 
@@ -49,8 +49,8 @@ import numpy as np
 
 from capture.rig import FrameSet
 from capture.worker import Frame
-from models.atomic import atomic_write_json
-from models.errors import MomlocError
+from common.atomic import atomic_write_json
+from common.errors import MomlocError
 
 FORMAT = "momloc-recording"
 VERSION = 1

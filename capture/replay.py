@@ -30,7 +30,7 @@ import numpy as np
 
 from capture.recording import MANIFEST, Recording, read_timestamps, timestamps_path
 from capture.sources import FrameSource, VideoFileSource
-from models.errors import MomlocError
+from common.errors import MomlocError
 
 MAX_LAG_S = 0.5
 

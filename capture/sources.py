@@ -3,7 +3,7 @@ in ``capture.synthetic``).
 
 The contract every source keeps, so one :class:`~capture.worker.CameraWorker` drives them all:
 
-- ``open()`` connects (raises :class:`~models.errors.MomlocError` with one line if it cannot);
+- ``open()`` connects (raises :class:`~common.errors.MomlocError` with one line if it cannot);
   ``close()`` releases everything and may be called twice; ``open()`` after ``close()`` reconnects.
 - ``read()`` blocks until the next frame and returns it as uint8 BGR [H, W, 3], or ``None`` when
   no frame came (device gone, stream ended, read timeout). It must return within a bounded time,
@@ -27,7 +27,7 @@ from typing import Protocol, runtime_checkable
 import cv2
 import numpy as np
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 
 
 @runtime_checkable

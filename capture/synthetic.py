@@ -17,7 +17,7 @@ Capture gives frames only: the scene is anything with the :class:`RenderedScene`
 simulator's ``models.simulate.Scene``, built by ``models.simulate.make_scene``), so this module
 imports nothing of ``models``. Ground truth and the simulator's own boxes (the demo's
 ``simulated`` detections) are the simulator's and the service's business
-(``service.simulated_detections``).
+(``service.detection.simulated``).
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ import importlib
 import signal
 import sys
 
-from models.errors import MomlocError, shorten
+from common.errors import MomlocError, shorten
 from service.stop_signals import Stopped, handle_stop_signals
 
 COMMANDS = (

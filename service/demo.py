@@ -33,7 +33,7 @@ from typing import Literal
 
 import numpy as np
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 from models.simulate import get_config
 from service.settings import DEMO_MODEL_DIR, Settings, load_settings
 
@@ -139,7 +139,7 @@ def replay_demo(settings: Settings, frames: int = 600, warmup: int = 30) -> Demo
     from capture.synthetic import SyntheticRig
     from capture.worker import Frame
     from service.daemon import build_daemon
-    from service.simulated_detections import scene_for
+    from service.detection.simulated import scene_for
 
     # Offline means every frame set gets its own detection: the live scheduler detects on wall
     # clock time beside the pipeline, so its rate (and the score) would follow the machine's load.

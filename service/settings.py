@@ -36,9 +36,9 @@ from pydantic import (
 )
 from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict
 
-from models.errors import MomlocError
-from service.association import DEFAULT_MAX_ERROR_PX
-from service.output_settings import MqttSettings, OscSettings, ZoneList
+from common.errors import MomlocError
+from service.outputs.settings import MqttSettings, OscSettings, ZoneList
+from service.tracking.association import DEFAULT_MAX_ERROR_PX
 
 DEMO_MODEL_DIR = Path(__file__).resolve().parent.parent / "models" / "demo_model"
 _STRICT = ConfigDict(extra="forbid")
@@ -137,7 +137,7 @@ class DetectorSettings(BaseModel):
 
 
 class DetectionSettings(BaseModel):
-    """When the detector runs (see ``service.detection_schedule``)."""
+    """When the detector runs (see ``service.detection.schedule``)."""
 
     model_config = _STRICT
     schedule: Literal["auto", "every_frame"] = Field(
@@ -366,7 +366,7 @@ class Settings(BaseSettings):
     watch_model: bool = Field(
         True, description="Reload the model when momloc train rewrites model_dir."
     )
-    # -- outputs beyond the API: zones and MQTT (models in service.output_settings) --------------
+    # -- outputs beyond the API: zones and MQTT (models in service.outputs.settings) --------------
     zones: ZoneList = Field(
         default_factory=list, description="Named floor polygons with occupancy and events."
     )

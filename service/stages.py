@@ -6,7 +6,7 @@ One frame set flows through the chain as::
       -> list[Detections]         per camera: boxes [M, 4], scores [M], keypoints [M, 17, 3] | None
       -> list[Association]        per person: one detection (or none) per camera, floor position
       -> list[Track]              persistent id, position, velocity, confidence, cameras
-      -> Snapshot                 the wire JSON (service.hub)
+      -> Snapshot                 the wire JSON (service.pipeline.hub)
 
 and :class:`FrameResult` bundles all of them (plus stage timings) for the listeners that hang
 off the pipeline (camera-moved checks, previews, statistics, the set-up recorder): each gets the
@@ -18,9 +18,10 @@ and an earlier pipeline that passed boxes only silently threw them away. A stage
 delivers keypoints (:attr:`DetectStage.keypoints`), so a keypoint model on a box-only detector is
 refused at load instead of failing on every frame.
 
-The stages are Protocols so the real ones (``service.pipeline.DetectorStage``, the demo's
-``SimulatedDetections``, ``service.association.associate``, ``service.tracking.Tracker``) and
-tests' doubles are interchangeable without inheriting from anything.
+The stages are Protocols so the real ones (``service.pipeline.live.DetectorStage``, the demo's
+``SimulatedDetections``, ``service.tracking.association.associate``,
+``service.tracking.tracker.Tracker``) and tests' doubles are interchangeable without inheriting from
+anything.
 """
 
 from __future__ import annotations
@@ -33,8 +34,7 @@ import numpy as np
 
 from capture.rig import FrameSet
 from models.detector.base import Detections
-from service.hub import Snapshot
-from service.tracking import Track
+from service.snapshot import Snapshot
 
 __all__ = [
     "AssociateStage",
@@ -52,22 +52,41 @@ __all__ = [
 
 
 @dataclass
+class Track:
+    """One person as reported to clients (positions in metres, velocities in m/s)."""
+
+    id: int
+    x: float
+    y: float
+    vx: float
+    vy: float
+    confidence: float
+    cameras: list[int] = field(default_factory=list)
+    coasting: bool = False
+    age_s: float = 0.0
+    meta: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
 class Association:
     """One person: a box (or NaN) per camera and the model's floor position for that tuple."""
 
     boxes: np.ndarray  # [K, 4] pixels, NaN where camera k does not see the person
     cameras: list[int]  # cameras that see the person
     world: np.ndarray  # [2] metres
-    cost: float  # RMS normalised reprojection error over the seen cameras (service.association)
+    cost: float  # RMS normalised reprojection error over the seen cameras
+    # (service.tracking.association)
     detection_index: list[int | None]  # per camera: index into that camera's detections
     errors: np.ndarray = field(default_factory=lambda: np.zeros(0))  # [K] px, NaN where unseen
     covariance: np.ndarray | None = None  # [2, 2] m² of ``world`` when the model gives one
     keypoints: np.ndarray | None = None  # [K, J, 3] for keypoint models, NaN where unseen
-    inside: bool = True  # in the model's set-up area (service.chain; models.setup_area)
+    inside: bool = (
+        True  # in the model's set-up area (service.pipeline.chain; models.mom.setup_area)
+    )
 
 
 class LocalizationModel(Protocol):
-    """What association and the pipeline need from ``models.mom_runtime.MomRuntime``.
+    """What association and the pipeline need from ``models.mom.runtime.MomRuntime``.
 
     ``observation`` is ``"bbox"`` or ``"keypoints"`` (``model.json``); keypoint models need
     ``keypoints`` [B, K, J, 3] beside the boxes in every call.
@@ -102,7 +121,7 @@ class DetectStage(Protocol):
 
 
 class AssociateStage(Protocol):
-    """Detections of all cameras -> people (``service.association.associate``)."""
+    """Detections of all cameras -> people (``service.tracking.association.associate``)."""
 
     def __call__(
         self,
@@ -115,7 +134,7 @@ class AssociateStage(Protocol):
 
 
 class TrackStage(Protocol):
-    """Positions of one instant -> persistent tracks (``service.tracking.Tracker``)."""
+    """Positions of one instant -> persistent tracks (``service.tracking.tracker.Tracker``)."""
 
     def update(
         self,

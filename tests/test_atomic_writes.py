@@ -1,4 +1,4 @@
-"""One atomic writer for the whole project (``models/atomic.py``): no module renames or makes
+"""One atomic writer for the whole project (``common/atomic.py``): no module renames or makes
 temporary files itself, and the files it writes are readable by others (mode 0644)."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from models.dataset import MomDataset
+from models.data.dataset import MomDataset
 from service.setup.collector import DatasetAppender, collect, plan_steps, progress_path
 from service.setup.feeds import FeedFrame
 from service.setup.marks import FloorMark
@@ -41,7 +41,7 @@ def test_only_models_atomic_renames_or_makes_temporary_files() -> None:
         p for pkg in ("capture", "models", "service", "tools") for p in (ROOT / pkg).rglob("*.py")
     ]
     copies = [hit for path in files if path != WRITER for hit in reserved_calls(path)]
-    assert not copies, "atomic-write copies (use models.atomic):\n" + "\n".join(copies)
+    assert not copies, "atomic-write copies (use common.atomic):\n" + "\n".join(copies)
     assert reserved_calls(WRITER)  # the scan does see the one writer's calls
 
 

@@ -34,9 +34,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from models.mom.training.train import train_model  # noqa: E402
 from models.simulate import Scene, get_config, simulate  # noqa: E402
 from models.simulate.detector_view import detector_dataset  # noqa: E402
-from models.train import train_model  # noqa: E402
 from service.demo import DEMO_FPS, DEMO_PEOPLE, DEMO_PRESET, DEMO_SEED, demo_settings  # noqa: E402
 from service.settings import DEMO_MODEL_DIR  # noqa: E402
 
@@ -80,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
     demo["data_seconds"] = round(time.monotonic() - started, 1)
     print(f"training on {data.n} rows ({args.boxes} boxes) from {args.frames} frames of "
           f"{DEMO_PRESET}, {demo['data_seconds']} s to collect", flush=True)  # fmt: skip
-    # model.json is written once, complete with the provenance, mode 0644 (models.atomic): the
+    # model.json is written once, complete with the provenance, mode 0644 (common.atomic): the
     # container's non-root user reads it
     metrics = train_model(
         data, args.out, epochs=args.epochs, seed=0, progress=progress, extra_meta={"demo": demo}

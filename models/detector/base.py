@@ -9,7 +9,7 @@ name from settings through :func:`create_detector`. Every detector
 - returns boxes in the **original frame's pixels** (xmin, ymin, xmax, ymax) with scores, so callers
   never see the network's input geometry;
 - validates its model and runs a warm-up inference at load, so a wrong or corrupt file fails at
-  start with one :class:`~models.errors.MomlocError` line instead of on the first frame.
+  start with one :class:`~common.errors.MomlocError` line instead of on the first frame.
 
 Example::
 
@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 
 
 @dataclass(frozen=True, eq=False)
@@ -70,7 +70,7 @@ class PersonDetector(ABC):
 
 
 _REGISTRY: dict[str, Callable[..., PersonDetector]] = {}
-DEFAULT_DETECTOR = "nanodet"  # chosen by bench/detector_accuracy.py (README, Perception)
+DEFAULT_DETECTOR = "nanodet"  # chosen by bench/detector/accuracy.py (README, Perception)
 
 
 def register_detector(kind: str) -> Callable[[type[PersonDetector]], type[PersonDetector]]:
@@ -111,7 +111,7 @@ def create_detector(kind: str = DEFAULT_DETECTOR, **options: object) -> PersonDe
         raise MomlocError(f"detector {kind!r}: bad option ({error})") from None
     detector = factory(**options)
     if keypoints:
-        from models.keypoints import KeypointDetector
+        from models.detector.keypoints import KeypointDetector
 
         detector = KeypointDetector(detector)
     return detector

@@ -27,6 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
+from common.errors import MomlocError
+from common.onnx_session import open_session
 from models.detector.base import (
     Detections,
     PersonDetector,
@@ -35,8 +37,6 @@ from models.detector.base import (
     warm_up,
 )
 from models.detector.preprocessing import Geometry, check_frame, input_for_frame, make_batch, nms
-from models.errors import MomlocError
-from models.onnx_session import open_session
 
 WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
 DEFAULT_MODEL = WEIGHTS_DIR / "nanodet_person.onnx"

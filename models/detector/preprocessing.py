@@ -8,7 +8,7 @@ Two geometries, chosen per detector (``letterbox=`` option):
 - **letterbox**: scale to fit, keep the aspect ratio, pad the rest with grey (114, as YOLO does).
   Undistorted people, but everything is smaller (0.47 in both directions for 640×480 → 300).
 
-Which one finds more small people is measured, not assumed: ``bench/detector_speed.py`` reports
+Which one finds more small people is measured, not assumed: ``bench/detector/speed.py`` reports
 recall against person height for both, and each detector's default follows that measurement.
 
 Every transform is described by a :class:`Geometry` (scale and padding per frame), so mapping back
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 
 PAD_VALUE = 114
 

@@ -21,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
+from common.errors import MomlocError
+from common.onnx_session import open_session
 from models.detector.base import (
     Detections,
     PersonDetector,
@@ -29,8 +31,6 @@ from models.detector.base import (
     warm_up,
 )
 from models.detector.preprocessing import Geometry, make_batch
-from models.errors import MomlocError
-from models.onnx_session import open_session
 
 WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
 DEFAULT_MODEL = WEIGHTS_DIR / "ssdlite_pedestrian.onnx"

@@ -25,6 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
+from common.errors import MomlocError
+from common.onnx_session import open_session
 from models.detector.base import (
     Detections,
     PersonDetector,
@@ -32,8 +34,6 @@ from models.detector.base import (
     warm_up,
 )
 from models.detector.preprocessing import Geometry, make_batch, nms
-from models.errors import MomlocError
-from models.onnx_session import open_session
 
 
 @register_detector("yolov8")

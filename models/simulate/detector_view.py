@@ -1,8 +1,9 @@
 """What a detector *should* find in a rendered frame, and which of its boxes found whom.
 
-Shared by the rendering benchmark (``bench/render_recall.py``), the rendered-recall test,
-``tools/make_demo_model.py`` and ``bench/highres_localization.py`` (which label real detector boxes
-with the simulator's truth through :func:`detector_dataset`), so all count people the same way:
+Shared by the rendering benchmark (``bench/detector/render_recall.py``), the rendered-recall test,
+``tools/make_demo_model.py`` and ``bench/detector/highres_localization.py`` (which label real
+detector boxes with the simulator's truth through :func:`detector_dataset`), so all count people the
+same way:
 
 - the **reference box** of a person is the true box of the projected body clipped to the image;
 - ``visible`` is the fraction of the true box's area inside the image (truncation);
@@ -25,7 +26,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from models.dataset import MomDataset
+from models.data.dataset import MomDataset
 
 if TYPE_CHECKING:
     from models.detector.base import PersonDetector

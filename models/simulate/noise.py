@@ -39,7 +39,7 @@ the crop stay the same; with 0 the draws are independent per frame). Occlusion b
 independently per frame.
 
 Keypoints (COCO-17), as a pose estimator on each found box gives them (the profile's
-``keypoints`` block, measured for MediaPipe by ``bench/keypoint_noise.py``):
+``keypoints`` block, measured for MediaPipe by ``bench/keypoints/keypoint_noise.py``):
 
 1. **No pose**: with probability ``keypoints.miss`` by box height (at the reference height) the
    estimator finds no pose in the box: every joint NaN, the box still reported. A latent AR(1)
@@ -52,10 +52,10 @@ Keypoints (COCO-17), as a pose estimator on each found box gives them (the profi
    ``keypoints.gross`` rate, the whole group goes wild: each of its found joints lands anywhere
    in the box instead, keeping its confidence (a collapsed or swapped pose takes both ankles,
    not one; independent per frame). One event per group, not per joint, because what the rate
-   is measured on is a group statistic: ``bench/keypoint_noise.py`` counts how often the lower
-   ankle (box bottom minus the lowest ankle) is gross on real video. With independent per-joint
-   draws both ankles had to go wild, and land high, for that statistic to turn gross: at the
-   per-joint limb rate 0.208 the simulated foot statistic was gross 0.027 of the time, against
+   is measured on is a group statistic: ``bench/keypoints/keypoint_noise.py`` counts how often the
+   lower ankle (box bottom minus the lowest ankle) is gross on real video. With independent
+   per-joint draws both ankles had to go wild, and land high, for that statistic to turn gross: at
+   the per-joint limb rate 0.208 the simulated foot statistic was gross 0.027 of the time, against
    0.154 for MediaPipe (``bench/results/keypoint_noise.md``, 2026-12-03). The profile's rates
    are calibrated through this model (``calibrate_gross`` there) so that the simulated
    statistics are gross as often as the real ones (limbs 0.327 per person).
@@ -85,7 +85,7 @@ def keypoint_noise_scale(
     """The keypoint noise's standard deviation in pixels, ``sigma · h + pixels``, times
     :data:`OCCLUDED_NOISE` on occluded joints: ``height`` [...] box heights (px), ``occluded``
     [..., J] bool → [..., J]. The one formula the simulator draws with and
-    ``bench.keypoint_noise`` calibrates through."""
+    ``bench.keypoints.keypoint_noise`` calibrates through."""
     scale = model.sigma * np.asarray(height, float)[..., None] + model.pixels
     return np.where(occluded, OCCLUDED_NOISE * scale, scale)
 

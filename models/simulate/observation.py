@@ -46,10 +46,11 @@ class FrameObservation:
         the outside people it found, then its false positives; :meth:`reported_outside` says
         which are outside people) and their keypoints [M, 17, 3], NaN for a false box (a pose
         estimator finding no body in it). What the live simulated detector
-        (``service.simulated_detections``), the set-up feed (``service.setup.feeds``) and the
-        stream evaluation (``service.stream_eval``) read; some benchmarks (``bench.stream_bound``,
-        ``bench.association``, ``bench.realtime``) read ``boxes`` directly instead, without the
-        false positives."""
+        (``service.detection.simulated``), the set-up feed (``service.setup.feeds``) and the
+        stream evaluation (``service.offline.stream_eval``) read; some benchmarks
+        (``bench.serving.stream_bound``,
+        ``bench.serving.association``, ``bench.serving.realtime``) read ``boxes`` directly instead,
+        without the false positives."""
         seen = np.isfinite(self.boxes[:, camera]).all(axis=-1)
         out = np.isfinite(self.outside_boxes[:, camera]).all(axis=-1)
         false = self.false_boxes[camera]

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 from models.simulate.people import Walkers, WalkerStates, Walking
 
 MIN_STRIP = 0.5  # metres: narrower strips are left empty (no room to walk)

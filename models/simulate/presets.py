@@ -20,8 +20,8 @@ cmc-room        7.67×3.41  4        1920×1024  3 (+4)  the CMC lab (Ong et al.
 tracking area (x 2.03-6.30 m, the whole depth) and four more walk outside it where the real
 room's outside people stand, between the area and the cameras of its x = 0 wall
 (``outside_people``, ``outside_region``, see :mod:`models.simulate.outside`; the count fits the
-real boxes of outside people per frame, ``bench/sim_vs_real.py``). Its camera poses were derived
-once from the data set's projection matrices by ``tools/cmc_camera_poses.py`` (centre, floor
+real boxes of outside people per frame, ``bench/real/sim_vs_real.py``). Its camera poses were
+derived once from the data set's projection matrices by ``tools/cmc_camera_poses.py`` (centre, floor
 target of the image-centre ray, field of view from f_x; the real rolls of 0.5-2.7° and principal
 points 13-52 px off centre are left out): a handful of pose numbers, not the evaluation data.
 """
@@ -31,7 +31,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 from models.simulate.profile import DetectorProfile, load_profile
 from models.simulate.scene import CameraSpec, Perturbation, Scene, SceneConfig
 

@@ -3,7 +3,7 @@
 Why data and not code: every accuracy figure of the project rests on the simulator's boxes, so the
 simulator must be exactly as blind as the detector the daemon runs. A profile is a JSON file
 (``models/simulate/profiles/<name>.json``, or any path) measured on real-looking frames
-(``bench/detector_profiles.py`` turns measurements into profiles and ``bench/detector_profiles.md``
+(``bench/detector/profiles.py`` turns measurements into profiles and ``bench/detector_profiles.md``
 says how each one was measured); changing the detector means shipping its profile, not editing the
 noise model. Shipped: ``ideal`` (the simulator's former flat noise, kept for comparison),
 ``ssdlite`` and ``nanodet`` (the default, :data:`DEFAULT_PROFILE`).
@@ -62,8 +62,8 @@ from typing import Any
 
 import numpy as np
 
+from common.errors import MomlocError
 from models.detector.preprocessing import input_side
-from models.errors import MomlocError
 
 FORMAT = "momloc detector profile v1"
 PROFILE_DIR = Path(__file__).with_name("profiles")

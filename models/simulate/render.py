@@ -8,7 +8,7 @@ so sizes follow the pinhole perspective point by point and the painted person fi
 the simulator reports (the box is the union of the ``skeleton.RADII`` spheres; the drawn radii
 below are a little slimmer where those spheres are bulky, never larger).
 
-What the figures have (``bench/render_recall.py``: recall of clear people at IoU >= 0.5 by
+What the figures have (``bench/detector/render_recall.py``: recall of clear people at IoU >= 0.5 by
 height on 4 presets, ``bench/results/render_recall.md``; the previous renderer in
 ``render_recall_before.md``):
 

@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 from models.simulate import false_positives
 from models.simulate.camera import NEAR, PinholeCamera, project_points
 from models.simulate.noise import KeypointDraws, correlated_normals, detect

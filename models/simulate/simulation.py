@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from models.dataset import MomDataset
-from models.errors import MomlocError
+from common.errors import MomlocError
+from models.data.dataset import MomDataset
 from models.simulate.presets import get_config
 from models.simulate.profile import DetectorProfile
 from models.simulate.scene import BLOCK, Perturbation, Scene, SceneConfig

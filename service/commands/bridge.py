@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 import os
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 
 PASSWORD_ENV = "MOMLOC_RCON_PASSWORD"
 TOKEN_ENV = "MOMLOC_TOKEN"
@@ -70,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
     import asyncio
     import logging
 
-    from service.minecraft import DEFAULT_NBT, BridgeConfig, MinecraftBridge, WorldMapping
+    from service.outputs.minecraft import DEFAULT_NBT, BridgeConfig, MinecraftBridge, WorldMapping
 
     password = args.rcon_password or os.environ.get(PASSWORD_ENV)
     if not password:

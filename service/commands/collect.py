@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
 
     from tqdm import tqdm
 
-    from models.errors import MomlocError
+    from common.errors import MomlocError
     from service.setup.collector import DatasetAppender, collect, plan_steps
     from service.setup.marks import grid_marks, load_marks
 
@@ -138,7 +138,7 @@ def _room_centre(feed: SyntheticFeed) -> tuple[float, float]:
 
 
 def _open_feed(args: argparse.Namespace) -> SyntheticFeed | LiveFeed:
-    from models.errors import MomlocError
+    from common.errors import MomlocError
     from service.setup.feeds import LiveFeed, SyntheticFeed
 
     if args.source == "synthetic":

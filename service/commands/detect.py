@@ -55,8 +55,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     import cv2
 
+    from common.errors import MomlocError
     from models.detector import create_detector
-    from models.errors import MomlocError
 
     images = []
     for path in args.images:

@@ -3,13 +3,13 @@ dataset file.
 
 Prints a readable table, or with ``--json`` exactly one JSON object on stdout whose keys are
 ``n, mean, median, std, ate, rpe, acc@0.2, acc@0.3, acc@0.4, acc@0.5`` (metres, percent; an
-undefined RPE is ``null``). Metric definitions: :mod:`models.metrics`. Notes (skipped rows) go to
-stderr so stdout stays machine-readable.
+undefined RPE is ``null``). Metric definitions: :mod:`models.data.metrics`. Notes (skipped rows) go
+to stderr so stdout stays machine-readable.
 
 ``--served`` scores a floor-mark recording as the set-up page's check step does: what the
-daemon serves (association and tracking, :mod:`service.served_marks`), the nearest served person
-per frame, the median per mark and over marks. With ``--json`` the object is the check's summary
-(``median_m, mean_m, marks, unmeasured, per_mark, text``; each mark ``name, x, y, error_m,
+daemon serves (association and tracking, :mod:`service.offline.served_marks`), the nearest served
+person per frame, the median per mark and over marks. With ``--json`` the object is the check's
+summary (``median_m, mean_m, marks, unmeasured, per_mark, text``; each mark ``name, x, y, error_m,
 samples, rows``).
 """
 
@@ -21,7 +21,7 @@ import math
 import sys
 from pathlib import Path
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -51,10 +51,10 @@ def _json_value(value: float) -> float | int | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from models.dataset import MomDataset
-    from models.evaluate import evaluate
-    from models.metrics import format_table
-    from models.mom_runtime import MomRuntime
+    from models.data.dataset import MomDataset
+    from models.data.metrics import format_table
+    from models.mom.evaluate import evaluate
+    from models.mom.runtime import MomRuntime
 
     model_dir = Path(args.model_dir)
     if not model_dir.is_dir():
@@ -81,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run_served(model_dir: Path, data: Path, fps: float, as_json: bool) -> int:
-    from service.served_marks import served_at_marks
+    from service.offline.served_marks import served_at_marks
 
     summary = served_at_marks(model_dir, data, fps=fps)
     if as_json:

@@ -1,7 +1,7 @@
 """`momloc import --mot CAM.txt... --image-size WxH... --replay OUT.npz [--positions POS.txt
 --dataset OUT.npz]`: your own detections (MOTChallenge text, one file per camera) as a
 detections replay for ``momloc track --detections``, and with a positions file as a MoM dataset
-v1 for ``momloc train`` / ``--truth`` (formats: ``models.mot_import``)."""
+v1 for ``momloc train`` / ``--truth`` (formats: ``models.data.mot_import``)."""
 
 from __future__ import annotations
 
@@ -43,8 +43,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from models.errors import MomlocError
-    from models.mot_import import build_dataset, build_replay, parse_size, read_mot, read_positions
+    from common.errors import MomlocError
+    from models.data.mot_import import (
+        build_dataset,
+        build_replay,
+        parse_size,
+        read_mot,
+        read_positions,
+    )
 
     if args.replay is None and args.dataset is None:
         raise MomlocError("nothing to write: give --replay and/or --dataset")

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -26,7 +26,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from service.record import record_live
+    from service.offline.record import record_live
     from service.settings import load_settings
 
     if args.seconds is not None and not args.seconds > 0:

@@ -34,8 +34,8 @@ def run(args: argparse.Namespace) -> int:
 
 def serve_settings(settings: Any, banner: str) -> int:
     """Build the daemon, print where to find it, serve until Ctrl-C."""
+    from service.api.server import run_server
     from service.daemon import build_daemon
-    from service.server import run_server
 
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
     daemon = build_daemon(settings)

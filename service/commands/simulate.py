@@ -1,12 +1,12 @@
 """`momloc simulate`: write a synthetic multi-camera recording as a MoM dataset v1 file (and with
-``--record DIR`` its drawn frames as a ``momloc record`` folder, ``service.record``)."""
+``--record DIR`` its drawn frames as a ``momloc record`` folder, ``service.offline.record``)."""
 
 from __future__ import annotations
 
 import argparse
 from typing import TYPE_CHECKING
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 
 if TYPE_CHECKING:  # the simulator loads when the command runs: `momloc --help` stays fast
     from models.simulate import Perturbation
@@ -109,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
     path = result.dataset.save(args.out)
     print(f"{path}: {result.dataset.summary()}")
     if args.record is not None:
-        from service.record import record_scene
+        from service.offline.record import record_scene
 
         print(record_scene(result.scene, args.frames, args.record).line())
     return 0

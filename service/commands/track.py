@@ -1,8 +1,8 @@
 """`momloc track RECORDING_DIR --model MODEL_DIR --out positions.jsonl [--csv]`: the live chain
-on recorded data (``service.offline_track``), and with ``--truth`` its served accuracy.
+on recorded data (``service.offline.track``), and with ``--truth`` its served accuracy.
 
 With ``--truth --json`` stdout is exactly one JSON object (the 0.5 m gate's metrics at the top
-level, every gate under ``gates``; see ``models.stream_metrics``); the progress bar and the
+level, every gate under ``gates``; see ``models.data.stream_metrics``); the progress bar and the
 summary line go to stderr.
 """
 
@@ -13,8 +13,8 @@ import json
 import sys
 from pathlib import Path
 
-from models.errors import MomlocError
-from service.fixed_lag import DEFAULT_HALF_WINDOW_S
+from common.errors import MomlocError
+from service.tracking.smoother import DEFAULT_HALF_WINDOW_S
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -58,10 +58,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from models.dataset import MomDataset
-    from models.mom_runtime import MomRuntime
-    from service import offline_track as offline
-    from service.track_output import TruthScore, format_scores
+    from models.data.dataset import MomDataset
+    from models.mom.runtime import MomRuntime
+    from service.offline import track as offline
+    from service.offline.track_output import TruthScore, format_scores
 
     if (args.recording is None) == (args.detections is None):
         raise MomlocError("give either RECORDING_DIR or --detections DATA.npz")

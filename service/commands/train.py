@@ -54,9 +54,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from models.dataset import MomDataset
-    from models.errors import MomlocError
-    from models.train import train_model
+    from common.errors import MomlocError
+    from models.data.dataset import MomDataset
+    from models.mom.training.train import train_model
 
     if args.time_budget is not None and not args.time_budget > 0:
         raise MomlocError(f"--time-budget {args.time_budget:g}: must be positive seconds")

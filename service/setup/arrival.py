@@ -20,7 +20,7 @@ per frame (the ``nanodet`` profile), so requiring every frame to be clean would 
 maximum.
 
 A premature start costs little: the countdown follows, and the floor-map fit
-(:mod:`models.mark_fit`) leaves out a mark whose boxes are not where the person stands.
+(:mod:`models.geometry.mark_fit`) leaves out a mark whose boxes are not where the person stands.
 """
 
 from __future__ import annotations

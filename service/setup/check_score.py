@@ -1,6 +1,6 @@
 """The check's statistic, shared by the live check (:mod:`service.setup.verify`) and its offline
-twin (``momloc eval --served``, :mod:`service.served_marks`), so both give one number for the
-same frames.
+twin (``momloc eval --served``, :mod:`service.offline.served_marks`), so both give one number for
+the same frames.
 
 Per served snapshot, the person nearest to the mark counts (someone else in the room is
 further away); a mark's error is the median of those distances (a moment of a wrong association

@@ -21,7 +21,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from models.atomic import atomic_write_json
+from common.atomic import atomic_write_json
 
 CHECKS = "checks"
 

@@ -36,9 +36,9 @@ from typing import Literal, Protocol, TypeVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from models.atomic import atomic_write_json
-from models.dataset import MomDataset
-from models.errors import MomlocError
+from common.atomic import atomic_write_json
+from common.errors import MomlocError
+from models.data.dataset import MomDataset
 from service.setup.marks import FloorMark
 
 StepKind = Literal["move", "countdown", "record", "walk"]
@@ -325,7 +325,7 @@ def _read_progress(path: Path) -> tuple[list[dict], int] | None:
 
 
 def _write_progress(path: Path, done: list[dict], legacy_rows: int) -> None:
-    """Atomic rewrite (:mod:`models.atomic`), like the data file itself."""
+    """Atomic rewrite (:mod:`common.atomic`), like the data file itself."""
     document = {"format": PROGRESS_FORMAT, "done": done, "legacy_rows": legacy_rows}
     atomic_write_json(path, document)
 

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 from models.simulate import get_config
 from models.simulate.scene import Scene
 from models.simulate.scripted import Segment, scripted_scene
@@ -77,7 +77,7 @@ class LiveFeed:
 
     @classmethod
     def from_config(cls, path: str) -> LiveFeed:
-        from service.daemon import build_detect_stage, build_rig
+        from service.pipeline.build import build_detect_stage, build_rig
         from service.settings import load_settings
 
         settings = load_settings(path)

@@ -23,8 +23,8 @@ from typing import Annotated, Any
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from models.atomic import atomic_write_text
-from models.errors import MomlocError, shorten
+from common.atomic import atomic_write_text
+from common.errors import MomlocError, shorten
 
 MAX_MARKS = 400  # a few hundred marks is already hours of recording; more is a mistake
 MAX_COORD_M = 1000.0  # metres from the origin: any room, and far from overflow

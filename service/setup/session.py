@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from models.errors import MomlocError, shorten
+from common.errors import MomlocError, shorten
 from service.setup.arrival import Arrival
 from service.setup.collector import (
     DatasetAppender,

@@ -22,7 +22,7 @@ from __future__ import annotations
 import threading
 from typing import Literal
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 
 Step = Literal["record", "train", "verify"]
 

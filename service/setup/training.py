@@ -49,8 +49,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
 
-from models.atomic import atomic_write, replace_folder
-from models.errors import MomlocError, shorten
+from common.atomic import atomic_write, replace_folder
+from common.errors import MomlocError, shorten
 from service.setup.steps import SetupSteps
 
 log = logging.getLogger("momloc.setup.training")
@@ -59,7 +59,7 @@ STOP_GRACE_S = 5.0
 # The first model's training time. Measured 2026-12-02 on a 3 x 3 x 20 s nanodet recording
 # (2 cores, loaded): 10 s of epochs took 16 s wall with start-up and export, validation 0.12 m
 # (91 epochs; 3 s / 10 epochs: 0.44 m). Marks recordings serve the floor-mark geometry
-# (models.prior_policy), which the first model fits in full, so its positions there are the
+# (models.mom.prior_policy), which the first model fits in full, so its positions there are the
 # final model's; the final training improves the encoder (the dense-data and fallback localizer).
 FIRST_MODEL_S = 10.0
 

@@ -21,7 +21,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 from service.setup.check_score import mark_error, nearest_error, summarise
 from service.setup.check_store import store_check, stored_check
 from service.setup.marks import FloorMark

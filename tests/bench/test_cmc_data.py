@@ -1,4 +1,4 @@
-"""The CMC bench's evaluation pairing (bench/cmc_data.py) on a made-up camera: a box where the
+"""The CMC bench's evaluation pairing (bench/real/cmc_data.py) on a made-up camera: a box where the
 person stands is theirs, a box elsewhere is nobody's, and the foot point inverts the floor
 projection."""
 
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.cmc_data import expected_boxes, floor_points, in_area, pair_boxes, project
+from bench.real.cmc_data import expected_boxes, floor_points, in_area, pair_boxes, project
 
 
 def camera() -> np.ndarray:

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from bench.detector_accuracy import parse_models, parse_variant
-from models.errors import MomlocError
+from bench.detector.accuracy import parse_models, parse_variant
+from common.errors import MomlocError
 
 
 def test_variants_become_constructor_options_with_a_readable_label() -> None:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.detector_data import (
+from bench.detector.data import (
     PHOTO_LABELS,
     VTEST_LABELS,
     annotation_problems,

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.detector_data import simulated_truth
-from bench.detector_metrics import Truth, evaluate, iou_matrix, match_frame
+from bench.detector.data import simulated_truth
+from bench.detector.metrics import Truth, evaluate, iou_matrix, match_frame
 
 
 def test_iou_matrix_known_values() -> None:

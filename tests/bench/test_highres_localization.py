@@ -1,4 +1,4 @@
-"""The pure pieces of ``bench.highres_localization``: the all-instances accuracy (a missed
+"""The pure pieces of ``bench.detector.highres_localization``: the all-instances accuracy (a missed
 instance is a miss), the camera shares, the instances-in-view count (the same truth
 ``detector_dataset`` matches against), and the markdown written from a tiny fake result."""
 
@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.highres_localization import (
+from bench.detector.highres_localization import (
     SettingResult,
     all_instances_accuracy,
     camera_shares,
@@ -90,9 +90,11 @@ def _result(setting: str, found: int, errors: list[float], mean: float) -> Setti
 def test_report_on_a_tiny_fake_result() -> None:
     fixed = _result("fixed 320x256", 4, [0.1, 0.2, 0.4, 0.9], 0.4)
     grown = _result("max_shrink 3 (640x384)", 8, [0.1] * 7 + [2.0], 0.35)
-    text = report([fixed, grown], "python -m bench.highres_localization --test-frames 4", "HDR.")
+    text = report(
+        [fixed, grown], "python -m bench.detector.highres_localization --test-frames 4", "HDR."
+    )
     assert text.startswith("# High-resolution cameras end to end")
-    assert "`python -m bench.highres_localization --test-frames 4`" in text
+    assert "`python -m bench.detector.highres_localization --test-frames 4`" in text
     assert "Machine:" in text and "HDR." in text
     table = text.split("## Runs")[0].splitlines()
     lines = {line.split(" | ")[0]: line for line in table if line.startswith("| ")}

@@ -1,4 +1,5 @@
-"""The high-resolution bench's pure pieces (bench/highres_recall.py): the frame rebuilding keeps
+"""The high-resolution bench's pure pieces (bench/detector/highres_recall.py): the frame rebuilding
+keeps
 every box on its person's pixels, and the report is computed from the rows it is given."""
 
 from __future__ import annotations
@@ -6,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.detector_data import Sample
-from bench.detector_metrics import Truth, evaluate
-from bench.highres_recall import Row, rebuilt, report
+from bench.detector.data import Sample
+from bench.detector.highres_recall import Row, rebuilt, report
+from bench.detector.metrics import Truth, evaluate
 
 PERSON = (101, 37, 143, 221)  # xmin, ymin, xmax, ymax in the 640×480 frame
 
@@ -77,10 +78,10 @@ def test_report_is_computed_from_the_rows() -> None:
         fake_row("drawn", (1920, 1080), None, 11.0),
         fake_row("drawn", (1920, 1080), 3.0, 30.0),
     ]
-    text = report(rows, {"vtest": 3, "drawn": 1}, "python -m bench.highres_recall")
+    text = report(rows, {"vtest": 3, "drawn": 1}, "python -m bench.detector.highres_recall")
     lines = text.splitlines()
     assert lines[0].startswith("# ")
-    assert "`python -m bench.highres_recall`" in text and "UTC" in text
+    assert "`python -m bench.detector.highres_recall`" in text and "UTC" in text
     reading = next(line for line in lines if line.startswith("**Reading.**"))
     # The CPU ratio against fixed @ 640×480 (25 / 10) and the recalls come from the rows.
     assert "max_shrink 3 (640x384) finds 1.00 (under 100 px 1.00) at precision 1.00 for 2.5×" in (

@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from bench.keypoint_noise import (
+from bench.keypoints.keypoint_noise import (
     MAD_TO_SIGMA,
     People,
     add_profile_noise,

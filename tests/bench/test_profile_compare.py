@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from bench.profile_compare import main
+from bench.detector.profile_compare import main
 
 HEAD = (
     "| scene | people | variant | precision % | recall % | MOTA % (1 m) | id sw. "

@@ -1,4 +1,4 @@
-"""`make bench-real` (bench/real_cmc.py): one line and exit 0 without the data; with the CMC
+"""`make bench-real` (bench/real/cmc.py): one line and exit 0 without the data; with the CMC
 data present, the evaluation pairing that makes its labels pairs nearly everyone in CMC1."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench import cmc_data
-from bench.real_cmc import DEFAULT_DATA, main
-from models.mot_import import read_mot
+from bench.real import cmc_data
+from bench.real.cmc import DEFAULT_DATA, main
+from models.data.mot_import import read_mot
 
 
 def test_without_data_one_line_and_exit_0(

@@ -1,4 +1,4 @@
-"""The CMC bench's oracles (bench/real_cmc_chain.py) on a hand-made frame: the true
+"""The CMC bench's oracles (bench/real/cmc_chain.py) on a hand-made frame: the true
 association groups each person's boxes and drops the boxes of nobody; the people-only replay
 keeps exactly the owned boxes."""
 
@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.cmc_data import Truth
-from bench.real_cmc_chain import Ground, TrueAssociation
-from models.detections_replay import DetectionsReplay
+from bench.real.cmc_chain import Ground, TrueAssociation
+from bench.real.cmc_data import Truth
+from models.data.detections_replay import DetectionsReplay
 from models.detector.base import Detections
 
 

@@ -1,4 +1,4 @@
-"""The CMC bench's per-frame scorer (bench/real_cmc_score.py) on a hand-made frame whose
+"""The CMC bench's per-frame scorer (bench/real/cmc_score.py) on a hand-made frame whose
 counts and attribution are worked out by hand."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.real_cmc_score import FrameEval, score_frames
+from bench.real.cmc_score import FrameEval, score_frames
 
 
 def test_hand_made_frames() -> None:

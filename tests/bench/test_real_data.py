@@ -1,4 +1,5 @@
-"""The real-data benches' geometry, loaders and scores (bench.real_*, bench.shelf_data), on hand
+"""The real-data benches' geometry, loaders and scores (bench.real_*, bench.real.shelf_data), on
+hand
 cases and synthetic files: no real data needed."""
 
 from __future__ import annotations
@@ -8,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.real_chain import breakdown, foot_point, match_people
-from bench.real_data import Calibration, FloorGrid, opencv_values, rodrigues
-from bench.real_replay import ReplayWalkers, pack_slots
-from bench.real_scoring import DetectionScore, match_floor
-from bench.shelf_data import load_detections
+from bench.real.chain import breakdown, foot_point, match_people
+from bench.real.data import Calibration, FloorGrid, opencv_values, rodrigues
+from bench.real.replay import ReplayWalkers, pack_slots
+from bench.real.scoring import DetectionScore, match_floor
+from bench.real.shelf_data import load_detections
 from service.stages import Association
 
 

@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench import cmc_detector, sim_vs_real
-from bench.cmc_pairing import floor_point, iou, pair, project, simulated_frames
-from models.dataset import MomDataset
+from bench.real import cmc_detector, sim_vs_real
+from bench.real.cmc_pairing import floor_point, iou, pair, project, simulated_frames
+from models.data.dataset import MomDataset
 from models.simulate import PRESETS, DetectorProfile, Scene
 
 

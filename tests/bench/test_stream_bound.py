@@ -1,4 +1,5 @@
-"""The stream bound's oracle (bench/stream_bound.py): its filters on hand-made reports, and the
+"""The stream bound's oracle (bench/serving/stream_bound.py): its filters on hand-made reports, and
+the
 truth oracle on a scene with a detector that misses nobody."""
 
 from __future__ import annotations
@@ -6,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.stream_bound import WINDOW_S, filtered, oracle_scores
+from bench.serving.stream_bound import WINDOW_S, filtered, oracle_scores
 
 
 def _frames(reports: list[list[float]]) -> list[dict[str, np.ndarray]]:

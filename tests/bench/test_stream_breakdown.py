@@ -1,4 +1,5 @@
-"""The MOTA breakdown's attribution rules (bench/stream_breakdown.py) on hand-made frames."""
+"""The MOTA breakdown's attribution rules (bench/serving/stream_breakdown.py) on hand-made
+frames."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from bench.stream_breakdown import FALSE, box_labels, measurement_cause
+from bench.serving.stream_breakdown import FALSE, box_labels, measurement_cause
 
 
 def test_boxes_are_labelled_by_person_or_false():

@@ -9,7 +9,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 
 
 def write_mjpg(path: Path, frames: int = 12, size=(640, 480), fps: float = 30.0) -> Path:

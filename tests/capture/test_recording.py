@@ -14,7 +14,7 @@ from capture.replay import RecordedSource, open_file_source
 from capture.rig import FrameSet
 from capture.sources import VideoFileSource
 from capture.worker import Frame
-from models.errors import MomlocError
+from common.errors import MomlocError
 
 
 def image(value: int, size=(64, 48)) -> np.ndarray:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from capture import FrameSource, V4L2Source, VideoFileSource
-from models.errors import MomlocError
+from common.errors import MomlocError
 from tests.capture.fakes import FaultySource, frame_number, write_mjpg
 
 

@@ -15,7 +15,7 @@ from typing import Any
 
 import pytest
 
-from service.hub import Snapshot
+from service.snapshot import Snapshot
 from tests.e2e.server import RunningServer
 from tests.e2e.toolchains import LineProcess
 

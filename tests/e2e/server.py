@@ -16,10 +16,10 @@ import numpy as np
 from capture.rig import FrameSet
 from capture.synthetic import SyntheticRig
 from capture.worker import Frame
+from service.api.server import serve_in_thread
+from service.api.state import Daemon
 from service.daemon import build_daemon
 from service.demo import demo_settings
-from service.server import serve_in_thread
-from service.state import Daemon
 
 
 @dataclass

@@ -7,8 +7,8 @@ import time
 
 import pytest
 
-import service.frame_listeners
-import service.simulated_detections
+import service.detection.simulated
+import service.pipeline.listeners
 from models.simulate import Perturbation
 from tests.e2e.server import running_server
 
@@ -21,18 +21,18 @@ BUMP_S = 10.0  # scene seconds after start; the references are ready after ~2.5 
 def _bumped_scene(monkeypatch: pytest.MonkeyPatch, camera: int) -> None:
     """Make the demo's scene bump ``camera`` 20 px sideways ``BUMP_S`` into the run, with image
     references taken 0.5 s apart (default 1 s) so they are complete well before the bump."""
-    original = service.simulated_detections.make_scene
+    original = service.detection.simulated.make_scene
 
     def make_scene(preset, **kw):  # type: ignore[no-untyped-def]
         fps = kw.get("fps") or 30.0
         bump = Perturbation(camera=camera, start_frame=int(BUMP_S * fps), dx=20.0)
         return original(preset, **kw, perturbations=[bump])
 
-    monkeypatch.setattr(service.simulated_detections, "make_scene", make_scene)
+    monkeypatch.setattr(service.detection.simulated, "make_scene", make_scene)
     monkeypatch.setattr(
-        service.frame_listeners,
+        service.pipeline.listeners,
         "CameraShiftMonitor",
-        functools.partial(service.frame_listeners.CameraShiftMonitor, reference_spacing_s=0.5),
+        functools.partial(service.pipeline.listeners.CameraShiftMonitor, reference_spacing_s=0.5),
     )
 
 

@@ -14,11 +14,11 @@ from typing import Any
 import httpx
 import pytest
 
-import models.dataset
-from models.atomic import atomic_write
-from models.dataset import MomDataset
+import models.data.dataset
+from common.atomic import atomic_write
+from models.data.dataset import MomDataset
+from service.api.server import serve_in_thread
 from service.daemon import build_daemon
-from service.server import serve_in_thread
 from service.settings import DEMO_MODEL_DIR, load_settings
 from tests.e2e.mqtt_broker import Broker, ensure_mosquitto, free_port
 from tests.e2e.server import running_server, wait_for
@@ -52,7 +52,7 @@ def test_a_full_disk_during_recording_is_reported_with_the_rows_on_disk(
     tmp_path, monkeypatch, caplog
 ):
     disk = FillingDisk("room.npz", room=2)
-    monkeypatch.setattr(models.dataset, "atomic_write", disk)
+    monkeypatch.setattr(models.data.dataset, "atomic_write", disk)
     caplog.set_level(logging.INFO)
     with running_server(people=1) as server:
         server.daemon.setup.data_dir = tmp_path

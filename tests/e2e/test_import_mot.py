@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from models.dataset import MomDataset
-from models.detections_replay import DetectionsReplay
+from models.data.dataset import MomDataset
+from models.data.detections_replay import DetectionsReplay
 from service.demo import DEMO_PRESET
 from service.settings import DEMO_MODEL_DIR
 from tests.e2e.test_record_track import momloc, ok

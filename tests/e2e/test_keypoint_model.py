@@ -120,12 +120,12 @@ def test_keypoint_model_is_refused_on_a_box_only_detector(
         f"model_dir: {keypoint_model}\n"
         "synthetic: {detections: rendered}\n"
     )
-    import service.server
+    import service.api.server
 
     def served(*args: object, **kwargs: object) -> None:
         raise AssertionError("the keypoint model was accepted on a box-only detector")
 
-    monkeypatch.setattr(service.server, "run_server", served)
+    monkeypatch.setattr(service.api.server, "run_server", served)
     capsys.readouterr()
     assert main(["serve", "--config", str(config)]) == 2
     err = capsys.readouterr().err.strip().splitlines()

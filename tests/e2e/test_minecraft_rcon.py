@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import pytest
 
-from service.minecraft import WorldMapping
+from service.outputs.minecraft import WorldMapping
 from tests.e2e.client_checks import Tap
 from tests.e2e.mqtt_broker import free_port
 from tests.e2e.server import RunningServer, running_server

@@ -24,8 +24,8 @@ import httpx
 import pytest
 import websockets
 
+from service.api.server import serve_in_thread
 from service.daemon import build_daemon
-from service.server import serve_in_thread
 from service.settings import DEMO_MODEL_DIR, load_settings
 from tests.e2e.mqtt_broker import Broker, StallingProxy, Subscriber, ensure_mosquitto, free_port
 from tests.e2e.server import RunningServer
@@ -268,8 +268,8 @@ def test_a_broker_that_never_reads_does_not_slow_the_pipeline(mosquitto):
 
             # the buffers are full once positions are dropped for back-pressure; from then on
             # the pipeline must keep going (a pipeline waiting on the socket would stop). How
-            # fast it goes is bench/mqtt_fanout.py's to measure, not a ratio of two wall-clock
-            # windows, which the machine's load sets (issue 25 item 7)
+            # fast it goes is bench/serving/mqtt_fanout.py's to measure, not a ratio of two
+            # wall-clock windows, which the machine's load sets (issue 25 item 7)
             deadline = time.monotonic() + 60
             while mqtt()["positions_dropped_backpressure"] == 0:
                 assert time.monotonic() < deadline, mqtt()

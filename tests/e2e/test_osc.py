@@ -15,7 +15,7 @@ import pytest
 from pythonosc.dispatcher import Dispatcher
 from pythonosc.osc_server import ThreadingOSCUDPServer
 
-from service.hub import Snapshot
+from service.snapshot import Snapshot
 from tests.e2e.server import running_server
 
 pytestmark = pytest.mark.timeout(300)

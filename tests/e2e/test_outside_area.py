@@ -29,8 +29,8 @@ SNAPSHOTS = 240  # 8 s of the 30 fps scene
 
 @functools.cache
 def _left_half_model() -> Path:
+    from models.mom.training.train import train_model
     from models.simulate import simulate
-    from models.train import train_model
 
     data = simulate("indoor-2cam", frames=1200, seed=1, people=3).dataset
     left = np.flatnonzero(data.world[:, 0] < SETUP_X)

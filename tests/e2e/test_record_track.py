@@ -21,7 +21,7 @@ from capture.worker import Frame
 from models.simulate import make_scene, simulate
 from service.cli import main
 from service.demo import DEMO_PRESET, DEMO_SEED
-from service.record import record_scene
+from service.offline.record import record_scene
 from service.settings import DEMO_MODEL_DIR
 
 pytestmark = pytest.mark.timeout(180)
@@ -199,8 +199,8 @@ def test_track_a_dataset_files_boxes(tmp_path):
                 "--csv", "--truth", data, "--json")  # fmt: skip
     metrics = json.loads(result.stdout)
     # measured 2026-12-01 (simulated nanodet-like boxes, the daemon's tracker settings): recall
-    # 75.2 %, precision 57.4 %, MOTA 18.1 %, mean 0.21 m; service.stream_eval.run_stream with
-    # the same tracker on the same scene gives 68 / 49 / -5 % against everyone in view
+    # 75.2 %, precision 57.4 %, MOTA 18.1 %, mean 0.21 m; service.offline.stream_eval.run_stream
+    # with the same tracker on the same scene gives 68 / 49 / -5 % against everyone in view
     assert metrics["recall"] > 60.0 and metrics["precision"] > 40.0 and metrics["mean"] < 0.35
     with out.open(newline="") as handle:
         rows = list(csv.reader(handle))

@@ -20,7 +20,7 @@ import pytest
 import websockets
 from scipy.optimize import linear_sum_assignment
 
-from models.dataset import MomDataset
+from models.data.dataset import MomDataset
 from service.demo import DEMO_SEED
 from service.settings import DEMO_MODEL_DIR
 from tests.e2e.server import running_server
@@ -96,7 +96,7 @@ def test_collect_train_hot_reload_stream(tmp_path: Path) -> None:
         # median 0.58-0.62 m, 27-45 % within 0.5 m, in three runs on 2026-12-02 (which frames
         # the window holds depends on the machine's load; 0.94 and 1.52 m, 23 % before the floor
         # prior left out boxes that are not the person at a mark: static false positives and feet
-        # cut at the border, models/mark_fit.py).
+        # cut at the border, models/geometry/mark_fit.py).
         assert errors.size > 50 and np.median(errors) < 0.9, np.median(errors)
         assert np.mean(errors < 0.5) > 0.2, np.mean(errors < 0.5)
 

@@ -11,9 +11,9 @@ import pytest
 import websockets
 
 from models.simulate import make_scene
+from service.api.server import serve_in_thread
 from service.daemon import build_daemon
 from service.demo import DEMO_PRESET, DEMO_SEED
-from service.server import serve_in_thread
 from service.settings import DEMO_MODEL_DIR, load_settings
 
 pytestmark = pytest.mark.timeout(240)

@@ -18,9 +18,9 @@ import httpx
 import numpy as np
 import pytest
 
-from models.dataset import MomDataset
+from models.data.dataset import MomDataset
+from service.api.server import serve_in_thread
 from service.daemon import build_daemon
-from service.server import serve_in_thread
 from service.settings import load_settings
 from tests.e2e.server import wait_for
 

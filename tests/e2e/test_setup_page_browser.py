@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
+from service.api.server import serve_in_thread
 from service.daemon import build_daemon
-from service.server import serve_in_thread
 from tests.e2e.test_map_page import browser, people, wait_until  # noqa: F401 (fixture)
 from tests.e2e.test_setup_flow import setup_settings
 

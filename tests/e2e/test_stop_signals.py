@@ -23,7 +23,7 @@ import httpx
 import pytest
 
 from capture.recording import Recording
-from models.dataset import MomDataset
+from models.data.dataset import MomDataset
 from models.simulate import simulate
 from service.demo import DEMO_PRESET, DEMO_SEED
 from service.settings import DEMO_MODEL_DIR
@@ -179,7 +179,7 @@ def test_train_stops_and_leaves_no_partial_model(tmp_path, signum):
     assert "Traceback" not in stderr
     # the model is written atomically at the end: a stopped training leaves none, not half of one
     assert not (out / "model.json").exists()
-    assert not list(tmp_path.rglob(".*.tmp"))  # models.atomic's temporary files
+    assert not list(tmp_path.rglob(".*.tmp"))  # common.atomic's temporary files
 
 
 @pytest.mark.parametrize("signum", SIGNALS, ids=lambda s: signal.Signals(s).name)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from models.dataset import MomDataset
+from models.data.dataset import MomDataset
 
 
 def look_at_camera(position, target, width, height, fov_deg):
@@ -106,7 +106,7 @@ def _project(matrix: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.nda
 @functools.cache
 def trained_model(observation: str = "bbox") -> tuple[Path, MomDataset, dict]:
     """Train once per test process on a small scene (a few seconds) and reuse the directory."""
-    from models.train import train_model
+    from models.mom.training.train import train_model
 
     data, _ = make_dataset(1200, cameras=2, seed=11, keypoints=observation == "keypoints")
     out = Path(tempfile.mkdtemp(prefix="mom-test-")) / observation

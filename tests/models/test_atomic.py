@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from models.atomic import atomic_write, atomic_write_json, atomic_write_text, replace_folder
+from common.atomic import atomic_write, atomic_write_json, atomic_write_text, replace_folder
 
 
 def test_replaces_the_file_whole_with_mode_0644(tmp_path: Path) -> None:

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from models import baseline
-from models.dlt import fit_dlt
-from models.errors import MomlocError
+from common.errors import MomlocError
+from models.geometry import calibrated_baseline as baseline
+from models.geometry.dlt import fit_dlt
 
 F, CX, CY = 500.0, 320.0, 240.0
 SIZE = np.array([[640, 480]] * 3)

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from models.dataset import DatasetError, MomDataset, validate_arrays
+from models.data.dataset import DatasetError, MomDataset, validate_arrays
 
 
 def _arrays(n: int = 5, k: int = 2, keypoints: bool = True) -> dict[str, np.ndarray]:

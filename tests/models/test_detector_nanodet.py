@@ -9,12 +9,12 @@ import cv2
 import numpy as np
 import pytest
 
+from common.errors import MomlocError
 from models.detector import Detections, available_detectors, create_detector
 from models.detector.base import DEFAULT_DETECTOR
 from models.detector.nanodet import DEFAULT_MODEL, INPUT_NAME, OUTPUT_NAME, WEIGHTS_DIR
 from models.detector.preprocessing import box_iou, input_for_frame
 from models.detector.validation import NO_PEOPLE, person_frame, photo
-from models.errors import MomlocError
 
 
 @pytest.fixture(scope="module")

@@ -9,11 +9,11 @@ import cv2
 import numpy as np
 import pytest
 
+from common.errors import MomlocError
 from models.detector import Detections, create_detector
 from models.detector.preprocessing import box_iou
 from models.detector.ssdlite import DEFAULT_MODEL, INPUT_NAME, WEIGHTS_DIR
 from models.detector.validation import person_frame, photo
-from models.errors import MomlocError
 
 
 @pytest.fixture(scope="module")

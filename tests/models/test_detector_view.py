@@ -1,5 +1,5 @@
 """``detector_dataset``: real-detector rows labelled with the simulator's truth (used by
-``tools/make_demo_model.py`` and ``bench.highres_localization``).
+``tools/make_demo_model.py`` and ``bench.detector.highres_localization``).
 
 A fake detector returns each camera's reference boxes (in reverse order, plus a ghost box that
 matches nobody), except that it misses person 0 in camera 1 and person 2 everywhere: the rows must

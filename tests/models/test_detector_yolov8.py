@@ -11,8 +11,8 @@ import onnx
 import pytest
 from onnx import TensorProto, helper, numpy_helper
 
+from common.errors import MomlocError
 from models.detector import create_detector
-from models.errors import MomlocError
 
 NET = 64  # network input size: a 640×480 frame letterboxes to 64×48 at scale 0.1, pad y 8
 CLASSES = 80

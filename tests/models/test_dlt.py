@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from models.dlt import fit_dlt
-from models.errors import MomlocError
+from common.errors import MomlocError
+from models.geometry.dlt import fit_dlt
 
 
 def _unit(m: np.ndarray) -> np.ndarray:

@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from models.dataset import MomDataset
-from models.evaluate import evaluate
-from models.metrics import METRIC_KEYS
+from models.data.dataset import MomDataset
+from models.data.metrics import METRIC_KEYS
+from models.mom.evaluate import evaluate
 from tests.models.test_evaluate import _dataset
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -30,7 +30,7 @@ def _momloc(*args: str) -> subprocess.CompletedProcess[str]:
 
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    from models.train import train_model
+    from models.mom.training.train import train_model
 
     folder = tmp_path_factory.mktemp("eval")
     train_model(_dataset(400), folder / "model", epochs=3, seed=0, progress=False)
@@ -48,7 +48,7 @@ def test_json_is_one_object_with_the_contract_keys(trained: tuple[Path, Path]) -
     assert payload["n"] == 119  # row 5 is seen by no camera: counted out, noted on stderr
     assert "1 row(s) seen by no camera" in done.stderr
     # the CLI reports what the evaluation core computes on the same files
-    from models.mom_runtime import MomRuntime
+    from models.mom.runtime import MomRuntime
 
     expected = evaluate(MomRuntime.load(model), MomDataset.load(data)).metrics
     for key in METRIC_KEYS:

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from models import baseline
-from models.dataset import MomDataset
-from models.errors import MomlocError
-from models.evaluate import check_compatible, evaluate, predict
+from common.errors import MomlocError
+from models.data.dataset import MomDataset
+from models.geometry import calibrated_baseline as baseline
+from models.mom.evaluate import check_compatible, evaluate, predict
 
 
 class FootLocalizer:

@@ -5,10 +5,10 @@ import json
 import numpy as np
 import torch
 
-from models.export import pixel_decoder
-from models.mom_runtime import MomRuntime
-from models.mom_torch import DrawAverage, MomDecoder, MomEncoder
-from models.sampling import SamplerConfig
+from models.mom.runtime import MomRuntime
+from models.mom.sampling import SamplerConfig
+from models.mom.training.export import pixel_decoder
+from models.mom.training.torch_model import DrawAverage, MomDecoder, MomEncoder
 from tests.models.mom_scene import make_dataset, trained_model
 
 

@@ -7,10 +7,10 @@ import json
 import numpy as np
 import pytest
 
-from models.dlt import fit_dlt
-from models.errors import MomlocError
-from models.floor_prior import FloorPrior
-from models.homography import (
+from common.errors import MomlocError
+from models.geometry.dlt import fit_dlt
+from models.geometry.floor_prior import FloorPrior
+from models.geometry.homography import (
     apply_homography,
     fit_homography,
     homography_jacobian,

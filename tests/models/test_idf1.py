@@ -1,12 +1,12 @@
-"""IDF1 (models.idf1) on hand-made streams whose answer is counted by hand."""
+"""IDF1 (models.data.idf1) on hand-made streams whose answer is counted by hand."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from models.idf1 import identity_scores
-from models.stream_metrics import StreamFrame
+from models.data.idf1 import identity_scores
+from models.data.stream_metrics import StreamFrame
 
 
 def frame(

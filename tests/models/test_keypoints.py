@@ -12,7 +12,7 @@ import socket
 import numpy as np
 import pytest
 
-from models.keypoints import COCO_NAMES, MEDIAPIPE_TO_COCO, crop_box, landmarks_to_coco
+from models.detector.keypoints import COCO_NAMES, MEDIAPIPE_TO_COCO, crop_box, landmarks_to_coco
 
 MEDIAPIPE_NAMES = (
     "nose", "left_eye_inner", "left_eye", "left_eye_outer", "right_eye_inner", "right_eye",
@@ -88,8 +88,8 @@ def test_keypoints_on_detector_crops_of_real_photographs(
 
 @needs_mediapipe
 def test_no_person_in_crop_gives_nan_not_a_guess():
+    from models.detector.keypoints import KeypointEstimator
     from models.detector.validation import background
-    from models.keypoints import KeypointEstimator
 
     estimator = KeypointEstimator()
     points = estimator.estimate(background(), np.array([[100, 100, 300, 400], [0, 0, 4, 4]]))
@@ -109,8 +109,8 @@ def test_full_pose_model_runs_offline(monkeypatch):
     from mediapipe.python.solutions import download_utils
 
     monkeypatch.setattr(download_utils, "download_oss_model", refuse)
+    from models.detector.keypoints import KeypointEstimator
     from models.detector.validation import person_frame
-    from models.keypoints import KeypointEstimator
 
     frame, truth = person_frame("camera", 400)
     points = KeypointEstimator().estimate(frame, truth[None])

@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from models.errors import MomlocError
-from models.metrics import (
+from common.errors import MomlocError
+from models.data.metrics import (
     METRIC_KEYS,
     format_table,
     frame_step,

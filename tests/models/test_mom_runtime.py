@@ -6,8 +6,8 @@ import sys
 import numpy as np
 import pytest
 
-from models.errors import MomlocError
-from models.mom_runtime import MomRuntime
+from common.errors import MomlocError
+from models.mom.runtime import MomRuntime
 from tests.models.mom_scene import make_dataset, trained_model
 
 
@@ -78,7 +78,7 @@ def test_keypoint_model_round_trip():
 def test_runtime_does_not_import_torch():
     import subprocess
 
-    code = "import sys, models.mom_runtime; sys.exit('torch' in sys.modules)"
+    code = "import sys, models.mom.runtime; sys.exit('torch' in sys.modules)"
     assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0
 
 

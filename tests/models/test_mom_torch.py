@@ -3,7 +3,12 @@
 import numpy as np
 import torch
 
-from models.mom_torch import DrawAverage, MomDecoder, MomEncoder, initial_decoder_matrix
+from models.mom.training.torch_model import (
+    DrawAverage,
+    MomDecoder,
+    MomEncoder,
+    initial_decoder_matrix,
+)
 from tests.models.mom_scene import look_at_camera
 
 

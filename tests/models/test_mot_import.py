@@ -1,5 +1,5 @@
-"""MOTChallenge detections + positions in (models.mot_import), replay out and back
-(models.detections_replay): what lands in each file, and the one-line errors on bad input."""
+"""MOTChallenge detections + positions in (models.data.mot_import), replay out and back
+(models.data.detections_replay): what lands in each file, and the one-line errors on bad input."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from models.detections_replay import FORMAT, DetectionsReplay, is_replay
-from models.errors import MomlocError
-from models.mot_import import build_dataset, build_replay, read_mot, read_positions
+from common.errors import MomlocError
+from models.data.detections_replay import FORMAT, DetectionsReplay, is_replay
+from models.data.mot_import import build_dataset, build_replay, read_mot, read_positions
 
 CAM0 = """\
 # frame, id, left, top, width, height, conf

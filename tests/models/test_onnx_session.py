@@ -7,10 +7,10 @@ from pathlib import Path
 import onnxruntime as ort
 import pytest
 
+from common.errors import MomlocError
+from common.onnx_session import open_session, session_options
 from models.detector import create_detector
-from models.errors import MomlocError
-from models.mom_runtime import MomRuntime
-from models.onnx_session import open_session, session_options
+from models.mom.runtime import MomRuntime
 from service.settings import DEMO_MODEL_DIR
 
 

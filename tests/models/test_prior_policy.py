@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from models.prior_policy import (
+from models.mom.prior_policy import (
     blend,
     choose_policy,
     choose_weights,
@@ -37,7 +37,7 @@ def test_coverage_of_marks_and_of_dense_walks() -> None:
 
 
 def test_marks_choose_the_prior_and_dense_data_chooses_mom(tmp_path: Path) -> None:
-    from models.dataset import MomDataset
+    from models.data.dataset import MomDataset
 
     entry, prior = choose_policy(MomDataset.load(_marks(tmp_path)), "bbox")
     assert entry["policy"] == "prior" and prior is not None and entry["prior"] is not None
@@ -84,8 +84,8 @@ def test_blend_uses_the_encoder_where_the_prior_has_no_position() -> None:
 
 def test_dense_data_weighs_the_prior_on_validation_rows(tmp_path: Path) -> None:
     """Trained on dense walks, the served blend is no worse on validation than either part."""
-    from models.mom_runtime import MomRuntime
-    from models.train import train_model
+    from models.mom.runtime import MomRuntime
+    from models.mom.training.train import train_model
 
     dense = simulate("indoor-2cam", frames=1200, seed=4).dataset
     metrics = train_model(dense, tmp_path / "model", epochs=30, progress=False)
@@ -100,7 +100,7 @@ def test_dense_data_weighs_the_prior_on_validation_rows(tmp_path: Path) -> None:
     encoder = runtime.encode(test.boxes)
     prior, _ = runtime.floor_prior.predict(test.boxes)
     weights = row_weights(test.boxes, runtime.prior_weights)
-    # rows the geometry puts beyond the set-up area take the geometry (models.setup_area)
+    # rows the geometry puts beyond the set-up area take the geometry (models.mom.setup_area)
     beyond = np.isfinite(prior).all(axis=1) & ~runtime.setup_area.contains(prior)
     np.testing.assert_allclose(
         served, blend(encoder, prior, np.where(beyond, 1.0, weights)), atol=1e-4
@@ -108,7 +108,7 @@ def test_dense_data_weighs_the_prior_on_validation_rows(tmp_path: Path) -> None:
 
 
 def test_summary_leaves_out_the_fitted_prior(tmp_path: Path) -> None:
-    from models.dataset import MomDataset
+    from models.data.dataset import MomDataset
 
     data = MomDataset.load(_marks(tmp_path, "2x2"))
     entry, _ = choose_policy(data, "bbox")
@@ -118,7 +118,7 @@ def test_summary_leaves_out_the_fitted_prior(tmp_path: Path) -> None:
 
 
 def test_degenerate_marks_fall_back_to_mom(tmp_path: Path) -> None:
-    from models.dataset import MomDataset
+    from models.data.dataset import MomDataset
 
     data = MomDataset.load(_marks(tmp_path, "1x3"))  # three marks on a line: no homography
     entry, prior = choose_policy(data, "bbox")
@@ -135,13 +135,13 @@ def test_model_trained_on_marks_localizes_the_whole_room_with_the_prior(
     alone's error). With the measured default ``nanodet`` the recording holds boxes that are not
     the person at 4 of a camera's 9 marks (the person out of its view and a lasting false box
     there, or the feet cut at the border); the floor prior's consensus leaves them out
-    (``models/mark_fit.py``): 0.494 m per frame over the room on nanodet's own boxes
+    (``models/geometry/mark_fit.py``): 0.494 m per frame over the room on nanodet's own boxes
     (2026-12-02; 1.62 m before it, and the dense-label model is 0.42 m on such boxes).
     """
-    from models.dataset import MomDataset
-    from models.evaluate import score
-    from models.mom_runtime import MomRuntime
-    from models.train import train_model
+    from models.data.dataset import MomDataset
+    from models.mom.evaluate import score
+    from models.mom.runtime import MomRuntime
+    from models.mom.training.train import train_model
 
     data = MomDataset.load(_marks(tmp_path, "3x3", 6.0, profile))
     metrics = train_model(data, tmp_path / "model", epochs=5, progress=False)

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from models.errors import MomlocError
-from models.sampling import (
+from common.errors import MomlocError
+from models.mom.sampling import (
     InferenceSampler,
     SamplerConfig,
     random_draws,

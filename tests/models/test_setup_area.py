@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from models.errors import MomlocError
-from models.mom_runtime import MomRuntime
-from models.setup_area import SetupArea, distance_outside
+from common.errors import MomlocError
+from models.mom.runtime import MomRuntime
+from models.mom.setup_area import SetupArea, distance_outside
 from tests.models.mom_scene import make_dataset
 
 SQUARE = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]])
@@ -79,7 +79,7 @@ def test_json_round_trip_and_malformed_entries():
 @functools.cache
 def _half_room_model() -> Path:
     """A dense model trained on people in the left half of a 6 m room only (x < 2.8 m)."""
-    from models.train import train_model
+    from models.mom.training.train import train_model
 
     data, _ = make_dataset(2400, cameras=2, seed=11)
     left = np.flatnonzero(data.world[:, 0] < 2.8)

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from models.dataset import MomDataset
-from models.errors import MomlocError
+from common.errors import MomlocError
+from models.data.dataset import MomDataset
 from models.simulate import (
     PRESETS,
     CameraSpec,

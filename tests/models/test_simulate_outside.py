@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 from models.simulate import PRESETS, Scene, get_config, simulate
 from models.simulate.outside import strips
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.stats import multivariate_normal, norm
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 from models.simulate import (
     DEFAULT_PROFILE,
     CameraSpec,
@@ -127,7 +127,7 @@ def test_measured_profiles_are_no_kinder_than_real_video(name: str) -> None:
 def test_cmc_profile_is_the_real_room_less_its_geometry() -> None:
     """The cmc profile's figures are the CMC measurement's (real minus the exact simulated
     room), and the same real-room edges hold for NanoDet's tall people."""
-    from bench.cmc_profile import detector_edges
+    from bench.real.cmc_profile import detector_edges
 
     data = json.loads((RESULTS / "cmc_detector_measurements.json").read_text())
     profile = load_profile("cmc")
@@ -421,7 +421,7 @@ def test_unknown_or_unreadable_profiles_are_user_errors(tmp_path: Path, capsys) 
 
 def test_shipped_profiles_are_what_the_bench_script_builds(tmp_path: Path) -> None:
     # Profiles are data built from measurements: a hand edit that the script would undo fails.
-    from bench.detector_profiles import main
+    from bench.detector.profiles import main
 
     assert main(["--out", str(tmp_path), "--record", str(tmp_path / "record.md")]) == 0
     for name in ("ideal", "ssdlite", "nanodet", "cmc"):
@@ -465,7 +465,7 @@ def _isolated_keypoints(heights: np.ndarray, profile, seed: int = 0):
 
 
 def test_pose_misses_follow_the_keypoint_height_table() -> None:
-    from bench.detector_profiles import MIN_BIN, pose_miss_bins
+    from bench.detector.profiles import MIN_BIN, pose_miss_bins
 
     profile = _profile("nanodet", **NO_MISSES)
     model = profile.keypoints
@@ -487,7 +487,7 @@ def test_pose_misses_follow_the_keypoint_height_table() -> None:
 
 
 def test_pose_miss_bins_merge_thin_bins_into_a_neighbour() -> None:
-    from bench.detector_profiles import pose_miss_bins
+    from bench.detector.profiles import pose_miss_bins
 
     def data(counts: list[int]) -> dict:
         names = ["<60", "60-100", ">=100"]
@@ -521,7 +521,8 @@ def test_gross_errors_move_joints_into_the_box_at_the_group_rates() -> None:
     assert abs(moved[:, 15].mean() - rates[15]) < 0.01 and rates[15] > 0.15  # ankles: measured
     assert abs(moved[:, 0].mean() - rates[0]) < 0.01 and abs(moved[:, 11].mean() - rates[11]) < 0.01
     # one event per person and group: both ankles (and every limb joint) go wild together, so
-    # the lower ankle is wild as often as the group (bench/keypoint_noise.py calibrates on it)
+    # the lower ankle is wild as often as the group (bench/keypoints/keypoint_noise.py calibrates on
+    # it)
     limbs = [7, 8, 9, 10, 13, 14, 15, 16]
     assert (moved[:, limbs] == moved[:, [15]]).all()
     inside = (keypoints[..., 0] >= boxes[:, None, 0]) & (keypoints[..., 0] <= boxes[:, None, 2])

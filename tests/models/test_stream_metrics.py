@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from models.errors import MomlocError
-from models.stream_metrics import StreamFrame, StreamScorer, score_stream
+from common.errors import MomlocError
+from models.data.stream_metrics import StreamFrame, StreamScorer, score_stream
 
 FPS = 15.0
 

@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from models.errors import MomlocError
-from models.train import adaptive_settings, split_rows, train_model
+from common.errors import MomlocError
+from models.mom.training.train import adaptive_settings, split_rows, train_model
 from service.cli import main
 from tests.models.mom_scene import make_dataset, trained_model
 
@@ -82,10 +82,10 @@ def test_each_model_file_is_written_once_complete_and_readable_by_others(tmp_pat
     without, then with the floor prior), and it may run as another user (mode 0644)."""
     import stat
 
-    import models.export
+    import models.mom.training.export
 
     writes: list[str] = []
-    real = models.export.atomic_write_json
+    real = models.mom.training.export.atomic_write_json
     written = {}
 
     def counting(path, value, *args, **kwargs):
@@ -95,7 +95,7 @@ def test_each_model_file_is_written_once_complete_and_readable_by_others(tmp_pat
         written[path.name] = (path.stat().st_ino, path.stat().st_mtime_ns)
         return out
 
-    monkeypatch.setattr(models.export, "atomic_write_json", counting)
+    monkeypatch.setattr(models.mom.training.export, "atomic_write_json", counting)
     data, _ = make_dataset(300, seed=5)
     train_model(data, tmp_path / "m", epochs=2, seed=1, progress=False, extra_meta={"note": 1})
     assert writes == ["model.json"]

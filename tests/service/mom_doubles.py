@@ -2,8 +2,8 @@
 
 The oracle implements the ``MomRuntime`` methods association uses from true projection matrices:
 ``reproject`` projects the body's mid-height point, which is what the MoM decoder learns to predict
-(the box centre, ``models.sampling.unit_mean``); ``localize`` is its least-squares inverse over the
-seen box centres (exact for one view, a compromise for an inconsistent tuple).
+(the box centre, ``models.mom.sampling.unit_mean``); ``localize`` is its least-squares inverse over
+the seen box centres (exact for one view, a compromise for an inconsistent tuple).
 """
 
 from __future__ import annotations

@@ -8,11 +8,12 @@ import cv2
 import numpy as np
 import pytest
 
-from service.app import _parse_rate
-from service.frame_listeners import CameraView
-from service.hub import Hub, Snapshot
-from service.metrics import metrics_text
-from service.snapshot_image import id_colour, render_camera_jpeg
+from service.api.app import _parse_rate
+from service.api.metrics import metrics_text
+from service.api.snapshot_image import id_colour, render_camera_jpeg
+from service.pipeline.hub import Hub
+from service.pipeline.listeners import CameraView
+from service.snapshot import Snapshot
 
 
 @pytest.mark.parametrize(
@@ -84,7 +85,7 @@ def test_throughput_stats_are_read_safely_while_frames_are_published():
     import threading
     from collections import deque
 
-    from service.frame_listeners import Throughput
+    from service.pipeline.listeners import Throughput
 
     reading, appended = threading.Event(), threading.Event()
 

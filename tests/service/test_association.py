@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from models.errors import MomlocError
-from service.association import associate
+from common.errors import MomlocError
+from service.tracking.association import associate
 from tests.service.mom_doubles import OracleRuntime, person_boxes, room_cameras
 
 
@@ -93,7 +93,7 @@ def test_four_cameras_with_missing_views() -> None:
         detections, owners = shuffled_detections(boxes, rng)
         # The oracle's errors are ~2 px, so a tight gate suits it; the default (100, sized for a
         # learned model's noise) would let the lone camera-2 box of person 2 join person 0
-        # when they stand within ~0.8 m: that trade-off is measured in bench/association.py.
+        # when they stand within ~0.8 m: that trade-off is measured in bench/serving/association.py.
         result = associate(detections, runtime, max_error_px=25.0)
         assert correctly_associated(result, owners, boxes)
         single = [a for a in result if a.cameras == [2] and owners[2][a.detection_index[2]] == 2]
@@ -182,12 +182,12 @@ def trained_runtime(tmp_path_factory: pytest.TempPathFactory):
 
     Pinned to the ``ideal`` detector profile (the former kind noise) on purpose: these tests
     check the association algorithm with a real model, not the detector; what the measured
-    detector costs association is in ``bench/association.py``. (Measured 2026-12-01 with this
-    model and test: ideal 54/60 frames right, median 0.093 m; nanodet 47/59, 0.357 m.)
+    detector costs association is in ``bench/serving/association.py``. (Measured 2026-12-01 with
+    this model and test: ideal 54/60 frames right, median 0.093 m; nanodet 47/59, 0.357 m.)
     """
-    from models.mom_runtime import MomRuntime
+    from models.mom.runtime import MomRuntime
+    from models.mom.training.train import train_model
     from models.simulate import simulate
-    from models.train import train_model
 
     out = tmp_path_factory.mktemp("assoc-model")
     data = simulate("indoor-2cam", frames=500, seed=11, detector_profile="ideal").dataset
@@ -225,10 +225,10 @@ def test_real_model_associates_three_people(trained_runtime) -> None:
 def test_one_association_gate_default_everywhere() -> None:
     import inspect
 
-    from service.association import DEFAULT_MAX_ERROR_PX
-    from service.pipeline import Pipeline
+    from service.offline.stream_eval import run_stream
+    from service.pipeline.live import Pipeline
     from service.settings import TrackingSettings
-    from service.stream_eval import run_stream
+    from service.tracking.association import DEFAULT_MAX_ERROR_PX
 
     assert TrackingSettings().max_error_px == DEFAULT_MAX_ERROR_PX
     for function in (associate, Pipeline, run_stream):
@@ -290,7 +290,7 @@ def test_floor_gate_cost_is_the_mahalanobis_rise_of_the_fused_position() -> None
     (information scaled for the prior's overconfidence), NaN where a side has no floor
     information. Two crossing views fix a point; a third view agrees with it only where its
     line of sight passes through it."""
-    from service.association import FLOOR_INFO_SCALE, _FloorFit, _Views
+    from service.tracking.association import FLOOR_INFO_SCALE, _FloorFit, _Views
 
     along_x = np.diag([1.0**2, 0.05**2])  # cameras 0 and 2 know y well, x badly
     along_y = np.diag([0.05**2, 1.0**2])  # camera 1 the other way round

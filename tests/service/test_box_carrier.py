@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from service.box_carrier import BoxCarrier, box_iou
+from service.detection.box_carrier import BoxCarrier, box_iou
 from tests.service.fake_frames import FPS, draw, moving_box
 
 
@@ -44,7 +44,7 @@ def test_flow_follows_a_turn_the_filter_cannot_predict() -> None:
     """After the box reverses, flow sees the new motion; the filter alone keeps going the old way.
 
     Flow is weighted like a detection (3 % of box height), so it bends the track rather than
-    snapping it: trusting it more was worse on real video (bench/realtime.py)."""
+    snapping it: trusting it more was worse on real video (bench/serving/realtime.py)."""
     errors = {}
     for flow in (False, True):
         carrier = BoxCarrier(flow=flow, max_age_s=2.0)

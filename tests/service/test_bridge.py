@@ -9,9 +9,9 @@ import struct
 import pytest
 from websockets.asyncio.server import ServerConnection, serve
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 from service.cli import main
-from service.minecraft import BridgeConfig, MinecraftBridge, WorldMapping, encode_packet
+from service.outputs.minecraft import BridgeConfig, MinecraftBridge, WorldMapping, encode_packet
 
 
 class FakeRcon:

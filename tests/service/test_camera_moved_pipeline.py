@@ -8,14 +8,14 @@ import dataclasses
 import pytest
 
 from capture.synthetic import SyntheticRig
-from models.mom_runtime import MomRuntime
+from models.mom.runtime import MomRuntime
 from models.simulate import Perturbation, make_scene
+from service.api.state import Daemon
 from service.demo import DEMO_PEOPLE, DEMO_PRESET, DEMO_SEED
-from service.hub import Hub
-from service.pipeline import Pipeline
+from service.detection.simulated import SimulatedDetections
+from service.pipeline.hub import Hub
+from service.pipeline.live import Pipeline
 from service.settings import DEMO_MODEL_DIR
-from service.simulated_detections import SimulatedDetections
-from service.state import Daemon
 
 FPS = 30.0
 STEP = 2  # process every other scene frame (a loaded machine drops frames the same way)
@@ -77,8 +77,8 @@ def test_health_names_the_bumped_camera(bump: Perturbation) -> None:
 
 
 def _states(shift_moved, reference, reprojection_moved):
-    from service.camera_shift import CameraShiftState
-    from service.setup.camera_monitor import CameraAlignment
+    from service.camera_health.image_shift import CameraShiftState
+    from service.camera_health.reprojection import CameraAlignment
 
     shift = [
         CameraShiftState(k, ref, 20.0 if m else 0.1, 0.6, m, 1.0)
@@ -92,7 +92,7 @@ def _states(shift_moved, reference, reprojection_moved):
 
 
 def test_combine_attributes_a_shared_error_rise_to_the_camera_whose_image_moved() -> None:
-    from service.setup.camera_monitor import combine
+    from service.camera_health.reprojection import combine
 
     errors, shift = _states([False, True], ["ready", "ready"], [True, True])
     assert [c.moved for c in combine(errors, shift)] == [False, True]

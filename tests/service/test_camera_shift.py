@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from models.simulate import Perturbation, Scene, get_config
-from service.camera_shift import CameraShiftMonitor, ShiftWorker, rigid_ransac
+from service.camera_health.image_shift import CameraShiftMonitor, ShiftWorker, rigid_ransac
 
 FPS = 30
 BUMP = 14 * FPS  # frame of the bump: references are ready after ~5 s, baseline runs ~9 s

@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 from models.detector.base import Detections
-from service.chain import Chain
-from service.hub import Snapshot
-from service.tracking import RECOMMENDED, Tracker
-from service.zone_monitor import ZoneMonitor
-from service.zones import Zone
+from service.outputs.zone_monitor import ZoneMonitor
+from service.outputs.zones import Zone
+from service.pipeline.chain import Chain
+from service.snapshot import Snapshot
+from service.tracking.tracker import RECOMMENDED, Tracker
 from tests.service.mom_doubles import OracleRuntime, person_boxes, room_cameras
 
 INSIDE_X = 4.0  # the fake set-up area: x below this
@@ -56,7 +56,7 @@ def test_people_outside_the_set_up_area_are_dropped_by_default(runtime):
 
 
 def test_flagged_people_are_tracked_and_marked_but_zones_and_counts_ignore_them(runtime):
-    from service.pipeline import _person
+    from service.pipeline.live import _person
 
     chain = Chain(Tracker(fps_hint=10, **RECOMMENDED), outside_area="flag")
     tracks = _run(chain, runtime, PEOPLE)

@@ -8,8 +8,9 @@ import pytest
 
 from capture.rig import CameraRig
 from capture.sources import V4L2Source, VideoFileSource
-from models.errors import MomlocError
-from service.daemon import build_daemon, build_rig
+from common.errors import MomlocError
+from service.daemon import build_daemon
+from service.pipeline.build import build_rig
 from service.settings import DEMO_MODEL_DIR, load_settings
 from tests.capture.fakes import write_mjpg
 
@@ -47,7 +48,7 @@ def test_cameras_are_opened_by_their_settings_type(tmp_path: Path) -> None:
 
 
 def test_the_detectors_input_growth_is_a_setting() -> None:
-    from service.daemon import build_detect_stage
+    from service.pipeline.build import build_detect_stage
 
     def stage(**detector: object) -> object:
         settings = load_settings(

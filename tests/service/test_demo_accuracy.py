@@ -30,14 +30,14 @@ def test_demo_scene_with_simulated_boxes_as_blind_as_the_shipped_detector():
     score = replay_demo(demo_settings(detections="simulated", profile="nanodet"), frames=600)
     s = score.summary()
     # 2026-12-02 (RECOMMENDED with coasting served 0.5 s, likelihood assignment, see
-    # service/tracking.py, and service.view_bias): mean 0.259 m, median 0.186 m, 85.9 %, recall
-    # 0.917, precision 0.83, 7 ids; bounds kept. Recorded 2026-12-01 with the daemon's tracker
-    # fed covariances and coverage (service.tracking.RECOMMENDED): mean 0.272 m, median 0.194 m,
-    # 83.9 % within 0.5 m, recall 0.857, precision 0.690, 10 ids. With the former tracker: mean
-    # 0.299 m, median 0.249 m, 82.1 %, recall 0.933, precision 0.677 (tracks on the profile's
-    # lasting false boxes), 13 ids; recall is lower now because a person only one camera reports
-    # where the other should see them waits 1 s (and 0.5 s of doubt hides them), the price of
-    # fewer ghosts.
+    # service/tracking/tracker.py, and service.tracking.view_bias): mean 0.259 m, median 0.186 m,
+    # 85.9 %, recall 0.917, precision 0.83, 7 ids; bounds kept. Recorded 2026-12-01 with the
+    # daemon's tracker fed covariances and coverage (service.tracking.tracker.RECOMMENDED): mean
+    # 0.272 m, median 0.194 m, 83.9 % within 0.5 m, recall 0.857, precision 0.690, 10 ids. With the
+    # former tracker: mean 0.299 m, median 0.249 m, 82.1 %, recall 0.933, precision 0.677 (tracks on
+    # the profile's lasting false boxes), 13 ids; recall is lower now because a person only one
+    # camera reports where the other should see them waits 1 s (and 0.5 s of doubt hides them), the
+    # price of fewer ghosts.
     assert s["median_m"] < 0.23 and s["mean_m"] < 0.3, s
     assert s["within_0.5m"] > 0.8 and s["recall"] > 0.82 and s["precision"] > 0.65, s
     assert s["ids"] <= 13, s

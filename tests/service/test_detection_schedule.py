@@ -14,16 +14,16 @@ import numpy as np
 import pytest
 
 from models.detector.base import Detections
-from service.box_carrier import box_iou
-from service.detection_schedule import (
+from service.detection.box_carrier import box_iou
+from service.detection.schedule import (
     DeferredRunner,
     DetectionJob,
     DetectionScheduler,
     ThreadRunner,
 )
-from service.detector_stage import DetectorStage
-from service.hub import Hub
-from service.pipeline import Pipeline
+from service.detection.stage import DetectorStage
+from service.pipeline.hub import Hub
+from service.pipeline.live import Pipeline
 from tests.service.fake_frames import FPS, BoxWorld, Clock, FakeDetector
 
 
@@ -116,7 +116,7 @@ def test_late_frame_sets_are_carried_without_flow() -> None:
 
 
 def test_flow_is_dropped_while_it_costs_more_than_its_budget(monkeypatch) -> None:
-    from service.box_carrier import BoxCarrier
+    from service.detection.box_carrier import BoxCarrier
 
     world = BoxWorld()
     scheduler, clock = _scheduler(world, cost=0.09, flow_budget_s=0.005)
@@ -267,8 +267,8 @@ def test_real_detector_on_rendered_frames_produces_boxes() -> None:
 
 
 def test_daemon_builds_the_scheduled_stage_from_settings() -> None:
-    from service.daemon import build_detect_stage
     from service.demo import demo_settings
+    from service.pipeline.build import build_detect_stage
     from service.settings import load_settings
 
     settings = demo_settings(detections="rendered")
@@ -322,8 +322,8 @@ class _NoRunner:
 
 
 def test_windows_need_a_detector_of_any_input_size():
-    from models.errors import MomlocError
-    from service.daemon import build_detect_stage
+    from common.errors import MomlocError
+    from service.pipeline.build import build_detect_stage
     from service.settings import Settings
 
     settings = Settings.model_validate(

@@ -8,7 +8,7 @@ import time
 
 SCRIPT = """
 import threading, time
-from service.server import _exit_soon_if_stuck
+from service.api.server import _exit_soon_if_stuck
 threading.Thread(target=time.sleep, args=(120,)).start()  # a request that does not end
 _exit_soon_if_stuck(1.0)
 """

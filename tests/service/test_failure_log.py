@@ -1,10 +1,11 @@
-"""``service.failure_log``: one traceback per run of failures, a count per period, an end line."""
+"""``service.pipeline.failure_log``: one traceback per run of failures, a count per period, an end
+line."""
 
 from __future__ import annotations
 
 import logging
 
-from service.failure_log import FailureLog
+from service.pipeline.failure_log import FailureLog
 
 
 def test_a_run_of_failures_is_one_traceback_a_count_per_period_and_an_end(caplog) -> None:

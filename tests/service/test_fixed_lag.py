@@ -1,4 +1,4 @@
-"""Fixed-lag smoothing for offline tracking (service.fixed_lag): no lag, less shake, every
+"""Fixed-lag smoothing for offline tracking (service.tracking.smoother): no lag, less shake, every
 snapshot once and in order."""
 
 from __future__ import annotations
@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from service.fixed_lag import FixedLagSmoother
-from service.hub import Snapshot
+from service.snapshot import Snapshot
+from service.tracking.smoother import FixedLagSmoother
 
 FPS = 15.0
 

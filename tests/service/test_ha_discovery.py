@@ -14,8 +14,8 @@ import re
 import jinja2
 import pytest
 
-from service.ha_discovery import discovery_configs, discovery_messages, removal_messages
-from service.output_settings import MqttSettings
+from service.outputs.ha_discovery import discovery_configs, discovery_messages, removal_messages
+from service.outputs.settings import MqttSettings
 
 COMMON = {
     "availability", "availability_mode", "availability_template", "availability_topic",

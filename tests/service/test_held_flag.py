@@ -1,6 +1,6 @@
 """The time hysteresis behind the camera-moved verdicts."""
 
-from service.held_flag import HeldFlag
+from service.camera_health.held_flag import HeldFlag
 
 
 def test_turns_on_and_off_only_after_holding() -> None:

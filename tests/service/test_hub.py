@@ -6,7 +6,8 @@ import asyncio
 import json
 import threading
 
-from service.hub import Hub, Snapshot
+from service.pipeline.hub import Hub
+from service.snapshot import Snapshot
 
 
 def snap(seq: int) -> Snapshot:

@@ -1,7 +1,7 @@
 """Import layering of the daemon: the routes never import the composition root.
 
-``service.daemon`` builds everything and ``service.server`` serves it; ``service.app`` (the
-routes) reads the daemon's state only (``service.state``). Before, ``app`` imported ``daemon``
+``service.daemon`` builds everything and ``service.api.server`` serves it; ``service.api.app`` (the
+routes) reads the daemon's state only (``service.api.state``). Before, ``app`` imported ``daemon``
 for the state class while ``daemon`` imported ``app`` to serve it: a cycle that only worked
 because one side imported late. Each check runs in a fresh interpreter, so modules loaded by
 other tests cannot hide an import.
@@ -27,11 +27,14 @@ def loaded_after(statement: str) -> set[str]:
 @pytest.mark.parametrize(
     ("module", "must_not_load"),
     [
-        ("service.app", {"service.daemon", "service.server"}),
-        ("service.state", {"service.daemon", "service.server", "service.app"}),
-        ("service.daemon", {"service.server", "service.app"}),
-        ("service.pipeline", {"service.daemon", "service.server", "service.app"}),
-        ("service.stages", {"service.pipeline", "service.association", "service.daemon"}),
+        ("service.api.app", {"service.daemon", "service.api.server"}),
+        ("service.api.state", {"service.daemon", "service.api.server", "service.api.app"}),
+        ("service.daemon", {"service.api.server", "service.api.app"}),
+        ("service.pipeline.live", {"service.daemon", "service.api.server", "service.api.app"}),
+        (
+            "service.stages",
+            {"service.pipeline.live", "service.tracking.association", "service.daemon"},
+        ),
     ],
 )
 def test_module_does_not_import_upward(module: str, must_not_load: set[str]) -> None:

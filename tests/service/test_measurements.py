@@ -12,8 +12,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from service.hub import Hub
-from service.measurements import (
+from service.pipeline.hub import Hub
+from service.pipeline.live import Pipeline
+from service.tracking.measurements import (
     MULTI_VIEW_STD_M,
     SINGLE_VIEW_ACROSS_STD_M,
     SINGLE_VIEW_DEPTH_STD_M,
@@ -22,8 +23,7 @@ from service.measurements import (
     line_of_sight,
     measurement_covariances,
 )
-from service.pipeline import Pipeline
-from service.tracking import RECOMMENDED, Tracker
+from service.tracking.tracker import RECOMMENDED, Tracker
 from tests.service.mom_doubles import OracleRuntime, person_boxes, room_cameras
 
 CAMERAS = room_cameras(2)  # corners (-0.5, -0.5) and (6.5, -0.5), 2.4 m high

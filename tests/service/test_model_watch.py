@@ -5,8 +5,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from models.errors import MomlocError
-from service.model_watch import ModelWatcher
+from common.errors import MomlocError
+from service.pipeline.model_watch import ModelWatcher
 
 
 class FakePipeline:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from service.motion import ConstantVelocity, StandOrWalk
+from service.tracking.motion import ConstantVelocity, StandOrWalk
 
 FPS = 15.0
 R = np.eye(2) * 0.1**2

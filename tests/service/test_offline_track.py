@@ -1,4 +1,4 @@
-"""The --detections feed of `momloc track` (service/offline_track.py)."""
+"""The --detections feed of `momloc track` (service/offline/track.py)."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import dataclasses
 
 import numpy as np
 
-from models.dataset import MomDataset
-from service.offline_track import detections_feed
+from models.data.dataset import MomDataset
+from service.offline.track import detections_feed
 
 
 def two_people(frames: int) -> MomDataset:
@@ -71,7 +71,7 @@ def test_a_dataset_without_keypoints_feeds_boxes_only(tmp_path):
 def test_a_replay_feeds_every_box_in_source_order_at_its_own_fps(tmp_path):
     """A detections replay (momloc import): boxes of nobody included, no shuffling (its rows
     carry no identity), frames without boxes as empty sets, the replay's fps by default."""
-    from models.detections_replay import DetectionsReplay
+    from models.data.detections_replay import DetectionsReplay
 
     replay = DetectionsReplay(
         frame=np.array([3, 3, 3, 5]),

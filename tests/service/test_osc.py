@@ -9,12 +9,12 @@ import time
 import pytest
 from pythonosc.osc_bundle import OscBundle
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 from service.demo import demo_settings
-from service.hub import Snapshot
-from service.osc import OscPublisher, build_bundle
-from service.output_settings import OscSettings
+from service.outputs.osc import OscPublisher, build_bundle
+from service.outputs.settings import OscSettings
 from service.settings import load_settings
+from service.snapshot import Snapshot
 
 PEOPLE = [
     {"id": 3, "x": 1.25, "y": 2.5, "vx": 0.4, "vy": -0.1, "confidence": 0.9, "cameras": [0, 1]},

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 from service.demo import DEMO_ZONES, demo_settings
-from service.output_settings import HomeAssistantSettings, MqttSettings, ZoneSettings
+from service.outputs.settings import HomeAssistantSettings, MqttSettings, ZoneSettings
 from service.settings import load_settings
 
 CAMERAS = "cameras:\n  - {type: synthetic, index: 0}\n"

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from models.mom_runtime import MomRuntime
+from models.mom.runtime import MomRuntime
 from models.simulate import get_config, simulate
-from service.stream_eval import run_stream
+from service.offline.stream_eval import run_stream
 
 AREA = (3.0, 7.0, 3.0, 7.0)  # the middle 4 x 4 m of indoor-2cam's 10 x 10 m room
 
@@ -30,7 +30,7 @@ def _config(outside: int):
 @functools.cache
 def _model() -> Path:
     """Set up on people walking in the area only (dense labels there, nobody outside)."""
-    from models.train import train_model
+    from models.mom.training.train import train_model
 
     data = simulate(_config(0), frames=900, seed=1).dataset
     out = Path(tempfile.mkdtemp(prefix="mom-outside-")) / "area"

@@ -15,13 +15,13 @@ import pytest
 
 from capture.rig import FrameSet
 from capture.worker import Frame
+from common.errors import MomlocError
 from models.detector.base import Detections
-from models.errors import MomlocError
-from service.detector_stage import DetectorStage
-from service.hub import Hub
-from service.pipeline import Pipeline
+from service.detection.stage import DetectorStage
+from service.pipeline.hub import Hub
+from service.pipeline.live import Pipeline
 from service.stages import Association
-from service.tracking import Tracker
+from service.tracking.tracker import Tracker
 
 
 @dataclass
@@ -316,7 +316,7 @@ def test_scheduled_detection_carries_keypoints_between_detections():
     """With ``detection.schedule: auto`` the detector runs every few frame sets; the boxes
     carried in between keep their keypoints (moved with the box), so a keypoint model gets
     keypoints on every frame set, not only on the detected ones."""
-    from service.detection_schedule import DeferredRunner, DetectionScheduler
+    from service.detection.schedule import DeferredRunner, DetectionScheduler
 
     class Walker:
         keypoints = True

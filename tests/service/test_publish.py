@@ -5,12 +5,13 @@ from __future__ import annotations
 import asyncio
 import json
 
-from service.hub import Hub, Snapshot
-from service.mqtt import MqttPublisher
-from service.output_settings import MqttSettings
-from service.publish import LatestSlot
-from service.zone_monitor import EventHub, ZoneMonitor
-from service.zones import Zone
+from service.outputs.mqtt import MqttPublisher
+from service.outputs.publisher import LatestSlot
+from service.outputs.settings import MqttSettings
+from service.outputs.zone_monitor import EventHub, ZoneMonitor
+from service.outputs.zones import Zone
+from service.pipeline.hub import Hub
+from service.snapshot import Snapshot
 
 SQUARE = [(0, 0), (2, 0), (2, 2), (0, 2)]
 

@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from models import baseline
-from models.dataset import MomDataset
-from service.served_marks import served_at_marks
+from models.data.dataset import MomDataset
+from models.geometry import calibrated_baseline as baseline
+from service.offline.served_marks import served_at_marks
 from service.setup.collector import progress_path
 from tests.models.test_evaluate import CAMERAS, _dataset
 
@@ -54,7 +54,7 @@ def _mark_recording(walk_rows: int = 0) -> MomDataset:
 
 @pytest.fixture(scope="module")
 def marks_model(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    from models.train import train_model
+    from models.mom.training.train import train_model
 
     folder = tmp_path_factory.mktemp("served")
     recording = _mark_recording()

@@ -7,7 +7,7 @@ import sys
 
 SCRIPT = """
 import sys
-from service.app import create_app
+from service.api.app import create_app
 from service.daemon import build_daemon
 from service.demo import demo_settings
 for mode in ("simulated", "rendered"):

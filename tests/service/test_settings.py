@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 from service.settings import Settings, SyntheticCamera, V4l2Camera, load_settings
 
 
@@ -26,7 +26,7 @@ def test_yaml_with_defaults(tmp_path, monkeypatch):
         "token: s3cret\n",
     )
     with pytest.raises(MomlocError, match="cannot be mixed"):
-        from service.daemon import build_rig
+        from service.pipeline.build import build_rig
 
         build_rig(load_settings(path))
     settings = load_settings(path)

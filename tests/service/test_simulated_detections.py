@@ -7,8 +7,8 @@ import numpy as np
 from capture.synthetic import SyntheticRig
 from models.simulate import Scene, load_profile, make_scene
 from models.simulate.profile import PROFILE_DIR
+from service.detection.simulated import SimulatedDetections, scene_for
 from service.settings import SyntheticSettings
-from service.simulated_detections import SimulatedDetections, scene_for
 
 
 def scene() -> Scene:

@@ -3,12 +3,12 @@
 The shipped demo model (indoor-2cam), with a floor prior fitted and weighed as ``momloc train``
 does it, serves 3 people walking in the ``indoor-2cam`` preset (seed 3, 450 frames = 30 s at
 15 fps, detections shuffled per camera, frame timestamps), scored by
-:func:`service.stream_eval.run_stream` with ``service.tracking.RECOMMENDED`` fed the
-localizer's covariances (``service.measurements``) and single-view positions corrected by their
-track's lone-view offset (``service.view_bias``), as the daemon runs it. Deterministic (seeded
-scene, fixed model, numpy fits), so the bounds sit at the recorded figures with a small margin
-for onnxruntime / BLAS rounding across machines. Recorded figures are in ``RECORDED``;
-bench/stream_accuracy.py has the full table.
+:func:`service.offline.stream_eval.run_stream` with ``service.tracking.tracker.RECOMMENDED`` fed the
+localizer's covariances (``service.tracking.measurements``) and single-view positions corrected by
+their track's lone-view offset (``service.tracking.view_bias``), as the daemon runs it.
+Deterministic (seeded scene, fixed model, numpy fits), so the bounds sit at the recorded figures
+with a small margin for onnxruntime / BLAS rounding across machines. Recorded figures are in
+``RECORDED``; bench/serving/stream_accuracy.py has the full table.
 """
 
 from __future__ import annotations
@@ -20,14 +20,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from models.mom_runtime import MomRuntime
-from models.prior_policy import choose_policy
+from models.mom.prior_policy import choose_policy
+from models.mom.runtime import MomRuntime
 from models.simulate import simulate
-from service.stream_eval import run_stream, scene_config
+from service.offline.stream_eval import run_stream, scene_config
 
 DEMO_MODEL = Path(__file__).resolve().parents[2] / "models" / "demo_model"
 PROFILE = "nanodet"  # the measured default detector profile (models/simulate/profiles)
-RECORDED = {  # gate 0.5 m, nanodet profile, service.tracking.RECOMMENDED fed the covariances
+RECORDED = {  # gate 0.5 m, nanodet profile, service.tracking.tracker.RECOMMENDED fed the
+    # covariances
     # Re-recorded 2026-12-01 when the demo model was retrained on NanoDet's boxes on drawn frames
     # (its box geometry differs from the simulator's boxes scored here), and again when
     # multi_view_s = 0.1 joined RECOMMENDED (recall 71.36 -> 71.29, precision 67.89 -> 67.92).
@@ -35,13 +36,13 @@ RECORDED = {  # gate 0.5 m, nanodet profile, service.tracking.RECOMMENDED fed th
     # Acc@0.3 85.77, single 0.185, jitter 0.0475, lag 0.024. In brackets: the tracker before
     # issue 14 on the former model. Re-recorded 2026-12-02 when run_stream (and the pipeline)
     # began correcting single-view positions by their track's lone-view offset
-    # (service.view_bias); without it: MOTA 36.80, recall 71.29, precision 67.92, 11 switches,
-    # mean 0.1694, Acc@0.3 85.22, single 0.185, jitter 0.0560, lag 0.036. Re-recorded the same
-    # day for the MOTA work (RECOMMENDED: coasting served 0.5 s, likelihood assignment, gate
-    # 1.5 m + 0.5 m/s, robust_chi2 16, doubt_outside; service/tracking.py); with the settings
-    # before it (bench variant 12-01) this code gives MOTA 41.17, recall 72.18, precision 70.35,
-    # 8 switches, mean 0.1619, Acc@0.3 88.69, single 0.182, jitter 0.0448, lag 0.045. Worse now
-    # here: 11 switches (8), Acc@0.3 87.77 (88.69), jitter 0.0534 (0.0448); on the bench's 4
+    # (service.tracking.view_bias); without it: MOTA 36.80, recall 71.29, precision 67.92, 11
+    # switches, mean 0.1694, Acc@0.3 85.22, single 0.185, jitter 0.0560, lag 0.036. Re-recorded the
+    # same day for the MOTA work (RECOMMENDED: coasting served 0.5 s, likelihood assignment, gate
+    # 1.5 m + 0.5 m/s, robust_chi2 16, doubt_outside; service/tracking/tracker.py); with the
+    # settings before it (bench variant 12-01) this code gives MOTA 41.17, recall 72.18, precision
+    # 70.35, 8 switches, mean 0.1619, Acc@0.3 88.69, single 0.182, jitter 0.0448, lag 0.045. Worse
+    # now here: 11 switches (8), Acc@0.3 87.77 (88.69), jitter 0.0534 (0.0448); on the bench's 4
     # seeds MOTA 65.0 -> 71.0 %, id switches 18 -> 25, jitter 5.86 -> 4.26 cm.
     # Re-recorded 2026-12-03 (issue 23) with the nanodet profile rebuilt from tight-box evidence
     # and the real-room defaults (association floor gate, tracker measurement_scale 9, birth
@@ -62,7 +63,7 @@ RECORDED = {  # gate 0.5 m, nanodet profile, service.tracking.RECOMMENDED fed th
 
 def demo_with_prior(out: Path) -> Path:
     """The demo encoder with a floor prior fitted and weighed as ``momloc train`` does it
-    (``models.prior_policy.choose_policy``: prior fitted on a separate simulated recording,
+    (``models.mom.prior_policy.choose_policy``: prior fitted on a separate simulated recording,
     weights per view class and the encoder/prior error ratio from its validation rows), so the
     served positions and their covariances are those of a freshly trained model; numpy only, so
     the gate is deterministic across machines."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from models.simulate import Scene
-from service.stream_eval import frame_detections, scene_config
+from service.offline.stream_eval import frame_detections, scene_config
 
 
 def _observation_with_false_boxes() -> object:

@@ -7,7 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
-from service.tracking import RECOMMENDED, Tracker
+from service.tracking.tracker import RECOMMENDED, Tracker
 
 FPS = 30.0
 

@@ -1,4 +1,5 @@
-"""Lone-view bias compensation (service.view_bias): sign, per-camera keys, fading, tracker use."""
+"""Lone-view bias compensation (service.tracking.view_bias): sign, per-camera keys, fading, tracker
+use."""
 
 from __future__ import annotations
 
@@ -6,8 +7,8 @@ import numpy as np
 import pytest
 
 from service.stages import Association
-from service.tracking import RECOMMENDED, Tracker
-from service.view_bias import ViewBias, lone_view_positions
+from service.tracking.tracker import RECOMMENDED, Tracker
+from service.tracking.view_bias import ViewBias, lone_view_positions
 
 BIAS = {0: np.array([0.4, -0.1]), 1: np.array([-0.3, 0.25])}  # each camera's lone-view error
 FPS = 15.0
@@ -133,8 +134,8 @@ def test_the_pipeline_serves_the_corrected_position():
     alone keeps the served person near the truth instead of drifting to the lone view's."""
     from types import SimpleNamespace
 
-    from service.hub import Hub
-    from service.pipeline import Pipeline
+    from service.pipeline.hub import Hub
+    from service.pipeline.live import Pipeline
 
     runtime = BiasedViews()
     truth = np.array([2.5, 3.5])

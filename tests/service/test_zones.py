@@ -1,4 +1,4 @@
-"""Zone geometry and hysteresis (service.zones): pure logic, capture time only."""
+"""Zone geometry and hysteresis (service.outputs.zones): pure logic, capture time only."""
 
 from __future__ import annotations
 
@@ -7,7 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from service.zones import Zone, ZoneTracker, point_in_polygon, segments_touch, validate_polygon
+from service.outputs.zones import (
+    Zone,
+    ZoneTracker,
+    point_in_polygon,
+    segments_touch,
+    validate_polygon,
+)
 
 SQUARE = [(0.0, 0.0), (2.0, 0.0), (2.0, 2.0), (0.0, 2.0)]
 # concave "U": the notch (1..2 x 1..3) is outside although inside the bounding box

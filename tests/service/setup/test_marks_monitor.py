@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from models.errors import MomlocError
-from service.setup.camera_monitor import CameraMotionMonitor
+from common.errors import MomlocError
+from service.camera_health.reprojection import CameraMotionMonitor
 from service.setup.marks import FloorMark, grid_marks, load_marks, save_marks
 
 

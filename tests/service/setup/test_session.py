@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 from service.setup.collector import DatasetAppender, collect, plan_steps
 from service.setup.marks import FloorMark, MarkIn, marks_from_entries
 from service.setup.session import SetupSession

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from models.dataset import MomDataset
+from models.data.dataset import MomDataset
 from models.simulate import get_config
 from models.simulate.following import SPEED_MPS, install_follower
 from service.setup.check_score import summarise

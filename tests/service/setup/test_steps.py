@@ -6,7 +6,7 @@ import threading
 
 import pytest
 
-from models.errors import MomlocError
+from common.errors import MomlocError
 from service.setup.steps import SetupConflict, SetupSteps
 
 

@@ -1,0 +1,152 @@
+"""Zones in the running daemon: the tracker fed by the hub, events fanned out to clients and MQTT.
+
+:class:`ZoneMonitor` is a :class:`service.outputs.publisher.Publisher`: the hub hands it every
+snapshot on the pipeline thread, where it runs :class:`service.outputs.zones.ZoneTracker` (a few
+point-in-polygon tests per person and zone: microseconds) and passes confirmed events on:
+
+- to :class:`EventHub`, which fans them out to ``WS /v1/events`` clients. Unlike positions,
+  events cannot be skipped (a missed leave would leave a room occupied forever), so each client
+  gets a bounded queue; a client that falls ``max_queue`` events behind loses the oldest ones and
+  the loss is counted (``dropped``), so memory stays bounded and nobody waits;
+- to listeners (the MQTT publisher) as ``on_zone_events(events, occupancy)``, which must not block.
+
+A recent-events ring lets ``GET /v1/zones`` show what just happened without a WebSocket.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import logging
+import threading
+from collections import deque
+from collections.abc import Sequence
+from typing import Any
+
+from service.outputs.zones import Zone, ZoneTracker
+from service.snapshot import Snapshot
+
+log = logging.getLogger("momloc.zones")
+
+
+class EventSubscription:
+    """One ``WS /v1/events`` client: a bounded queue of event JSON texts (loop thread only)."""
+
+    def __init__(self, max_queue: int) -> None:
+        self.queue: deque[str] = deque(maxlen=max_queue)
+        self.event = asyncio.Event()
+        self.dropped = 0
+
+    def offer(self, text: str) -> None:
+        if len(self.queue) == self.queue.maxlen:
+            self.dropped += 1
+        self.queue.append(text)
+        self.event.set()
+
+    async def next(self) -> str:
+        while not self.queue:
+            self.event.clear()
+            await self.event.wait()
+        return self.queue.popleft()
+
+
+class EventHub:
+    """Fans events from the pipeline thread out to WebSocket clients on the event loop."""
+
+    def __init__(self, max_queue: int = 1000) -> None:
+        self.max_queue = max_queue
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._subscribers: set[EventSubscription] = set()
+        self.published = 0
+
+    def bind(self, loop: asyncio.AbstractEventLoop | None) -> None:
+        self._loop = loop
+
+    def publish(self, texts: Sequence[str]) -> None:
+        """Any thread; never blocks."""
+        self.published += len(texts)
+        loop = self._loop
+        if loop is not None and not loop.is_closed():
+            with contextlib.suppress(RuntimeError):
+                loop.call_soon_threadsafe(self._fan_out, tuple(texts))
+
+    def _fan_out(self, texts: tuple[str, ...]) -> None:
+        for subscription in tuple(self._subscribers):
+            for text in texts:
+                subscription.offer(text)
+
+    def subscribe(self) -> EventSubscription:
+        subscription = EventSubscription(self.max_queue)
+        self._subscribers.add(subscription)
+        return subscription
+
+    def unsubscribe(self, subscription: EventSubscription) -> None:
+        self._subscribers.discard(subscription)
+
+    @property
+    def subscriber_count(self) -> int:
+        return len(self._subscribers)
+
+
+class ZoneMonitor:
+    """Publisher that turns snapshots into zone occupancy and enter/leave events."""
+
+    name = "zones"
+
+    def __init__(self, zones: Sequence[Zone], events: EventHub | None = None) -> None:
+        self.tracker = ZoneTracker(zones)
+        self.events = events or EventHub()
+        self._listeners: list[Any] = []
+        self._lock = threading.Lock()  # occupancy is read by REST/metrics threads
+        self.recent: deque[dict[str, Any]] = deque(maxlen=50)
+        self.event_count = 0
+
+    @property
+    def zones(self) -> list[Zone]:
+        return self.tracker.zones
+
+    def add_listener(self, listener: Any) -> None:
+        """``listener.on_zone_events(events, occupancy)`` after every snapshot with events."""
+        self._listeners = [*self._listeners, listener]
+
+    def offer(self, snapshot: Snapshot) -> None:
+        if snapshot.seq <= 0:
+            return
+        with self._lock:
+            events = self.tracker.update(snapshot.t, snapshot.inside_only().people)
+            if not events:
+                return
+            self.recent.extend(events)
+            self.event_count += len(events)
+            occupancy = self.tracker.occupancy()
+        self.events.publish([json.dumps(e, separators=(",", ":")) for e in events])
+        for listener in self._listeners:
+            try:
+                listener.on_zone_events(events, occupancy)
+            except Exception:
+                log.exception("zone listener failed")
+
+    def occupancy(self) -> list[dict[str, Any]]:
+        with self._lock:
+            return self.tracker.occupancy()
+
+    def describe(self) -> dict[str, Any]:
+        """``GET /v1/zones``: polygons, occupancy and the last events."""
+        with self._lock:
+            occupancy = {o["zone"]: o for o in self.tracker.occupancy()}
+            recent = list(self.recent)[-20:]
+            t = self.tracker.last_t
+        return {
+            "v": 1,
+            "t": t,
+            "zones": [{**z.as_dict(), **occupancy[z.name]} for z in self.zones],
+            "recent_events": recent,
+        }
+
+    def stats(self) -> dict[str, Any]:
+        return {
+            "zones": len(self.zones),
+            "events": self.event_count,
+            "event_clients": self.events.subscriber_count,
+        }

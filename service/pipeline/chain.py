@@ -1,0 +1,152 @@
+"""One frame set's detections to tracks: associate, gate on the set-up area, correct, track.
+
+The daemon's :class:`~service.pipeline.live.Pipeline`, ``momloc track`` (which drives that pipeline)
+and the stream benchmarks (:mod:`service.offline.stream_eval`) all run this one object, so a figure
+in
+``bench/results/`` is a figure of the code that serves. Before it existed the benchmarks rebuilt
+the chain by hand and a fix to one copy could silently leave the other behind.
+
+Per frame set (time ``t``, one :class:`~models.detector.base.Detections` per camera):
+
+1. **associate** the boxes of all cameras into people (:mod:`service.tracking.association`); each
+   association says whether it lies in the model's set-up area (:mod:`models.mom.setup_area`);
+2. **the set-up area**: ``outside_area="drop"`` (default) keeps people outside the area the model
+   was set up on out of tracking and out of every output: the model was never taught there and
+   zones, counts and automations are drawn inside. ``"flag"`` tracks them too and serves them
+   with ``outside: true`` (the map shows them; zones and MQTT leave them out unless asked);
+3. **correct** single-view positions by their track's lone-view offset
+   (:mod:`service.tracking.view_bias`) and **track** with each position's covariance and the
+   cameras' coverage (:mod:`service.tracking.measurements`, :mod:`service.tracking.tracker`).
+
+The chain keeps per-model state (the lone-view offsets): :meth:`Chain.new_model` forgets it when
+the model is swapped.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from typing import Literal, Protocol, runtime_checkable
+
+import numpy as np
+
+from models.detector.base import Detections
+from service.stages import (
+    AssociateStage,
+    Association,
+    LocalizationModel,
+    Track,
+    TrackStage,
+)
+from service.tracking.association import DEFAULT_MAX_ERROR_PX
+from service.tracking.association import associate as associate_people
+from service.tracking.measurements import coverage_function, measurement_covariances
+from service.tracking.view_bias import ViewBias
+
+OutsideArea = Literal["drop", "flag"]
+OUTSIDE_AREA_POLICIES: tuple[OutsideArea, ...] = ("drop", "flag")
+
+
+@runtime_checkable
+class AreaAwareModel(Protocol):
+    """A model that knows where it was set up (``MomRuntime.inside``)."""
+
+    def inside(self, boxes: np.ndarray, world: np.ndarray) -> np.ndarray: ...
+
+
+class Chain:
+    """Associate → set-up area → lone-view correction → tracker (module docstring)."""
+
+    def __init__(
+        self,
+        tracker: TrackStage,
+        *,
+        associate: AssociateStage | None = None,
+        max_error_px: float = DEFAULT_MAX_ERROR_PX,
+        outside_area: OutsideArea = "drop",
+        use_covariance: bool = True,
+        view_bias: ViewBias | Literal[True] | None = True,
+    ) -> None:
+        if outside_area not in OUTSIDE_AREA_POLICIES:
+            raise ValueError(f"outside_area {outside_area!r}: expected one of drop, flag")
+        self.tracker = tracker
+        self.associate: AssociateStage = associate if associate is not None else associate_people
+        self.max_error_px = float(max_error_px)
+        self.outside_area: OutsideArea = outside_area
+        self.use_covariance = use_covariance
+        # lone-view offsets (service.tracking.view_bias); None: single views are not corrected
+        self.view_bias: ViewBias | None = ViewBias() if view_bias is True else view_bias
+        self.timings_ms: dict[str, float] = {}  # of the last call, per step
+
+    def new_model(self) -> None:
+        """Forget what was learned about the former model's localizer (lone-view offsets)."""
+        if self.view_bias is not None:
+            self.view_bias = ViewBias()
+
+    def __call__(
+        self,
+        t: float,
+        detections: Sequence[Detections],
+        runtime: LocalizationModel | None,
+        delivered: Sequence[bool],
+        seq: int = 0,
+    ) -> tuple[list[Association], list[Track]]:
+        """The associations fed to the tracker (those it serves, in the order of each track's
+        ``meta["association"]``) and the tracks after time ``t``. Without a model: no people,
+        the tracker still ages its tracks."""
+        started = time.perf_counter()
+        associations: list[Association] = []
+        if runtime is not None:
+            found = self.associate(detections, runtime, max_error_px=self.max_error_px)
+            associations = gate_to_area(found, runtime, self.outside_area)
+        associated = time.perf_counter()
+        meta = [
+            {
+                "cameras": [int(c) for c in a.cameras],
+                "frame": seq,
+                "association": i,
+                "cost": a.cost,
+                "inside": a.inside,
+            }
+            for i, a in enumerate(associations)
+        ]
+        covariances = (
+            measurement_covariances(associations, runtime) if self.use_covariance else None
+        )
+        coverage = coverage_function(runtime, delivered)
+        if self.view_bias is not None:
+            tracks = self.view_bias.update(
+                self.tracker, t, associations, runtime, meta, covariances, coverage
+            )
+        else:
+            positions = np.array([np.asarray(a.world, float)[:2] for a in associations])
+            tracks = self.tracker.update(
+                t, positions.reshape(-1, 2), meta, covariances=covariances, coverage=coverage
+            )
+        self.timings_ms = {
+            "associate": (associated - started) * 1e3,
+            "track": (time.perf_counter() - associated) * 1e3,
+        }
+        return associations, tracks
+
+
+def gate_to_area(
+    associations: list[Association], runtime: LocalizationModel, outside_area: OutsideArea
+) -> list[Association]:
+    """Mark each association inside or outside the model's set-up area; drop the outside ones
+    unless they are to be served flagged (``outside_area="flag"``)."""
+    if not associations or not isinstance(runtime, AreaAwareModel):
+        return associations
+    boxes = np.stack([a.boxes for a in associations])
+    world = np.stack([np.asarray(a.world, float)[:2] for a in associations])
+    inside = np.asarray(runtime.inside(boxes, world), dtype=bool)
+    for a, flag in zip(associations, inside.tolist(), strict=True):
+        a.inside = bool(flag)
+    if outside_area == "flag":
+        return associations
+    return [a for a in associations if a.inside]
+
+
+def served_inside(track: Track) -> bool:
+    """Whether a served track is inside the set-up area (the association that last fed it)."""
+    return bool(track.meta.get("inside", True))

@@ -1,0 +1,486 @@
+"""Calibration-free association of person boxes across cameras, scored by the MoM model itself.
+
+Problem: camera A sees boxes a1, a2, a3 and camera B sees b1, b2; which boxes are the same person?
+Classical systems answer with calibrated epipolar geometry. We have no calibration, but the trained
+MoM model carries the same information: the encoder maps a tuple of boxes (one per camera, or
+"unseen") to a floor point, and the decoder matrices P̄_k map that floor point back to the mean
+pixel each camera should observe. For a consistent tuple (all boxes of one person) the reprojection
+lands on every box's mean point; for an inconsistent one the encoder's compromise cannot satisfy
+all cameras at once (a floor point has 2 degrees of freedom, two boxes give 4 measurements).
+
+Cost of a tuple: the reprojection error per seen camera (``MomRuntime.reprojection_error``, which
+compares against the same box mean point the decoder was trained to reproduce), *normalised* to a
+box ``REFERENCE_HEIGHT_PX`` (200 px) tall: ``error_px * 200 / box_height_px``. A near person's big
+box carries proportionally bigger noise than a distant person's; on simulated indoor-2cam data the
+normalised error separated right from wrong pairs clearly better than raw pixels (5 % of wrong
+pairs below the 97th percentile of right pairs, against 15 % in raw pixels). The cost is the root
+mean square over the seen cameras; a tuple is admissible only if *every* camera's normalised error
+is at most ``max_error_px`` (the parameter keeps its name: it is in pixels at the reference height).
+
+A second, independent gate in metres: every box is also localized *alone* (the encoder supports
+missing views) and two clusters are merged only if their own positions are within
+``max_view_gap_m``. Right pairs agree within ~1.5 m even for single views, while a lone box in
+each camera from two different people far apart can have a small reprojection error (the
+encoder's compromise point splits it between the cameras); this gate removes those merges. A
+model that cannot localize one view alone (NaN) disables it. Defaults (100 px at reference height,
+2 m) come from the gate sweep in ``bench/serving/association.py``. On the served stream (2026-12-02,
+``bench/serving/stream_accuracy.py``'s model, indoor-2cam, nanodet,
+``service.tracking.tracker.RECOMMENDED``, MOTA at 0.5 m, 3 people seeds 7-10 × 600 frames) the view
+gap is what binds: ``max_error_px`` 80, 100 or 130 give the very same 72.3 %; gaps of 1.0 / 1.25 /
+1.5 / 1.75 / 2.0 / 2.5 m give 57.9 / 63.8 / 72.7 / 73.9 / 72.3 / 65.3 % (5 people, seeds 7 8: 1.75 m
+61.3 against 57.7 %; 1 person: equal). Not changed: the optimum sits between two cliffs (a lone
+view's range error splits true pairs below 1.5 m, wrong pairs merge above 2 m) whose places depend
+on the detector's bottom-edge noise, so a gain of ~2 points on one simulated profile is no reason to
+move a default every deployment uses.
+
+Solver: when exactly two cameras have detections, the optimal gated bipartite assignment
+(``scipy.optimize.linear_sum_assignment`` on the pairwise cost matrix, one batched model call),
+where leaving a box unmatched costs half the gate, so two marginal wrong pairs never beat one good
+pair plus two single-view people.
+With three or more, agglomerative merging: every detection starts as its own cluster, the cheapest
+admissible merge of two clusters on disjoint cameras is applied, and the merged cluster is
+re-scored against the others as a *whole* tuple (one batched call per merge). A pair that looks
+consistent in two views but contradicts a third camera is thereby refused, and a person missed by
+one camera is still joined across the others. A greedy camera-by-camera Hungarian extension was
+tried first and failed exactly there (an early wrong pair blocks the right one later).
+
+People seen by one camera only are kept: their cluster is localized with the other views masked
+(NaN), which the MoM encoder supports when trained with missing views. Clusters whose position
+the model cannot produce (non-finite output) are dropped.
+
+A model with per-camera floor geometry (``floor_views``: the floor prior's plane maps) also
+gates every merge in floor space: each box is placed on the floor by its own camera's map with
+its information matrix (long along that camera's line of sight, scaled by ``FLOOR_INFO_SCALE`` for
+the prior's overconfidence), clusters are fused in information form, and two clusters merge only
+if the Mahalanobis rise of the fused χ² is at most ``max_floor_chi2`` (25): that is small only where
+the cameras' lines of sight meet, which the 2 m view gap cannot tell in a crowd. On the real CMC
+room (10 people, ``bench/results/real_cmc_chain_tuning.md``) it cut mixed clusters and lifted
+per-frame MODA by ~3.6 points; 9 refused true merges (more duplicates), 60 let mixes through.
+
+A model with a ``covariance(boxes)`` method (``MomRuntime``: the floor prior's GLS covariance)
+also gives each association the covariance of its position, which the tracker takes as that
+measurement's noise (long along a lone camera's line of sight).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from common.errors import MomlocError
+from models.detector.base import Detections
+from service.stages import Association, LocalizationModel
+
+DEFAULT_MAX_ERROR_PX = (
+    100.0  # normalised px (half the reference height): see bench/serving/association.py
+)
+REFERENCE_HEIGHT_PX = 200.0  # errors are judged as if every box were this tall
+MIN_HEIGHT_PX = 20.0
+DEFAULT_MAX_VIEW_GAP_M = 2.0
+DEFAULT_MAX_FLOOR_CHI2 = 25.0  # module docstring: the real CMC room
+FLOOR_INFO_SCALE = 3.0  # the floor prior's std is ~3x overconfident (service.tracking.measurements)
+_BLOCKED = 1e9
+
+
+@dataclass(frozen=True)
+class _Gate:
+    max_error_px: float
+    max_view_gap_m: float
+    max_floor_chi2: float = DEFAULT_MAX_FLOOR_CHI2
+
+    def admits(
+        self, worst: np.ndarray, gap: np.ndarray, chi2: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Worst normalised error within the gate, and views that agree on the floor (a NaN gap
+        or χ², from a model that cannot localize one view alone or has no floor geometry for a
+        camera, does not veto)."""
+        ok = (worst <= self.max_error_px) & ~(gap > self.max_view_gap_m)
+        return ok if chi2 is None else ok & ~(chi2 > self.max_floor_chi2)
+
+
+@runtime_checkable
+class FloorViewModel(Protocol):
+    """A model with per-camera floor geometry (``MomRuntime.floor_views``): each camera's own
+    floor estimate of a box and its information matrix, or None without floor geometry."""
+
+    def floor_views(
+        self, boxes: np.ndarray, keypoints: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray] | None: ...
+
+
+class _FloorFit:
+    """Each detection's floor position and information from its own camera's floor map, and
+    clusters fused in information form: merging clusters P and Q costs the Mahalanobis
+    distance of their fused positions, ``d^T (Λ_P^-1 + Λ_Q^-1)^-1 d`` (the rise in the fused
+    χ²), which is small only where the cameras' lines of sight meet."""
+
+    def __init__(self, detections: _Views, runtime: LocalizationModel) -> None:
+        self.ok = False
+        if not isinstance(runtime, FloorViewModel):
+            return
+        rows = [{k: j} for k in range(len(detections)) for j in range(len(detections[k]))]
+        if not rows:
+            return
+        tuples = detections.stack(rows)
+        found = runtime.floor_views(tuples.boxes, tuples.keypoints)
+        if found is None:
+            return
+        est, info = found
+        self.ok = True
+        self._info: dict[tuple[int, int], np.ndarray] = {}
+        self._eta: dict[tuple[int, int], np.ndarray] = {}
+        for row, cluster in enumerate(rows):
+            ((k, j),) = cluster.items()
+            self._info[(k, j)] = info[row, k] / FLOOR_INFO_SCALE**2
+            self._eta[(k, j)] = self._info[(k, j)] @ est[row, k]
+
+    def chi2(self, pairs: Sequence[tuple[dict[int, int], dict[int, int]]]) -> np.ndarray | None:
+        """Merge cost per pair of clusters (one batched solve); NaN where either side has no
+        floor information (a camera without a fitted map)."""
+        if not self.ok:
+            return None
+        if not pairs:
+            return np.zeros(0)
+        sides = [self._fused(p) for p, _ in pairs], [self._fused(q) for _, q in pairs]
+        (lp, ep), (lq, eq) = (
+            (np.stack([f[0] for f in side]), np.stack([f[1] for f in side])) for side in sides
+        )
+        valid = (np.linalg.det(lp) > 1e-12) & (np.linalg.det(lq) > 1e-12)
+        eye = np.eye(2)
+        cov_p = np.linalg.inv(np.where(valid[:, None, None], lp, eye))
+        cov_q = np.linalg.inv(np.where(valid[:, None, None], lq, eye))
+        d = np.einsum("bij,bj->bi", cov_p, ep) - np.einsum("bij,bj->bi", cov_q, eq)
+        out = np.einsum("bi,bi->b", d, np.linalg.solve(cov_p + cov_q, d[..., None])[..., 0])
+        return np.where(valid, out, np.nan)
+
+    def _fused(self, cluster: dict[int, int]) -> tuple[np.ndarray, np.ndarray]:
+        info = sum((self._info[(k, j)] for k, j in cluster.items()), np.zeros((2, 2)))
+        eta = sum((self._eta[(k, j)] for k, j in cluster.items()), np.zeros(2))
+        return info, eta
+
+
+def associate(
+    detections_per_camera: Sequence[Detections | np.ndarray],
+    runtime: LocalizationModel,
+    max_error_px: float = DEFAULT_MAX_ERROR_PX,
+    max_view_gap_m: float = DEFAULT_MAX_VIEW_GAP_M,
+    max_floor_chi2: float = DEFAULT_MAX_FLOOR_CHI2,
+) -> list[Association]:
+    """Group the detections of all cameras into people (see the module docstring)."""
+    num_cameras = int(runtime.num_cameras)
+    if len(detections_per_camera) != num_cameras:
+        raise MomlocError(
+            f"association: got detections for {len(detections_per_camera)} cameras, "
+            f"the model was trained for {num_cameras}"
+        )
+    detections = _Views.of(detections_per_camera, _observation(runtime) == "keypoints")
+    seen_cameras = [k for k in range(num_cameras) if len(detections[k])]
+    gate = _Gate(max_error_px, max_view_gap_m, max_floor_chi2)
+    floor = _FloorFit(detections, runtime)
+    if len(seen_cameras) == 2:
+        clusters = _match_two(detections, seen_cameras, runtime, gate, floor)
+    else:
+        clusters = _merge_greedy(detections, runtime, gate, floor)
+
+    if not clusters:
+        return []
+    tuples = detections.stack([{k: j for k, j in enumerate(c) if j is not None} for c in clusters])
+    world, errors, cost, _ = _evaluate(tuples, runtime)
+    covariance = _covariance(tuples, runtime)
+    out = []
+    for i, cluster in enumerate(clusters):
+        if not np.isfinite(world[i]).all():
+            continue
+        seen = [k for k in range(num_cameras) if cluster[k] is not None]
+        out.append(
+            Association(
+                boxes=tuples.boxes[i].astype(np.float32),
+                cameras=seen,
+                world=world[i],
+                cost=float(cost[i]),
+                detection_index=list(cluster),
+                errors=errors[i],
+                covariance=None if covariance is None else covariance[i],
+                keypoints=None if tuples.keypoints is None else tuples.keypoints[i],
+            )
+        )
+    return out
+
+
+def _match_two(
+    detections: _Views,
+    cameras: list[int],
+    runtime: LocalizationModel,
+    limits: _Gate,
+    floor: _FloorFit,
+) -> list[list[int | None]]:
+    """Optimal gated bipartite assignment between the only two cameras with detections."""
+    a, b = cameras
+    num_cameras = len(detections)
+    pairs = [(i, j) for i in range(len(detections[a])) for j in range(len(detections[b]))]
+    tuples = detections.stack([{a: i, b: j} for i, j in pairs])
+    _, _, cost, worst = _evaluate(tuples, runtime)
+    shape = (len(detections[a]), len(detections[b]))
+    single = _single_view_positions(detections, runtime)
+    gap = np.linalg.norm(single[a][:, None] - single[b][None], axis=2).reshape(-1)
+    chi2 = floor.chi2([({a: i}, {b: j}) for i, j in pairs])
+    gated = np.where(limits.admits(worst, gap, chi2), cost, _BLOCKED).reshape(shape)
+    gate = limits.max_error_px
+    # Leaving a detection unmatched (a single-view person) costs gate / 2, so a pair is only
+    # worth matching when its RMS error is below the gate, and two marginal wrong pairs never
+    # beat one good pair plus two single-view people (a plain rectangular assignment would
+    # maximise the number of pairs instead).
+    n, m = shape
+    square = np.full((n + m, m + n), _BLOCKED)
+    square[:n, :m] = gated
+    square[np.arange(n), m + np.arange(n)] = gate / 2
+    square[n + np.arange(m), np.arange(m)] = gate / 2
+    square[n:, m:] = 0.0
+    rows, cols = linear_sum_assignment(square)
+    keep = (rows < n) & (cols < m)
+    rows, cols = rows[keep], cols[keep]
+    clusters: list[list[int | None]] = []
+    used_a, used_b = set(), set()
+    for r, c in zip(rows, cols, strict=True):
+        if gated[r, c] < _BLOCKED:
+            cluster: list[int | None] = [None] * num_cameras
+            cluster[a], cluster[b] = int(r), int(c)
+            clusters.append(cluster)
+            used_a.add(int(r))
+            used_b.add(int(c))
+    for k, used in ((a, used_a), (b, used_b)):
+        for j in range(len(detections[k])):
+            if j not in used:
+                cluster = [None] * num_cameras
+                cluster[k] = j
+                clusters.append(cluster)
+    return clusters
+
+
+def _merge_greedy(
+    detections: _Views, runtime: LocalizationModel, limits: _Gate, floor: _FloorFit
+) -> list[list[int | None]]:
+    """Agglomerative merging, cheapest admissible merge first, re-scoring each merged cluster.
+
+    Every merge is checked on the *whole* merged tuple, so a pair that looks consistent in two
+    views but contradicts a third camera is refused.
+    """
+    num_cameras = len(detections)
+    single = _single_view_positions(detections, runtime)
+    clusters: dict[int, dict[int, int]] = {}
+    positions: dict[int, np.ndarray] = {}
+    for k, boxes in enumerate(detections.boxes):
+        for j in range(len(boxes)):
+            positions[len(clusters)] = single[k][j]
+            clusters[len(clusters)] = {k: j}
+    costs: dict[tuple[int, int], tuple[float, np.ndarray]] = {}
+    ids = sorted(clusters)
+    pairs = [(p, q) for i, p in enumerate(ids) for q in ids[i + 1 :]]
+    _score_pairs(pairs, clusters, positions, detections, runtime, limits, floor, costs)
+    next_id = len(clusters)
+    while costs:
+        (p, q), (_, position) = min(costs.items(), key=lambda item: item[1][0])
+        merged = {**clusters.pop(p), **clusters.pop(q)}
+        costs = {key: c for key, c in costs.items() if p not in key and q not in key}
+        clusters[next_id] = merged
+        positions[next_id] = position
+        pairs = [(other, next_id) for other in clusters if other != next_id]
+        _score_pairs(pairs, clusters, positions, detections, runtime, limits, floor, costs)
+        next_id += 1
+    out = []
+    for cluster in clusters.values():
+        row: list[int | None] = [None] * num_cameras
+        for k, j in cluster.items():
+            row[k] = j
+        out.append(row)
+    return out
+
+
+def _score_pairs(
+    pairs: list[tuple[int, int]],
+    clusters: dict[int, dict[int, int]],
+    positions: dict[int, np.ndarray],
+    detections: _Views,
+    runtime: LocalizationModel,
+    limits: _Gate,
+    floor: _FloorFit,
+    costs: dict[tuple[int, int], tuple[float, np.ndarray]],
+) -> None:
+    """Add the admissible merges of ``pairs`` (clusters on disjoint cameras) to ``costs``."""
+    pairs = [(p, q) for p, q in pairs if not clusters[p].keys() & clusters[q].keys()]
+    if not pairs:
+        return
+    tuples = detections.stack([{**clusters[p], **clusters[q]} for p, q in pairs])
+    world, _, cost, worst = _evaluate(tuples, runtime)
+    gap = np.array([np.linalg.norm(positions[p] - positions[q]) for p, q in pairs])
+    ok = limits.admits(worst, gap, floor.chi2([(clusters[p], clusters[q]) for p, q in pairs]))
+    for i, pair in enumerate(pairs):
+        if ok[i]:
+            costs[pair] = (float(cost[i]), world[i])
+
+
+def _single_view_positions(detections: _Views, runtime: LocalizationModel) -> list[np.ndarray]:
+    """Per camera [M_k, 2]: each box localized alone (NaN if the model cannot), one call."""
+    rows = [{k: j} for k in range(len(detections)) for j in range(len(detections[k]))]
+    if not rows:
+        return [np.zeros((0, 2)) for _ in detections.boxes]
+    world = _localize(detections.stack(rows), runtime)
+    out, start = [], 0
+    for boxes in detections.boxes:
+        out.append(world[start : start + len(boxes)])
+        start += len(boxes)
+    return out
+
+
+@runtime_checkable
+class ReprojectingModel(Protocol):
+    """A model whose decoder maps floor positions back into the cameras (``MomRuntime``)."""
+
+    image_sizes: np.ndarray  # [K, 2] width, height
+
+    def reproject(self, world: np.ndarray) -> np.ndarray: ...
+
+
+def covering_cameras(
+    runtime: ReprojectingModel, world: np.ndarray, margin: float = 0.05
+) -> np.ndarray:
+    """[N, K] bool: camera k should see a person at floor position ``world`` [N, 2], i.e. the
+    decoder puts their body's mean point inside its image, ``margin`` (fraction of the image
+    size) away from the border. For the tracker's ghost check (``Tracker(ghost_s=...)``)."""
+    pixels = np.asarray(runtime.reproject(np.asarray(world, dtype=np.float64)), np.float64)
+    size = np.asarray(runtime.image_sizes, dtype=np.float64)[None]
+    inside = (pixels >= margin * size) & (pixels <= (1.0 - margin) * size)
+    return np.all(inside, axis=-1)
+
+
+def _covariance(tuples: _Tuples, runtime: LocalizationModel) -> np.ndarray | None:
+    """The model's covariance [B, 2, 2] of each tuple's position, if it has one (optional:
+    ``MomRuntime.covariance``); rows it cannot tell are NaN."""
+    method = getattr(runtime, "covariance", None)
+    if method is None:
+        return None
+    if tuples.keypoints is None:
+        return np.asarray(method(tuples.boxes), dtype=np.float64)
+    return np.asarray(method(tuples.boxes, tuples.keypoints), dtype=np.float64)
+
+
+def _observation(runtime: LocalizationModel) -> str:
+    """``"bbox"`` or ``"keypoints"``; doubles and older runtimes without the field read boxes."""
+    return str(getattr(runtime, "observation", "bbox"))
+
+
+@dataclass(frozen=True)
+class _Tuples:
+    """Candidate tuples as the model reads them: boxes [B, K, 4] and, for a keypoint model,
+    keypoints [B, K, J, 3] (NaN where a camera has no detection in the tuple)."""
+
+    boxes: np.ndarray
+    keypoints: np.ndarray | None
+
+    def __len__(self) -> int:
+        return len(self.boxes)
+
+
+class _Views:
+    """Per camera detections: ``views[k]`` are camera k's boxes [M_k, 4] (and, for keypoint
+    models, ``keypoints[k]`` [M_k, J, 3])."""
+
+    def __init__(self, boxes: list[np.ndarray], keypoints: list[np.ndarray] | None) -> None:
+        self.boxes, self.keypoints = boxes, keypoints
+
+    @classmethod
+    def of(cls, detections: Sequence[Detections | np.ndarray], with_keypoints: bool) -> _Views:
+        boxes, keypoints = [], []
+        for camera, found in enumerate(detections):
+            raw = found.boxes if isinstance(found, Detections) else found
+            boxes.append(_as_boxes(raw, camera))
+            points = found.keypoints if isinstance(found, Detections) else None
+            if with_keypoints and points is None and len(boxes[-1]):
+                raise MomlocError(
+                    f"association: the model reads keypoints, camera {camera}'s detections "
+                    "carry none (a keypoint model needs a detector with keypoints)"
+                )
+            keypoints.append(points)
+        if not with_keypoints:
+            return cls(boxes, None)
+        joints = next((p.shape[1] for p in keypoints if p is not None and p.ndim == 3), 17)
+        return cls(
+            boxes,
+            [
+                np.zeros((0, joints, 3), np.float32)
+                if p is None
+                else np.asarray(p, np.float32).reshape(len(b), joints, 3)
+                for b, p in zip(boxes, keypoints, strict=True)
+            ],
+        )
+
+    def __len__(self) -> int:
+        return len(self.boxes)
+
+    def __getitem__(self, camera: int) -> np.ndarray:
+        return self.boxes[camera]
+
+    def stack(self, clusters: Sequence[dict[int, int]]) -> _Tuples:
+        """The tuples of ``clusters`` (``{camera: detection index}`` each), NaN elsewhere."""
+        boxes = np.full((len(clusters), len(self.boxes), 4), np.nan, dtype=np.float32)
+        keypoints = None
+        if self.keypoints is not None:
+            joints = self.keypoints[0].shape[1]
+            shape = (len(clusters), len(self.boxes), joints, 3)
+            keypoints = np.full(shape, np.nan, dtype=np.float32)
+        for row, cluster in enumerate(clusters):
+            for k, j in cluster.items():
+                boxes[row, k] = self.boxes[k][j]
+                if keypoints is not None and self.keypoints is not None:
+                    keypoints[row, k] = self.keypoints[k][j]
+        return _Tuples(boxes, keypoints)
+
+
+def _as_boxes(detections: np.ndarray, camera: int) -> np.ndarray:
+    boxes = np.asarray(detections, dtype=np.float32)
+    if boxes.size == 0:
+        return np.zeros((0, 4), dtype=np.float32)
+    if boxes.ndim != 2 or boxes.shape[1] != 4:
+        raise MomlocError(f"association: camera {camera} boxes must be [M, 4], got {boxes.shape}")
+    return boxes
+
+
+def _localize(tuples: _Tuples, runtime: LocalizationModel) -> np.ndarray:
+    """World [B, 2] (float64) of each tuple; keypoints only go to a keypoint model."""
+    if tuples.keypoints is None:
+        world = runtime.localize(tuples.boxes)
+    else:
+        world = runtime.localize(tuples.boxes, tuples.keypoints)
+    return np.asarray(world, dtype=np.float64).reshape(len(tuples), 2)
+
+
+def _evaluate(
+    tuples: _Tuples, runtime: LocalizationModel
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """World [B, 2], raw errors [B, K] px, and the RMS and worst *normalised* error per tuple.
+
+    Normalised error: pixels scaled to a ``REFERENCE_HEIGHT_PX``-tall box, so a distant person
+    (small box, small pixel errors) and a near one (large box, large errors from the same box
+    noise) are judged alike. Non-computable tuples get ``inf``.
+    """
+    world = _localize(tuples, runtime)
+    if tuples.keypoints is None:
+        errors = runtime.reprojection_error(tuples.boxes, world)
+    else:
+        errors = runtime.reprojection_error(tuples.boxes, world, tuples.keypoints)
+    errors = np.asarray(errors, dtype=np.float64)
+    boxes = tuples.boxes
+    seen = np.isfinite(boxes).all(axis=2)
+    height = np.maximum(np.nan_to_num(boxes[..., 3] - boxes[..., 1]), MIN_HEIGHT_PX)
+    scaled = np.where(seen, errors * (REFERENCE_HEIGHT_PX / height), 0.0)
+    bad = ~np.isfinite(scaled).all(axis=1) | ~np.isfinite(world).all(axis=1) | ~seen.any(axis=1)
+    scaled = np.where(np.isfinite(scaled), scaled, 0.0)
+    rms = np.sqrt((scaled**2).sum(axis=1) / np.maximum(seen.sum(axis=1), 1))
+    worst = scaled.max(axis=1)
+    rms[bad] = np.inf
+    worst[bad] = np.inf
+    return world, errors, rms, worst

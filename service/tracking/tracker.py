@@ -1,0 +1,562 @@
+"""Multi-person tracking on the floor: persistent ids, Kalman smoothing, velocity.
+
+Design
+------
+Each track is a motion model on the state ``[x, y, vx, vy]`` in metres and metres per second
+(:mod:`service.tracking.motion`): by default a two-model IMM, *standing still* or *walking* at a
+constant velocity with white-acceleration process noise (``accel_std`` m/s²), so uncertainty grows
+with the real time between updates: the filter is driven by capture timestamps, not frame counts,
+and copes with a pipeline that drops frames. ``motion="cv"`` is the constant-velocity filter alone.
+
+Every update:
+
+1. all tracks are predicted to time ``t``;
+2. detections are assigned to tracks with the Hungarian algorithm (``scipy``) on the Euclidean
+   distance between the predicted and measured position (``assign_cost="euclidean"``) or, in
+   ``RECOMMENDED``, on ``-2 log`` of the measurement's likelihood under the track
+   (``"likelihood"``: ``d² + log det S`` with ``S = P + R``, the predicted position covariance
+   plus the measurement's), so a lone view's box, whose range is poorly known, is paired along
+   its camera's line of sight and not across it; a pair farther apart than the gate is never
+   assigned. The gate is ``gate_m`` plus ``gate_growth_mps`` per second the track has been
+   unseen, because a coasting track's prediction drifts from where the person really went;
+3. matched tracks are corrected with the measurement's own covariance when the localizer gives
+   one (``covariances``: the floor prior's GLS covariance, long along a lone camera's line of
+   sight, so a single view moves the track across its line of sight and hardly along it; the
+   eigenvalues are bounded to ``min/max_measurement_std_m``), otherwise the isotropic
+   ``measurement_std_m``; an innovation beyond ``robust_chi2`` (squared Mahalanobis) inflates
+   that covariance by d² / robust_chi2, so one wild box moves a track less; unmatched
+   detections start new *tentative* tracks;
+4. tracks unseen for more than ``max_missing_s`` are dropped.
+
+Output policy (documented for API users):
+
+- a track is reported once it has been seen in every frame for ``confirm_s`` (0.3 s; time, not
+  frames, so it means the same at any pipeline rate), so that a brief split association (one
+  person reported twice for a few frames) does not create a ghost id; with 0.1 s the benchmark
+  counted 11 instead of 3 id switches (indoor-4cam, 2 people) and 33 instead of 23 (indoor-2cam,
+  5 people), for ~1 % less coverage. A track only ever seen by *one* camera waits
+  ``confirm_single_s`` (1 s): a detector's false positive is a single view;
+- a track never seen by two cameras at once that spends more than ``ghost_s`` (0.5 s) where
+  another camera should see it (``coverage``, e.g.
+  :func:`service.tracking.association.covering_cameras`) but reports nothing is not reported: a
+  person is seen by a second camera sooner or later, a false positive at a fixed place never is;
+- while a person is unseen (occlusion, detector miss) the track *coasts* on its prediction and is
+  still reported for ``serve_coast_s`` (0.5 s in ``RECOMMENDED``), with ``coasting=True`` and a
+  confidence that falls linearly to 0 at ``max_missing_s``; after that it is held but not
+  reported until ``max_missing_s``, and the id is kept if the person reappears within the
+  (growing) gate, so a 1 s occlusion does not change the id;
+- with ``doubt_outside`` the ghost check also doubts a single-view track whose own camera
+  should *not* see it where it is (``coverage``): a box localized where the camera that
+  reported it cannot see a person is a false box localized from its odd size and place;
+- ``confidence`` is a running detection rate (exponential average of seen / unseen frame sets
+  over ``rate_time_s`` seconds, so the same at any frame rate) times the coasting factor, in 0..1.
+
+- a track counts as seen by two cameras (``multi_view``: no longer subject to the single-view
+  confirmation and ghost check) once two cameras have reported it together for ``multi_view_s``
+  in all, not at the first such frame: one mispaired box is enough to make a ghost a person.
+  Found in the one-person MQTT demo scene: a false positive persisting beside the person in
+  camera 0 was a tentative single-view track; in a frame where camera 0 missed the person,
+  association paired the false box with camera 1's real box, and that one two-view position
+  (0.45 m from the ghost, 0.53 m from the person's track) confirmed the ghost as a second id for
+  good. 0.1 s (3 frames at 30 fps) is enough there. Measured (stream bench, indoor-2cam,
+  3 people, nanodet, 2 seeds × 600 frames: MOTA / id switches; demo replay, nanodet: recall):
+  0 s 61.0 % / 20, 0.864; 0.1 s 60.6 % / 19, 0.857; 0.2 s 59.7 % / 16, 0.788 (the regression
+  gate's scene alone: 0.2 s 42.9 % against 36.8 % for 0 and 0.1 s, and 0.4 s 40.7 %). Longer
+  waits keep real people seen by one camera hidden longer, so 0.1 s.
+
+``RECOMMENDED`` settings (``Tracker(**RECOMMENDED)``, what the daemon's pipeline and
+:func:`service.offline.stream_eval.run_stream` use), measured with
+``bench/serving/stream_accuracy.py`` (indoor-2cam, 3 people, nanodet profile, 2 seeds × 600 frames,
+MOTA at 0.5 m / standing jitter): the former tracker (constant velocity, 2 m/s², isotropic 0.12 m,
+0.3 s confirmation) 32.6 % / 8.0 cm; + IMM and covariances 51.0 % / 7.0 cm; + 1 s single-view
+confirmation 56.1 % / 5.2 cm; + ghost check 58.8 %; + accel 1 m/s² 63.3 % / 4.7 cm (lag 0.04 →
+0.05 s); walk_s 10 s (was 4) 63.8 %; robust_chi2 9 (3 seeds × 900 frames) 65.7 % against 64.6 %,
+jitter 4.6 against 5.6 cm. Without the covariances the same defaults give 42.1 %. Rejected:
+accel 0.7 (61.6 %) and 1.5 m/s² (58.3 %); single-view confirmation 0.6 s (57.7 %); robust_chi2 4
+(62.1 %); covariances scaled ×2 (61.9 %) or ×0.5 (MOTA -10 on a quick model); letting tentative
+tracks survive 0.3 s of misses (MOTA 55.8 → 36.9 %, quick model: more twins); folding a second
+single-view measurement from another camera into a track already matched (no measurable effect:
+split associations were not the cause).
+
+Re-measured 2026-12-01 with the live wiring (``service.tracking.measurements``), the bench's model,
+indoor-2cam, 3 people, nanodet, seed 7 × 600 frames, MOTA / standing jitter: RECOMMENDED
+66.2 % / 3.58 cm. Rejected: covariances ×4 (``measurement_scale``; the floor prior's
+covariance is ~3× overconfident in std on these boxes) 56.9 % / 2.87 cm, ×9 65.3 % / 3.06 cm
+(lag 0.05 → 0.09 s); ``min_measurement_std_m`` 0.1: 63.0 % / 3.17 cm; ``stand_std_m`` 0.01:
+66.1 % / 3.60 cm, with ``stand_s`` 10: 67.0 % / 3.61 cm. No filter setting approaches the 1 cm
+jitter target: it is made of jumps when a second camera comes or goes (the lone view's range
+bias, ~10 % of the box height for 0.4 s at a time in the nanodet profile), not of noise.
+
+Issue-14 MOTA work, 2026-12-02 (``bench/serving/stream_breakdown.py`` attributes every FP, FN and id
+switch at 0.5 m to a cause; stream bench, its model, indoor-2cam, 3 people, nanodet, seeds
+7-10 × 600 frames unless said, MOTA / id switches / standing jitter; measured before the
+lone-view correction, ``service.tracking.view_bias``, was merged: with it the former settings give
+65.0 % / 18 / 5.86 cm and these 71.0 % / 25 / 4.26 cm). The former
+``RECOMMENDED``: 62.3 % / 34 / 5.89 cm; now 72.3 % / 25 / 3.48 cm (precision 80.5 → 89.3 %,
+recall 82.7 → 82.5 %). On seeds 7 8 (57.1 → 69.9 %) coasting tracks > 0.5 m off were the
+largest cause before, 10.8 FP points (382 of 739 FPs) and 5.2 FN points. Per change, in order:
+
+- ``serve_coast_s`` 0.5 s: seeds 7 8 57.1 → 62.6 % (seeds 7-10: 67.6 % / 35 / 3.76 cm). Coasting
+  walkers are mostly > 0.5 m off after ~0.5 s (diagnostic: prediction error > 0.5 m in 19 % of
+  coasting frames 1-3 frames after the last measurement, 34 % at 4-7, 58 % at 8-14, 90 %
+  beyond), and a served position that far off costs a FP *and* a FN where not serving it costs
+  the FN only. 0.2 s 61.7 %, 0.33 s 62.5 %, 0.8 s 61.2 %; rejected: serving while the predicted
+  position's largest std is below 0.15 / 0.25 / 0.35 / 0.5 m (58.4 / 59.9 / 61.0 / 59.8 %: a
+  single-view track's covariance is long along the line of sight from the start, so it hides
+  good tracks early);
+- ``doubt_outside``: 67.6 → 68.9 % (precision 86.6 → 87.9 %, recall unchanged); 39 % of the
+  ghost frames were single-view tracks where the coverage function says *no* camera sees them;
+- ``assign_cost="likelihood"`` with ``gate_m`` 1.5: 68.9 → 70.1 %, id switches 35 → 25 (jitter
+  3.76 → 3.95 cm). The gate alone at 1.5 m (Euclidean cost) gained 2.9 points on seeds 7 8 but
+  lost 4.5 on seeds 9 10 (tracks taking other people's boxes: duplicates 4 → 88 FP frames);
+  rejected: ``sqrt(d²)`` as the cost (68.4 %, jitter 4.79 cm), a Mahalanobis gate
+  (d² ≤ 9.21 or 13.8 beside the 1 m gate: 61.3 / 62.1 % on seeds 7 8 against 62.6 %), gate 2 m;
+- ``gate_growth_mps`` 0.5 (was 1.0) and ``robust_chi2`` 16 (was 9): 70.1 → 72.3 %, jitter
+  3.95 → 3.48 cm (growth 0.5 alone 71.3 %, 0.25 70.6 %, 0 70.5 %; robust_chi2 16 alone 70.7 %,
+  25 with growth 0.5 71.3 %).
+
+Re-tried with the new settings and not kept: ``confirm_single_s`` 0.6 / 0.8 s (68.7 / 69.4
+against 70.1 %), ``ghost_s`` 0.3 / 0.8 s (70.0 / 70.2 %), ``serve_coast_s`` 0.33 s (69.2 %),
+``max_missing_s`` 1.0 / 2.5 s (69.6 / 67.5 %); with the final settings (72.3 %):
+``confirm_s`` 0.15 s 71.8 %, ``multi_view_s`` 0.2 s 71.8 %, ``accel_std`` 0.7 70.7 %, the
+ghost doubt reset by any two-camera frame or decaying while no camera contradicts the track
+72.5 % each (ghost-suppressed real people are the other camera's plain detector misses, not
+occlusion: no cheap tell), confirming a single-view track after ``confirm_s`` once it has
+moved 0.3 / 0.5 / 0.8 m from where it was born (71.5 / 71.6 / 71.9 %: a false box's
+single-view range noise moves it as much as a walk). Other scenes, seeds 7 8, former → new
+``RECOMMENDED``: indoor-2cam with 1 person 56.2 → 69.6 %, with 5 people 49.2 → 57.7 % (there
+jitter 5.7 → 7.0 cm). What is left (``bench/results/stream_breakdown.md``): people no detector
+reports and no served track covers (5.9 FN points), the single-view confirmation delay (3.2),
+coasting and single-view range errors (a lone view's range bias lasts 0.4 s at a time), real
+people hidden by the ghost check while the other camera misses them (1.9).
+
+Keypoint models (2026-12-02, stream bench ``--observation keypoints``, nanodet profile with the
+measured MediaPipe keypoints, every pose-less box falling back to its template pose, seeds 7 8 ×
+600, MOTA over indoor-2cam 1 / 3 / 5 people, indoor-4cam, living-room), measured and not kept:
+a track fed once by a measurement with a pose trusted as if two cameras had seen it (no
+single-view wait, no ghost check): 77.5 / 71.9 / 58.0 / 79.9 / 81.9 % against 79.4 / 70.4 /
+57.6 / 82.6 / 83.3 %; the same and single-view tracks that never had a pose hidden: 80.0 /
+72.7 / 58.5 / 79.9 / 81.9 % (373.0 summed against 373.3): a wash. Caveat: that baseline
+is the template-pose fallback, which :mod:`models.mom.sampling` then rejected; the shipped
+keypoint models (no fallback) were not re-measured with these two tracker variants.
+
+The real room (issue 23; figures in ``bench/results/real_cmc_chain_tuning.md``, tuned on CMC2,
+10 people at 4 fps, through ``bench.real.cmc.evaluate``): four settings joined ``RECOMMENDED``.
+
+- ``measurement_scale`` 9: the floor prior's covariance is ~3x overconfident in std (see
+  :mod:`service.tracking.measurements`); trusting it as given, tracks of people passing each other
+  swapped ids even with the true association (the association oracle: 41 id switches, 23 with the
+  scale; scale 4 and 25 were worse on the whole chain or on IDF1). On the simulated 30 fps
+  stream it costs ~2 cm of mean error and ~0.05 s of lag, not MOTA.
+- ``birth_clearance_m`` 0.8: a person whose boxes split into two clusters is not a second person;
+  no track is born that close to a confirmed or just-measured one (0.5 m gained less).
+- ``merge_m`` 0.35 / ``merge_s`` 0.5: two tracks that stay that close for half a second are one
+  person fed by both halves of a split association; the younger is dropped. 0.8 m merged real
+  neighbours in the crowd (recall fell to 66 %).
+
+``meta`` (one dict per detection) is passed through: ``cameras`` is copied onto the track and the
+whole dict is kept as ``Track.meta``.
+
+Example::
+
+    tracker = Tracker(fps_hint=30)
+    tracks = tracker.update(t, positions, [{"cameras": [0, 1]}] * len(positions),
+                            covariances=[a.covariance for a in associations])
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from service.stages import Track
+from service.tracking.motion import ConstantVelocity, StandOrWalk
+
+_UNASSIGNED = 1e9
+# What the stream benchmark measured best (module docstring); the daemon's pipeline uses them
+# (with covariances and coverage from service.tracking.measurements). The constructor keeps the
+# former tracker's defaults, which tests of single mechanisms rely on.
+RECOMMENDED: dict[str, Any] = {
+    "motion": "imm",
+    "accel_std": 1.0,
+    "confirm_single_s": 1.0,
+    "ghost_s": 0.5,
+    "robust_chi2": 16.0,
+    "multi_view_s": 0.1,
+    "serve_coast_s": 0.5,
+    "gate_m": 1.5,
+    "gate_growth_mps": 0.5,
+    "assign_cost": "likelihood",
+    "doubt_outside": True,
+    # the real CMC room, 10 people at 4 fps (bench/results/real_cmc.md; module docstring)
+    "measurement_scale": 9.0,
+    "birth_clearance_m": 0.8,
+    "merge_m": 0.35,
+    "merge_s": 0.5,
+}
+ASSIGN_COSTS = ("euclidean", "likelihood")
+MOTION_MODELS = {"cv": ConstantVelocity, "imm": StandOrWalk}
+
+
+@dataclass
+class _State:
+    id: int
+    motion: ConstantVelocity | StandOrWalk
+    born: float
+    last_seen: float
+    hits: int = 1
+    rate: float = 1.0
+    confirmed: bool = False
+    multi_view: bool = False  # seen by two cameras at once for ``multi_view_s`` in all
+    multi_view_time: float = 0.0  # seconds seen by two or more cameras at once
+    doubted_s: float = 0.0  # time single-view while another camera should have seen it
+    shadowed_s: float = 0.0  # time spent within merge_m of an older track
+    cameras: list[int] = field(default_factory=list)
+    meta: dict[str, Any] = field(default_factory=dict)
+
+
+class Tracker:
+    """Kalman (IMM) tracker with Hungarian assignment (see the module docstring)."""
+
+    def __init__(
+        self,
+        fps_hint: float = 30.0,
+        max_missing_s: float = 1.5,
+        *,
+        gate_m: float = 1.0,
+        gate_growth_mps: float = 1.0,
+        measurement_std_m: float = 0.12,
+        accel_std: float = 2.0,
+        confirm_s: float = 0.3,
+        rate_time_s: float = 0.32,
+        motion: str = "cv",
+        measurement_scale: float = 1.0,
+        min_measurement_std_m: float = 0.03,
+        max_measurement_std_m: float = 3.0,
+        confirm_single_s: float | None = None,
+        stand_std_m: float = 0.03,
+        stand_s: float = 2.0,
+        walk_s: float = 10.0,
+        ghost_s: float = 0.0,
+        robust_chi2: float = 0.0,
+        multi_view_s: float = 0.0,
+        serve_coast_s: float | None = None,
+        assign_cost: str = "euclidean",
+        doubt_outside: bool = False,
+        birth_clearance_m: float = 0.0,
+        merge_s: float = 0.0,
+        merge_m: float = 0.0,
+    ) -> None:
+        if fps_hint <= 0 or max_missing_s <= 0 or gate_m <= 0:
+            raise ValueError("fps_hint, max_missing_s and gate_m must be positive")
+        self.fps_hint = float(fps_hint)
+        self.max_missing_s = float(max_missing_s)
+        self.gate_m = float(gate_m)
+        self.gate_growth_mps = float(gate_growth_mps)
+        self.measurement_var = float(measurement_std_m) ** 2
+        self.accel_var = float(accel_std) ** 2
+        self.confirm_s = max(0.0, float(confirm_s))
+        self.rate_time_s = max(1e-6, float(rate_time_s))
+        if motion not in MOTION_MODELS:
+            raise ValueError(f"motion {motion!r}: expected one of {sorted(MOTION_MODELS)}")
+        self.motion = motion
+        self.measurement_scale = float(measurement_scale)
+        self.min_measurement_var = float(min_measurement_std_m) ** 2
+        self.max_measurement_var = float(max_measurement_std_m) ** 2
+        if confirm_single_s is None:
+            confirm_single_s = self.confirm_s
+        self.confirm_single_s = max(self.confirm_s, float(confirm_single_s))
+        self.ghost_s = float(ghost_s)
+        self.robust_chi2 = float(robust_chi2)
+        self.multi_view_s = max(0.0, float(multi_view_s))
+        if assign_cost not in ASSIGN_COSTS:
+            raise ValueError(f"assign_cost {assign_cost!r}: expected one of {ASSIGN_COSTS}")
+        self.assign_cost = assign_cost
+        self.doubt_outside = bool(doubt_outside)
+        self.birth_clearance_m = max(0.0, float(birth_clearance_m))
+        self.merge_s = max(0.0, float(merge_s))
+        self.merge_m = max(0.0, float(merge_m))
+        self.serve_coast_s = self.max_missing_s if serve_coast_s is None else float(serve_coast_s)
+        self._frame_dt = 1.0 / self.fps_hint
+        self._motion_options = (
+            {"stand_std": stand_std_m, "stand_s": stand_s, "walk_s": walk_s}
+            if motion == "imm"
+            else {}
+        )
+        self._tracks: list[_State] = []
+        self._next_id = 1
+        self._time: float | None = None
+
+    @property
+    def time(self) -> float | None:
+        """Time of the last update (seconds), ``None`` before the first one."""
+        return self._time
+
+    def reset(self) -> None:
+        """Forget every track (ids keep increasing so clients never see an id reused)."""
+        self._tracks.clear()
+        self._time = None
+
+    def update(
+        self,
+        t: float,
+        positions: np.ndarray,
+        meta: list[dict] | None = None,
+        covariances: Sequence[np.ndarray | None] | np.ndarray | None = None,
+        coverage: Callable[[np.ndarray], np.ndarray] | None = None,
+    ) -> list[Track]:
+        """Fold the detections of time ``t`` (``positions`` [P, 2] metres) into the tracks.
+
+        ``covariances`` (optional, one [2, 2] m² or ``None`` per position): the localizer's
+        uncertainty of each measurement; ``None`` (or a non-finite one) means the isotropic
+        ``measurement_std_m``. ``coverage`` (optional): floor positions [N, 2] → [N, K] bool,
+        which cameras should see a person standing there (used with ``ghost_s``).
+        """
+        positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
+        keep = np.all(np.isfinite(positions), axis=1)
+        meta = list(meta) if meta is not None else [{} for _ in range(len(positions))]
+        if len(meta) != len(positions):
+            raise ValueError(f"meta has {len(meta)} entries for {len(positions)} positions")
+        noise = self._noise(covariances, len(positions))
+        positions, noise = positions[keep], noise[keep]
+        meta = [m for m, k in zip(meta, keep, strict=True) if k]
+
+        dt = 1.0 / self.fps_hint if self._time is None else float(t) - self._time
+        if dt < 0:  # out-of-order frame set: treat as simultaneous rather than rewinding
+            dt = 0.0
+        self._frame_dt = dt
+        self._time = float(t) if self._time is None else max(self._time, float(t))
+        for track in self._tracks:
+            self._predict(track, dt)
+
+        rows, cols = self._assign(positions, noise, self._time)
+        matched_tracks = set(rows.tolist())
+        for r, c in zip(rows, cols, strict=True):
+            self._correct(self._tracks[r], positions[c], noise[c], meta[c], self._time)
+        for i, track in enumerate(self._tracks):
+            if i not in matched_tracks:
+                track.rate *= 1.0 - self._rate_weight(dt)
+        for c in self._births(positions, set(cols.tolist())):
+            self._tracks.append(self._spawn(positions[c], noise[c], meta[c], self._time))
+        if coverage is not None and self.ghost_s > 0:
+            self._doubt(coverage, dt)
+        if self.merge_s > 0 and self.merge_m > 0:
+            self._merge_shadows(dt)
+
+        self._tracks = [
+            tr
+            for tr in self._tracks
+            if (self._time - tr.last_seen) <= self.max_missing_s
+            and (tr.confirmed or tr.last_seen == self._time)
+        ]
+        return self.tracks()
+
+    def tracks(self) -> list[Track]:
+        """The reportable tracks (confirmed ones, coasting included), sorted by id."""
+        return [
+            self._report(tr)
+            for tr in sorted(self._tracks, key=lambda s: s.id)
+            if tr.confirmed and not self._ghost(tr) and self._servable(tr)
+        ]
+
+    def hidden(self) -> list[tuple[Track, str]]:
+        """The tracks held but not reported, each with why: ``"tentative"`` (not confirmed
+        yet) or ``"ghost"`` (the ghost check). For diagnostics
+        (``bench/serving/stream_breakdown.py`` attributes the stream's misses to them)."""
+        return [
+            (self._report(tr), self._why_hidden(tr))
+            for tr in sorted(self._tracks, key=lambda s: s.id)
+            if not tr.confirmed or self._ghost(tr) or not self._servable(tr)
+        ]
+
+    def _why_hidden(self, tr: _State) -> str:
+        if not tr.confirmed:
+            return "tentative"
+        return "ghost" if self._ghost(tr) else "coasting"
+
+    def _servable(self, tr: _State) -> bool:
+        """Seen now, or coasting for at most ``serve_coast_s`` (module docstring)."""
+        now = self._time if self._time is not None else 0.0
+        return now - tr.last_seen <= self.serve_coast_s + 1e-9
+
+    def _report(self, tr: _State) -> Track:
+        now = self._time if self._time is not None else 0.0
+        missing = now - tr.last_seen
+        mean = tr.motion.mean
+        coast = max(0.0, 1.0 - missing / self.max_missing_s)
+        return Track(
+            id=tr.id,
+            x=float(mean[0]),
+            y=float(mean[1]),
+            vx=float(mean[2]),
+            vy=float(mean[3]),
+            confidence=float(np.clip(tr.rate * coast, 0.0, 1.0)),
+            cameras=list(tr.cameras) if missing == 0 else [],
+            coasting=missing > 0,
+            age_s=float(now - tr.born),
+            meta=dict(tr.meta),
+        )
+
+    # -- filters -------------------------------------------------------------------------------
+
+    def _noise(
+        self, covariances: Sequence[np.ndarray | None] | np.ndarray | None, count: int
+    ) -> np.ndarray:
+        """Measurement covariance [P, 2, 2] per position (isotropic default where not given)."""
+        out = np.tile(np.eye(2) * self.measurement_var, (count, 1, 1))
+        if covariances is None:
+            return out
+        if len(covariances) != count:
+            raise ValueError(f"{len(covariances)} covariances for {count} positions")
+        for i, c in enumerate(covariances):
+            if c is None:
+                continue
+            c = np.asarray(c, dtype=np.float64).reshape(2, 2) * self.measurement_scale
+            if not np.isfinite(c).all():
+                continue
+            # Bound the eigenvalues: a near-singular covariance would lock the track on one axis.
+            w, v = np.linalg.eigh((c + c.T) / 2)
+            w = np.clip(w, self.min_measurement_var, self.max_measurement_var)
+            out[i] = (v * w) @ v.T
+        return out
+
+    def _predict(self, track: _State, dt: float) -> None:
+        track.motion.predict(dt)
+
+    def _correct(self, track: _State, z: np.ndarray, r: np.ndarray, meta: dict, t: float) -> None:
+        track.motion.correct(z, self._robust(track, z, r))
+        track.last_seen = t
+        track.hits += 1
+        weight = self._rate_weight(self._frame_dt)
+        track.rate = track.rate * (1.0 - weight) + weight
+        track.cameras = [int(k) for k in meta.get("cameras", [])]
+        self._count_views(track, self._frame_dt)
+        self._confirm(track, t)
+        track.meta = dict(meta)
+
+    def _births(self, positions: np.ndarray, assigned: set[int]) -> list[int]:
+        """The unassigned positions that start tracks: none closer than ``birth_clearance_m``
+        to a confirmed track or to a track measured this update (a second cluster of a person
+        already tracked, not a second person: two people do not stand in one spot)."""
+        free = [c for c in range(len(positions)) if c not in assigned]
+        if self.birth_clearance_m <= 0 or not free or not self._tracks:
+            return free
+        held = [
+            tr.motion.mean[:2] for tr in self._tracks if tr.confirmed or tr.last_seen == self._time
+        ]
+        if not held:
+            return free
+        gap = np.linalg.norm(positions[free][:, None] - np.stack(held)[None], axis=2).min(axis=1)
+        return [c for c, d in zip(free, gap.tolist(), strict=True) if d >= self.birth_clearance_m]
+
+    def _merge_shadows(self, dt: float) -> None:
+        """Drop a track that has stayed within ``merge_m`` of an older one for
+        ``merge_s``: two tracks on one person (fed by the two halves of a split association)
+        that would otherwise both be served; the older id is kept."""
+        kept: list[_State] = []
+        for tr in sorted(self._tracks, key=lambda s: s.id):
+            near = any(
+                np.linalg.norm(tr.motion.mean[:2] - older.motion.mean[:2]) < self.merge_m
+                for older in kept
+            )
+            tr.shadowed_s = tr.shadowed_s + dt if near else 0.0
+            if tr.shadowed_s <= self.merge_s:
+                kept.append(tr)
+        self._tracks = kept
+
+    def _rate_weight(self, dt: float) -> float:
+        """Weight of this update in the detection rate: an exponential average over time
+        (``rate_time_s``), so confidence means the same at 4 and at 30 frame sets a second
+        (0.32 s is the former per-frame weight 0.1 at 30 fps)."""
+        return float(1.0 - np.exp(-max(dt, 0.0) / self.rate_time_s))
+
+    def _robust(self, track: _State, z: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """Measurement covariance inflated by d² / robust_chi2 when the innovation's squared
+        Mahalanobis distance d² exceeds ``robust_chi2`` (a Huber-like weight: one wild box
+        moves a track less)."""
+        if self.robust_chi2 <= 0:
+            return r
+        nu = z - track.motion.mean[:2]
+        d2 = float(nu @ np.linalg.solve(track.motion.cov[:2, :2] + r, nu))
+        return r * (d2 / self.robust_chi2) if d2 > self.robust_chi2 else r
+
+    def _confirm(self, track: _State, t: float) -> None:
+        # Tentative tracks die at their first miss, so surviving confirm_s means seen throughout.
+        # single-view until seen by two cameras for multi_view_s; no camera info: confirm_s
+        single = len(track.cameras) >= 1 and not track.multi_view
+        wait = self.confirm_single_s if single else self.confirm_s
+        track.confirmed = track.confirmed or t - track.born >= wait - 1e-9
+
+    def _doubt(self, coverage: Callable[[np.ndarray], np.ndarray], dt: float) -> None:
+        """Single-view tracks accumulate the time a camera that should see them reports
+        nothing there (a detector's false positive is seen by one camera only)."""
+        doubtful = [tr for tr in self._tracks if not tr.multi_view]
+        if not doubtful or dt <= 0:
+            return
+        covered = np.asarray(coverage(np.stack([tr.motion.mean[:2] for tr in doubtful])))
+        for tr, row in zip(doubtful, covered, strict=True):
+            seen = set(tr.cameras) if tr.last_seen == self._time else set()
+            should = set(np.flatnonzero(row).tolist())
+            if seen and (should - seen or (self.doubt_outside and not should & seen)):
+                tr.doubted_s += dt
+
+    def _count_views(self, track: _State, dt: float) -> None:
+        if len(track.cameras) > 1:
+            track.multi_view_time += dt
+        track.multi_view = track.multi_view or (
+            len(track.cameras) > 1 and track.multi_view_time >= self.multi_view_s - 1e-9
+        )
+
+    def _ghost(self, track: _State) -> bool:
+        """Not (yet) a multi-view track, and longer than ``ghost_s`` unseen by a camera that
+        should see it: a detector's false positive, not reported."""
+        return not track.multi_view and track.doubted_s > self.ghost_s > 0
+
+    def _spawn(self, z: np.ndarray, r: np.ndarray, meta: dict, t: float) -> _State:
+        # Unknown velocity: a walking person is within ~2 m/s, so start with that spread.
+        motion = MOTION_MODELS[self.motion](
+            z, r, float(np.sqrt(self.accel_var)), **self._motion_options
+        )
+        state = _State(
+            id=self._next_id,
+            motion=motion,
+            born=t,
+            last_seen=t,
+            cameras=[int(k) for k in meta.get("cameras", [])],
+            meta=dict(meta),
+        )
+        # credited for one frame interval, as measured (the hint before a second update)
+        self._count_views(state, self._frame_dt if self._frame_dt > 0 else 1.0 / self.fps_hint)
+        self._confirm(state, t)
+        self._next_id += 1
+        return state
+
+    def _assign(
+        self, positions: np.ndarray, noise: np.ndarray, now: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        empty = np.zeros(0, dtype=int)
+        if not self._tracks or not len(positions):
+            return empty, empty
+        predicted = np.stack([tr.motion.mean[:2] for tr in self._tracks])
+        nu = positions[None, :, :] - predicted[:, None, :]  # [T, P, 2]
+        dist = np.linalg.norm(nu, axis=2)
+        missing = np.array([now - tr.last_seen for tr in self._tracks])
+        gate = self.gate_m + self.gate_growth_mps * missing
+        admit = dist <= gate[:, None]
+        cost = dist
+        if self.assign_cost == "likelihood":
+            # -2 log N(z; predicted, P + R) up to a constant: a lone view's long range error
+            # costs little along its line of sight, much across it (module docstring).
+            s = np.stack([tr.motion.cov[:2, :2] for tr in self._tracks])[:, None] + noise[None]
+            d2 = np.einsum("tpi,tpij,tpj->tp", nu, np.linalg.inv(s), nu)
+            cost = d2 + np.log(np.linalg.det(s))
+        # Tentative tracks lose ties to confirmed ones: a small penalty keeps ids stable.
+        penalty = np.array([0.0 if tr.confirmed else 0.05 for tr in self._tracks])
+        cost = np.where(admit, cost + penalty[:, None], _UNASSIGNED)
+        rows, cols = linear_sum_assignment(cost)
+        ok = cost[rows, cols] < _UNASSIGNED
+        return rows[ok], cols[ok]
