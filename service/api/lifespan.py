@@ -13,11 +13,11 @@ from __future__ import annotations
 import asyncio
 from collections.abc import AsyncIterator, Callable
 from contextlib import AbstractAsyncContextManager, asynccontextmanager
-from typing import Any
 
 from fastapi import FastAPI
 
 from service.api.state import Daemon
+from service.outputs.wiring import Outputs
 
 
 def daemon_lifespan(
@@ -52,21 +52,19 @@ def daemon_lifespan(
 
 
 @asynccontextmanager
-async def outputs_running(outputs: Any) -> AsyncIterator[None]:
-    """Start the publishers (MQTT, OSC) and zone events with the app, stop them with it."""
+async def outputs_running(outputs: Outputs | None) -> AsyncIterator[None]:
+    """Start the publishers (in their settings' order) and zone events with the app; stop them
+    in the reverse order. ``start`` may resolve or connect: off the event loop."""
     if outputs is None:
         yield
         return
     outputs.zones.events.bind(asyncio.get_running_loop())
-    if outputs.mqtt is not None:
-        await asyncio.to_thread(outputs.mqtt.start)
-    if getattr(outputs, "osc", None) is not None:
-        outputs.osc.start()
+    publishers = list(outputs.publishers.values())
+    for publisher in publishers:
+        await asyncio.to_thread(publisher.start)
     try:
         yield
     finally:
-        if getattr(outputs, "osc", None) is not None:
-            await asyncio.to_thread(outputs.osc.stop)
-        if outputs.mqtt is not None:
-            await asyncio.to_thread(outputs.mqtt.stop)
+        for publisher in reversed(publishers):
+            await asyncio.to_thread(publisher.stop)
         outputs.zones.events.bind(None)
