@@ -72,3 +72,10 @@ def layering_table(name: str) -> dict[str, set[str]]:
 )
 def test_architecture_page_states_the_layering_rules(name: str, rules: dict[str, set[str]]) -> None:
     assert layering_table(name) == rules
+
+
+def test_readme_stays_short_and_shows_the_two_commands() -> None:
+    """User docs grow in docs/, not in the README (issue 24: it was 1,373 lines)."""
+    readme = (ROOT / "README.md").read_text()
+    assert len(readme.splitlines()) <= 200
+    assert "make demo" in readme and "make test" in readme
