@@ -79,3 +79,14 @@ def test_readme_stays_short_and_shows_the_two_commands() -> None:
     readme = (ROOT / "README.md").read_text()
     assert len(readme.splitlines()) <= 200
     assert "make demo" in readme and "make test" in readme
+
+
+def test_every_results_file_is_on_the_site() -> None:
+    """A new bench/results/*.md is included by a docs page (``--8<--``), or nobody reads it."""
+    included = {
+        name
+        for page in (ROOT / "docs").rglob("*.md")
+        for name in re.findall(r'^--8<-- "bench/results/([\w.-]+\.md)"', page.read_text(), re.M)
+    }
+    on_disk = {path.name for path in (ROOT / "bench" / "results").glob("*.md")}
+    assert not on_disk - included, f"results not included by any docs page: {on_disk - included}"
