@@ -17,7 +17,7 @@ from tests.test_layering import MODELS_ALLOWED, SERVICE_ALLOWED
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = [*sorted((ROOT / "docs").rglob("*.md")), ROOT / "README.md", ROOT / "CONTRIBUTING.md"]
 PATH = re.compile(
-    r"\b((?:service|models|capture|common|bench|tools|tests|examples|docker)/[\w./-]*\w)"
+    r"\b((?:service|models|capture|common|bench|tools|tests|examples|docker|docs)/[\w./-]*\w)"
 )
 MODULE = re.compile(r"\b((?:service|models|capture|common|bench)(?:\.[a-z_0-9]+)+)")
 ARCHITECTURE = ROOT / "docs" / "development" / "architecture.md"
