@@ -5,7 +5,11 @@ Routes (version 1; OpenAPI at ``/docs``):
 - ``WS  /v1/stream?rate=HZ`` one snapshot JSON per message (see ``service.pipeline.hub``), at most
   ``rate`` per second (default and ceiling: ``stream.rate``). Protocol pings keep idle links alive.
 - ``GET /v1/positions`` newest snapshot; ``GET /v1/health`` cameras, model, pipeline, clients.
-- ``GET /v1/cameras/{k}/snapshot.jpg`` newest frame of camera k with boxes and track ids drawn.
+- ``GET /v1/cameras/{k}/snapshot.jpg`` newest frame of camera k with boxes and track ids drawn;
+  403 under ``privacy: positions_only`` (no image leaves the process, see
+  docs/guides/security.md).
+- ``GET /v1/cameras/{k}/boxes`` the same boxes and ids as JSON, with the frame size (the pages
+  draw them on an empty background in privacy mode).
 - ``GET /v1/config`` what the map page needs (floor extent, camera names, stream rate).
 - ``GET /v1/settings/schema`` every setting with its type, bounds and description.
 - ``POST /v1/model/reload`` hot-swap the MoM model (refused if it does not fit the cameras).
@@ -55,13 +59,17 @@ from service.api.errors import error_response, error_responses, install_error_ha
 from service.api.metrics import metrics_text
 from service.api.request_guard import EmptyBody, RequestGuard
 from service.api.setup_routes import create_setup_router
-from service.api.snapshot_image import render_camera_jpeg
+from service.api.snapshot_image import CameraBoxes, camera_boxes_of, render_camera_jpeg
 from service.api.state import Daemon
 from service.api.zones import create_zones_router, outputs_running
 
 WEB_DIR = Path(__file__).resolve().parent / "web"
 WS_AUTH_CLOSE = 4401
 WS_BAD_REQUEST_CLOSE = 4400
+NO_IMAGES = (
+    "camera images are off: privacy is positions_only (setting privacy, MOMLOC_PRIVACY); "
+    "/v1/cameras/{k}/boxes has the boxes"
+)
 
 
 class ReloadRequest(BaseModel):
@@ -135,6 +143,13 @@ def create_app(daemon: Daemon, *, manage_pipeline: bool = True) -> FastAPI:
         allowed_origins=daemon.allowed_origins,
         routes=app.router.routes,
     )
+
+    def camera_exists(k: int) -> None:
+        if k >= daemon.pipeline.num_cameras:
+            raise HTTPException(
+                404, f"no camera {k}; cameras are 0..{daemon.pipeline.num_cameras - 1}"
+            )
+
     secured = [Depends(require_token)]
     auth = error_responses(401, 403)
     # 400: a body that is not text (invalid UTF-8), which FastAPI refuses before validation
@@ -214,14 +229,25 @@ def create_app(daemon: Daemon, *, manage_pipeline: bool = True) -> FastAPI:
         quality: Annotated[int, Query(ge=10, le=100, description="JPEG quality")] = 75,
         width: Annotated[int | None, Query(ge=32, le=4096, description="Resize width")] = None,
     ) -> Response:
-        if k >= daemon.pipeline.num_cameras:
-            raise HTTPException(
-                404, f"no camera {k}; cameras are 0..{daemon.pipeline.num_cameras - 1}"
-            )
+        camera_exists(k)
+        if not daemon.images_allowed:
+            raise HTTPException(403, NO_IMAGES)
         data = render_camera_jpeg(daemon.pipeline.view(k), quality=quality, width=width)
         if data is None:
             raise HTTPException(503, f"camera {k} has not delivered a frame yet")
         return Response(data, media_type="image/jpeg", headers={"Cache-Control": "no-store"})
+
+    @app.get(
+        "/v1/cameras/{k}/boxes",
+        dependencies=secured,
+        responses=error_responses(401, 403, 404, 422),
+        summary="Newest boxes of camera k with track ids (no image: privacy mode's preview)",
+    )
+    def camera_boxes(
+        k: Annotated[int, PathParam(ge=0, le=8, description="Camera index")],
+    ) -> CameraBoxes:
+        camera_exists(k)
+        return camera_boxes_of(daemon.pipeline.view(k))
 
     @app.post(
         "/v1/model/reload",

@@ -27,6 +27,7 @@ class RunningServer:
     daemon: Daemon
     port: int
     token: str | None
+    app: Any = None  # the served ASGI app (its routes)
 
     @property
     def http(self) -> str:
@@ -126,7 +127,7 @@ def running_server(
         daemon.hub.add_publisher(publisher)
     background = serve_in_thread(daemon, port=port, static=static)
     try:
-        yield RunningServer(daemon, background.port, token)
+        yield RunningServer(daemon, background.port, token, background.server.config.app)
     finally:
         background.stop()
 
