@@ -38,6 +38,16 @@ def fill(driver, element_id: str, value: str) -> None:
     field.send_keys(value)
 
 
+def record_marks(driver, grid: str, seconds: int) -> None:
+    """Fill the form for a grid of marks in the 10 m room and press Start."""
+    fill(driver, "grid", grid)
+    fill(driver, "room", "10x10")
+    fill(driver, "seconds", str(seconds))
+    fill(driver, "move-seconds", "5")
+    fill(driver, "countdown-seconds", "1")
+    driver.find_element("id", "start").click()
+
+
 def test_first_run_in_the_browser(browser, tmp_path: Path) -> None:  # noqa: F811
     shots = tmp_path / "screenshots"
     shots.mkdir()
@@ -71,12 +81,7 @@ def test_first_run_in_the_browser(browser, tmp_path: Path) -> None:  # noqa: F81
         driver.save_screenshot(str(shots / "02-setup-previews.png"))
 
         # record 2 x 2 marks
-        fill(driver, "grid", "2x2")
-        fill(driver, "room", "10x10")
-        fill(driver, "seconds", "4")
-        fill(driver, "move-seconds", "5")
-        fill(driver, "countdown-seconds", "1")
-        driver.find_element("id", "start").click()
+        record_marks(driver, "2x2", 4)
         wait_until(lambda: "go to mark" in text(driver, "instruction"), 20, "instruction")
         wait_until(
             lambda: driver.execute_script(
@@ -157,12 +162,7 @@ def test_setup_page_in_privacy_mode_records_from_boxes(browser, tmp_path, monkey
         wait_until(lambda: text(driver, "previews").count("sees 1 person") == 2, 30, "seen")
         assert driver.execute_script("return document.querySelectorAll('img').length") == 0
         driver.save_screenshot(str(tmp_path / "setup-privacy.png"))
-        fill(driver, "grid", "1x2")
-        fill(driver, "room", "10x10")
-        fill(driver, "seconds", "3")
-        fill(driver, "move-seconds", "5")
-        fill(driver, "countdown-seconds", "1")
-        driver.find_element("id", "start").click()
+        record_marks(driver, "1x2", 3)
         wait_until(lambda: driver.find_element("id", "train-panel").is_displayed(), 120, "recorded")
         rows = driver.execute_script(
             "return [...document.querySelectorAll('#quality tbody tr')].map(r => r.innerText)"
