@@ -14,6 +14,7 @@ from __future__ import annotations
 import asyncio
 import base64
 import contextlib
+import json
 import logging
 import re
 import socket
@@ -36,7 +37,8 @@ MAGIC = {"JPEG": b"\xff\xd8\xff", "PNG": b"\x89PNG\r\n\x1a\n"}
 
 def signatures() -> dict[str, bytes]:
     """What an image looks like in a message: its magic bytes raw, in base64 (standard and
-    URL-safe, as a data URI or a JSON field would carry a whole image) and in hex."""
+    URL-safe, as a data URI or a JSON field would carry a whole image), in hex, and as the
+    escapes JSON writes for bytes decoded as Latin-1."""
     found = {}
     for kind, magic in MAGIC.items():
         encoded = base64.b64encode(magic)
@@ -45,6 +47,7 @@ def signatures() -> dict[str, bytes]:
         found[f"{kind} base64"] = whole
         found[f"{kind} base64url"] = base64.urlsafe_b64encode(magic)[: len(whole)]
         found[f"{kind} hex"] = magic[:3].hex().encode()
+        found[f"{kind} JSON escapes"] = json.dumps(magic[:4].decode("latin-1"))[1:-1].encode()
     return found
 
 
