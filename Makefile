@@ -48,6 +48,7 @@ bench-model: $(VENV)/.stamp-dev
 bench-detector: $(VENV)/.stamp-dev
 	$(PY) -m bench.detector.speed
 	$(PY) -m bench.detector.accuracy
+	$(PY) -m bench.detector.runtimes
 	$(PY) -m bench.detector.highres_recall
 	$(PY) -m bench.detector.highres_localization
 
