@@ -30,7 +30,7 @@ from bench.detector.data import VTEST_LABELS, load_labels, vtest_samples
 from bench.detector.metrics import evaluate
 from bench.report import RESULTS, command_line, machine_line, markdown_table
 from models.detector import PersonDetector, create_detector
-from models.detector.runtimes import PREFERRED, PREFERRED_THREADED, installed
+from models.detector.runtimes import PREFERRED, installed
 
 RUNTIMES = ("onnxruntime", "openvino", "ncnn")
 REFERENCE = "onnxruntime"
@@ -126,13 +126,13 @@ def main(argv: list[str] | None = None) -> int:
     speed = speed_rows(times)
     eligible = [r for r in present if recall[r] >= recall[REFERENCE] - MAX_RECALL_LOSS]
     verdicts = []
-    for threads, order in ((1, PREFERRED), (2, PREFERRED_THREADED)):
+    default = next(r for r in PREFERRED if r in present)
+    for threads in (1, 2):
         fastest = min(eligible, key=lambda r, t=threads: statistics.median(times[(r, t)]["cpu"]))
-        default = next(r for r in order if r in present)
         verdicts.append(
             f"- {threads} thread(s): **{fastest}** uses the least CPU among the runtimes that "
             f"keep recall within {100 * MAX_RECALL_LOSS:.0f} point of onnxruntime's; the shipped "
-            f"preference is {', '.join(order)}, so `runtime: auto` takes **{default}** here"
+            f"preference is {', '.join(PREFERRED)}, so `runtime: auto` takes **{default}** here"
             + ("." if fastest == default else ", which disagrees with this run.")
         )
     verdict = "\n".join(verdicts)
@@ -145,7 +145,8 @@ Load average at start {load[0]:.1f} (1 min), {load[1]:.1f} (5 min): the machine 
 several sessions, so absolute times are upper bounds and only the ratios within this run
 compare. Produced by `{command_line("bench.detector.runtimes", argv)}`.
 
-Eligible runtimes and the default (`models.detector.runtimes.PREFERRED`, `PREFERRED_THREADED`):
+Eligible runtimes and the default (`models.detector.runtimes.PREFERRED`; the daemon's scheduled
+detector runs one thread):
 
 {verdict}
 

@@ -79,9 +79,9 @@ class NanoDetSettings(DetectorSettingsBase):
     kind: Literal["nanodet"] = Field("nanodet", description="NanoDet (shipped default).")
     runtime: Runtime = Field(
         "auto",
-        description="Inference runtime: auto (the one using the least CPU that is installed: "
-        "ncnn for one thread, OpenVINO for more, else onnxruntime; bench/results/"
-        "detector_runtimes.md), onnxruntime (always installed), openvino (momloc[openvino]) "
+        description="Inference runtime: auto (the installed one using the least CPU: ncnn, "
+        "else OpenVINO, else onnxruntime; bench/results/detector_runtimes.md), onnxruntime "
+        "(always installed), openvino (momloc[openvino]) "
         "or ncnn (the shipped model only).",
     )
     model_path: Path | None = Field(

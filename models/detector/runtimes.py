@@ -18,9 +18,8 @@ each against TensorFlow's reference outputs.
   ``OMP_WAIT_POLICY=PASSIVE`` is set before ncnn is first imported unless the user set it.
   Only the shipped model exists for ncnn (a user's ONNX file would need the converter).
 
-``runtime: auto`` takes the first of :data:`PREFERRED` (one thread) or :data:`PREFERRED_THREADED`
-that imports, and logs one line when it falls back, so a missing optional runtime is visible but
-never fatal.
+``runtime: auto`` takes the first of :data:`PREFERRED` that imports, and logs one line when it
+falls back, so a missing optional runtime is visible but never fatal.
 """
 
 from __future__ import annotations
@@ -37,11 +36,10 @@ from common.errors import MomlocError
 from common.onnx_session import MAX_DEFAULT_THREADS, open_session
 
 Runtime = Literal["auto", "onnxruntime", "openvino", "ncnn"]
-# Least CPU first, by bench/results/detector_runtimes.md, for one thread (the daemon's detector
-# beside the pipeline) and for more (ncnn's OpenMP threads cost more CPU than its one thread
-# saves, so it falls behind onnxruntime there). onnxruntime is in both: it always imports.
+# Least CPU first at one thread (the daemon's detector beside the pipeline), by
+# bench/results/detector_runtimes.md; onnxruntime last: it always imports. At two threads the
+# order between runs on the shared machine was not stable, so one order serves all.
 PREFERRED: tuple[str, ...] = ("ncnn", "openvino", "onnxruntime")
-PREFERRED_THREADED: tuple[str, ...] = ("openvino", "onnxruntime")
 MODULES = {"onnxruntime": "onnxruntime", "openvino": "openvino", "ncnn": "ncnn"}
 INPUT_NAME = "images"
 OUTPUT_NAME = "person"
@@ -64,13 +62,11 @@ def installed(runtime: str) -> bool:
     return importlib.util.find_spec(MODULES[runtime]) is not None
 
 
-def choose_runtime(runtime: Runtime, user_model: bool, threads: int = 1) -> str:
-    """The runtime ``auto`` stands for here (the first installed of the preference for this
-    many threads; ncnn only for the shipped model), or ``runtime`` itself when it is installed;
-    else MomlocError."""
+def choose_runtime(runtime: Runtime, user_model: bool) -> str:
+    """The runtime ``auto`` stands for here (the first installed of :data:`PREFERRED`; ncnn only
+    for the shipped model), or ``runtime`` itself when it is installed; else MomlocError."""
     if runtime == "auto":
-        order = PREFERRED if threads == 1 else PREFERRED_THREADED
-        candidates = [c for c in order if not (c == "ncnn" and user_model)]
+        candidates = [c for c in PREFERRED if not (c == "ncnn" and user_model)]
         for candidate in candidates:
             if installed(candidate):
                 if candidate != candidates[0]:
@@ -220,7 +216,7 @@ def open_graph(
     runtime: Runtime, onnx_path: Path, ncnn_files: tuple[Path, Path] | None, threads: int | None
 ) -> NanoDetGraph:
     """NanoDet's graph under ``runtime``; ``ncnn_files`` (param, bin) is None for a user's model."""
-    chosen = choose_runtime(runtime, ncnn_files is None, default_threads(threads))
+    chosen = choose_runtime(runtime, user_model=ncnn_files is None)
     if chosen == "ncnn" and ncnn_files is not None:
         return NcnnGraph(*ncnn_files, threads)
     if chosen == "openvino":

@@ -86,8 +86,6 @@ def test_shipped_ncnn_files_match_their_checksums():
 def test_auto_takes_the_first_installed_and_says_when_it_falls_back(monkeypatch, caplog):
     monkeypatch.setattr(runtimes, "installed", lambda name: True)
     assert runtimes.choose_runtime("auto", user_model=False) == runtimes.PREFERRED[0]
-    threaded = runtimes.choose_runtime("auto", user_model=False, threads=2)
-    assert threaded == runtimes.PREFERRED_THREADED[0]
     monkeypatch.setattr(runtimes, "installed", lambda name: name == "onnxruntime")
     with caplog.at_level(logging.INFO, logger=runtimes.__name__):
         assert runtimes.choose_runtime("auto", user_model=False) == "onnxruntime"
