@@ -336,27 +336,6 @@ def _single_view_positions(detections: _Views, runtime: LocalizationModel) -> li
     return out
 
 
-@runtime_checkable
-class ReprojectingModel(Protocol):
-    """A model whose decoder maps floor positions back into the cameras (``MomRuntime``)."""
-
-    image_sizes: np.ndarray  # [K, 2] width, height
-
-    def reproject(self, world: np.ndarray) -> np.ndarray: ...
-
-
-def covering_cameras(
-    runtime: ReprojectingModel, world: np.ndarray, margin: float = 0.05
-) -> np.ndarray:
-    """[N, K] bool: camera k should see a person at floor position ``world`` [N, 2], i.e. the
-    decoder puts their body's mean point inside its image, ``margin`` (fraction of the image
-    size) away from the border. For the tracker's ghost check (``Tracker(ghost_s=...)``)."""
-    pixels = np.asarray(runtime.reproject(np.asarray(world, dtype=np.float64)), np.float64)
-    size = np.asarray(runtime.image_sizes, dtype=np.float64)[None]
-    inside = (pixels >= margin * size) & (pixels <= (1.0 - margin) * size)
-    return np.all(inside, axis=-1)
-
-
 def _covariance(tuples: _Tuples, runtime: LocalizationModel) -> np.ndarray | None:
     """The model's covariance [B, 2, 2] of each tuple's position, if it has one (optional:
     ``MomRuntime.covariance``); rows it cannot tell are NaN."""

@@ -38,7 +38,7 @@ Output policy (documented for API users):
   ``confirm_single_s`` (1 s): a detector's false positive is a single view;
 - a track never seen by two cameras at once that spends more than ``ghost_s`` (0.5 s) where
   another camera should see it (``coverage``, e.g.
-  :func:`service.tracking.association.covering_cameras`) but reports nothing is not reported: a
+  :func:`service.tracking.view_geometry.covering_cameras`) but reports nothing is not reported: a
   person is seen by a second camera sooner or later, a false positive at a fixed place never is;
 - while a person is unseen (occlusion, detector miss) the track *coasts* on its prediction and is
   still reported for ``serve_coast_s`` (0.5 s in ``RECOMMENDED``), with ``coasting=True`` and a

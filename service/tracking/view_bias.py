@@ -14,7 +14,7 @@ lone-view position from the fused one. When only that camera sees the person, th
 subtracted before the tracker update.
 
 Estimate (per track and camera): the offsets are stored in the camera's line-of-sight frame
-(``along``, ``across``, :func:`service.tracking.measurements.line_of_sight`) at the fused position,
+(``along``, ``across``, :func:`service.tracking.view_geometry.line_of_sight`) at the fused position,
 so a range bias stays a range bias when the person walks round the camera (without a decoder: the
 floor frame). Samples are weighted by their frame time and decay with ``time_constant_s``; the
 estimate is ``S / (W + prior_s)``: a zero-offset prior worth ``prior_s`` seconds of samples, so a
@@ -76,27 +76,28 @@ Cost: one extra batched ``localize`` call per frame set (the multi-view associat
 alone) plus line-of-sight probes of the decoder: 1.6 ms per frame set on indoor-2cam with
 3 people (run_stream, 300 frames, 2 cores, loaded), beside the tracker's own time.
 
-:meth:`ViewBias.update` wraps one tracker update (correct, update, learn): the live pipeline
-(:mod:`service.pipeline.live`) and the offline runs (:func:`service.offline.stream_eval.run_stream`)
-call it the same way, so the bench scores what the daemon serves.
-
-Example::
+:class:`ViewBias` is one stage of the chain (:mod:`service.pipeline.chain`), which calls it
+round the tracker: :meth:`ViewBias.correct` before the update, :meth:`ViewBias.learn` after it.
+The live pipeline and the offline runs both run that chain, so the bench scores what the daemon
+serves. Example::
 
     bias = ViewBias()
-    tracks = bias.update(tracker, t, associations, runtime, meta, covariances, coverage)
+    positions = bias.correct(t, associations, positions, runtime)
+    tracks = tracker.update(t, positions, meta, covariances=covariances, coverage=coverage)
+    bias.learn(t, associations, runtime, tracks)
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from service.stages import Association, LocalizationModel, Track, TrackStage
-from service.tracking.measurements import line_of_sight
+from service.stages import Association, LocalizationModel, Track
+from service.tracking.view_geometry import line_of_sight
 
 _FAR = 1e9
 MAX_FRAME_WEIGHT_S = 0.2  # one sample never weighs more than this (a stalled pipeline)
@@ -114,7 +115,7 @@ class _Offset:
 
 class ViewBias:
     """Per track and camera offset of the lone-view position from the fused one (module
-    docstring); :meth:`update` wraps a tracker update with the correction and the learning."""
+    docstring): :meth:`correct` before the tracker update, :meth:`learn` after it."""
 
     def __init__(
         self,
@@ -136,25 +137,6 @@ class ViewBias:
         self._time: float | None = None
 
     # -- one frame ---------------------------------------------------------------------------
-
-    def update(
-        self,
-        tracker: TrackStage,
-        t: float,
-        associations: Sequence[Association],
-        runtime: LocalizationModel | None,
-        meta: list[dict[str, Any]],
-        covariances: Sequence[np.ndarray | None] | None = None,
-        coverage: Callable[[np.ndarray], np.ndarray] | None = None,
-    ) -> list[Track]:
-        """``tracker.update`` with single-view positions corrected by their track's offset,
-        then the offsets learned from the two-view associations (``meta[i]["association"]``
-        must be ``i``, so the served tracks link back to what fed them)."""
-        positions = np.array([np.asarray(a.world, float)[:2] for a in associations]).reshape(-1, 2)
-        positions = self.correct(t, associations, positions, runtime)
-        tracks = tracker.update(t, positions, meta, covariances=covariances, coverage=coverage)
-        self.learn(t, associations, runtime, tracks)
-        return tracks
 
     def correct(
         self,
