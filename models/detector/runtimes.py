@@ -41,6 +41,12 @@ Runtime = Literal["auto", "onnxruntime", "openvino", "ncnn"]
 # order between runs on the shared machine was not stable, so one order serves all.
 PREFERRED: tuple[str, ...] = ("ncnn", "openvino", "onnxruntime")
 MODULES = {"onnxruntime": "onnxruntime", "openvino": "openvino", "ncnn": "ncnn"}
+# How each gets installed: ncnn and onnxruntime are base dependencies, OpenVINO is an extra.
+INSTALL = {
+    "onnxruntime": "pip install momloc",
+    "ncnn": "pip install momloc",
+    "openvino": "pip install 'momloc[openvino]'",
+}
 INPUT_NAME = "images"
 OUTPUT_NAME = "person"
 MEAN_BGR = (103.53, 116.28, 123.675)
@@ -71,11 +77,10 @@ def choose_runtime(runtime: Runtime, user_model: bool) -> str:
             if installed(candidate):
                 if candidate != candidates[0]:
                     log.info(
-                        "detector runtime: %s is not installed, using %s (pip install "
-                        "momloc[%s] for the faster one)",
+                        "detector runtime: %s is not installed, using %s (%s for the faster one)",
                         candidates[0],
                         candidate,
-                        candidates[0],
+                        INSTALL[candidates[0]],
                     )
                 return candidate
         raise MomlocError("detector runtime: none installed (onnxruntime is a dependency)")
@@ -84,8 +89,7 @@ def choose_runtime(runtime: Runtime, user_model: bool) -> str:
                           f"{', '.join(MODULES)})")  # fmt: skip
     if not installed(runtime):
         raise MomlocError(
-            f"detector runtime {runtime!r} is not installed (pip install momloc[{runtime}], or "
-            "runtime: auto)"
+            f"detector runtime {runtime!r} is not installed ({INSTALL[runtime]}, or runtime: auto)"
         )
     if runtime == "ncnn" and user_model:
         raise MomlocError(

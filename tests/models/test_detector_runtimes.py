@@ -26,7 +26,7 @@ RUNTIMES = [
         name,
         marks=pytest.mark.skipif(
             not runtimes.installed(name),
-            reason=f"{name} is not installed here (pip install momloc[{name}])",
+            reason=f"{name} is not installed here ({runtimes.INSTALL[name]})",
         ),
     )
     for name in ("onnxruntime", "openvino", "ncnn")
@@ -99,7 +99,7 @@ def test_a_runtime_that_cannot_serve_fails_with_one_line(monkeypatch, tmp_path):
         runtimes.choose_runtime("ncnn", user_model=True)
     assert runtimes.choose_runtime("auto", user_model=True) != "ncnn"
     monkeypatch.setattr(runtimes, "installed", lambda name: name == "onnxruntime")
-    with pytest.raises(MomlocError, match=r"'openvino' is not installed \(pip install momloc"):
+    with pytest.raises(MomlocError, match=r"'openvino' is not installed \(pip install 'momloc\["):
         create_detector("nanodet", runtime="openvino")
     with pytest.raises(MomlocError, match="unknown"):
         runtimes.choose_runtime("tensorrt", user_model=False)  # type: ignore[arg-type]
