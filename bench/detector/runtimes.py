@@ -28,7 +28,7 @@ import numpy as np
 from bench.detector.accuracy import detect_all, measure_speed
 from bench.detector.data import VTEST_LABELS, load_labels, vtest_samples
 from bench.detector.metrics import evaluate
-from bench.report import RESULTS, command_line, machine_line, markdown_table
+from bench.report import command_line, machine_line, markdown_table, write_result
 from models.detector import PersonDetector, create_detector
 from models.detector.runtimes import PREFERRED, installed
 
@@ -200,11 +200,7 @@ view, as a fraction of the true height (about ±0.02 is label noise here).
         )
     }
 """
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    out = RESULTS / ("detector_runtimes_quick.md" if args.quick else "detector_runtimes.md")
-    out.write_text(text)
-    print(text)
-    print(f"wrote {out}")
+    write_result("detector_runtimes_quick.md" if args.quick else "detector_runtimes.md", text)
     return 0
 
 

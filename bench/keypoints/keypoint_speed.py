@@ -20,7 +20,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from bench.report import RESULTS, command_line, machine_line, markdown_table
+from bench.report import command_line, machine_line, markdown_table, write_result
 from models.detector import create_detector
 from models.detector.validation import PERSON_EXTENTS, background, paste, photo
 
@@ -120,11 +120,7 @@ process's CPU time per call, all threads.
         )
     }
 """
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    out = RESULTS / "keypoint_speed.md"
-    out.write_text(text)
-    print(text)
-    print(f"wrote {out}")
+    write_result("keypoint_speed.md", text)
     return 0
 
 
