@@ -68,6 +68,7 @@ bench-service: $(VENV)/.stamp-dev
 	$(PY) -m bench.serving.mqtt_fanout
 	$(PY) -m bench.serving.realtime
 	$(PY) -m bench.serving.realtime_runtimes
+	$(PY) -m bench.serving.carried_accuracy
 	$(PY) -m bench.serving.stream_accuracy
 	$(PY) -m bench.serving.stream_accuracy --observation keypoints --out bench/results/stream_accuracy_keypoints.md
 	$(PY) -m bench.serving.stream_bound

@@ -1,8 +1,8 @@
 """The inference runtimes NanoDet's graph runs under: onnxruntime, OpenVINO, ncnn.
 
 Why several: on a small machine the detector's CPU time decides how many frame sets are detected
-(the rest carry boxes), and the runtimes differ by tens of percent on the same graph; which one
-is fastest was measured, not assumed (``bench/results/detector_runtimes.md``,
+(the rest carry boxes), and the runtimes differ in CPU time on the same graph; which one is
+fastest was measured, not assumed (``bench/results/detector_runtimes.md``,
 ``bench/detector/runtimes.py``). Every runtime computes the same function: uint8 BGR NHWC batch
 in, NanoDet's ``person`` [N, A, 5] out (``models.detector.nanodet``), and the test suite checks
 each against TensorFlow's reference outputs.
@@ -14,9 +14,10 @@ each against TensorFlow's reference outputs.
 - **ncnn** runs ``nanodet_person.ncnn.param/.bin``, converted offline from the ONNX file by
   ``tools/convert_nanodet_ncnn.py``: NanoDet's native runtime. ncnn has no batch: one extractor
   per frame, each normalised by ncnn itself. It uses OpenMP, whose threads spin after each
-  layer by default; on a shared 2-core machine that spinning took 10× the CPU (measured), so
-  ``OMP_WAIT_POLICY=PASSIVE`` is set before ncnn is first imported unless the user set it.
-  Only the shipped model exists for ncnn (a user's ONNX file would need the converter).
+  layer by default; on the shared 2-core machine that spinning took many times the CPU of the
+  inference itself at two threads, so ``OMP_WAIT_POLICY=PASSIVE`` is set before ncnn is first
+  imported unless the user set it. Only the shipped model exists for ncnn (a user's ONNX file
+  would need the converter).
 
 ``runtime: auto`` takes the first of :data:`PREFERRED` that imports, and logs one line when it
 falls back, so a missing optional runtime is visible but never fatal.
@@ -33,14 +34,13 @@ from typing import Any, Literal, Protocol
 import numpy as np
 
 from common.errors import MomlocError
-from common.onnx_session import MAX_DEFAULT_THREADS, open_session
+from common.onnx_session import default_threads, open_session
 
 Runtime = Literal["auto", "onnxruntime", "openvino", "ncnn"]
 # Least CPU first at one thread (the daemon's detector beside the pipeline), by
 # bench/results/detector_runtimes.md; onnxruntime last: it always imports. At two threads the
 # order between runs on the shared machine was not stable, so one order serves all.
 PREFERRED: tuple[str, ...] = ("ncnn", "openvino", "onnxruntime")
-MODULES = {"onnxruntime": "onnxruntime", "openvino": "openvino", "ncnn": "ncnn"}
 # How each gets installed: ncnn and onnxruntime are base dependencies, OpenVINO is an extra.
 INSTALL = {
     "onnxruntime": "pip install momloc",
@@ -65,7 +65,8 @@ class NanoDetGraph(Protocol):
 
 
 def installed(runtime: str) -> bool:
-    return importlib.util.find_spec(MODULES[runtime]) is not None
+    """Whether ``runtime``'s Python package imports here (each is named as its package)."""
+    return importlib.util.find_spec(runtime) is not None
 
 
 def choose_runtime(runtime: Runtime, user_model: bool) -> str:
@@ -84,9 +85,9 @@ def choose_runtime(runtime: Runtime, user_model: bool) -> str:
                     )
                 return candidate
         raise MomlocError("detector runtime: none installed (onnxruntime is a dependency)")
-    if runtime not in MODULES:
+    if runtime not in INSTALL:
         raise MomlocError(f"detector runtime {runtime!r} is unknown (choose one of: auto, "
-                          f"{', '.join(MODULES)})")  # fmt: skip
+                          f"{', '.join(INSTALL)})")  # fmt: skip
     if not installed(runtime):
         raise MomlocError(
             f"detector runtime {runtime!r} is not installed ({INSTALL[runtime]}, or runtime: auto)"
@@ -97,12 +98,6 @@ def choose_runtime(runtime: Runtime, user_model: bool) -> str:
             "runtime onnxruntime or openvino)"
         )
     return runtime
-
-
-def default_threads(threads: int | None) -> int:
-    return (
-        int(threads) if threads else max(1, min(MAX_DEFAULT_THREADS, len(os.sched_getaffinity(0))))
-    )
 
 
 class OnnxRuntimeGraph:
