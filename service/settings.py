@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import contextvars
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, get_args
 
 import yaml
 from pydantic import (
@@ -101,10 +101,11 @@ CameraSettings = Annotated[V4l2Camera | FileCamera | SyntheticCamera, Field(disc
 
 # One settings class per detector kind, in the kind's plugin module (after Frigate's detector
 # plugins), told apart by ``kind``; a detector section without ``kind`` is NanoDet's.
+_DETECTOR_CLASSES = (NanoDetSettings, SsdliteSettings, Yolov8Settings)
 DetectorSettings = Annotated[
     NanoDetSettings | SsdliteSettings | Yolov8Settings, Field(discriminator="kind")
 ]
-DETECTOR_KINDS = ("nanodet", "ssdlite", "yolov8")
+DETECTOR_KINDS = tuple(get_args(c.model_fields["kind"].annotation)[0] for c in _DETECTOR_CLASSES)
 
 
 class DetectionSettings(BaseModel):
