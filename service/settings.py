@@ -407,6 +407,19 @@ def format_validation_error(error: ValidationError, origin: str = "settings") ->
 _UNION_TAGS = {"v4l2", "file", "synthetic", *DETECTOR_KINDS}
 
 
+def read_yaml(path: Path, what: str) -> Any:
+    """The YAML document in ``path``; an unreadable file or bad YAML is one MomlocError line
+    (``what`` names the file's role; the line of a YAML error, never its echo of the text)."""
+    try:
+        return yaml.safe_load(path.read_text())
+    except OSError as error:
+        raise MomlocError(f"{path}: cannot read {what} ({error.strerror})") from None
+    except yaml.YAMLError as error:
+        mark = getattr(error, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark else ""
+        raise MomlocError(f"{path}: not valid YAML{where}") from None
+
+
 def load_settings(path: str | Path | None = None, **overrides: Any) -> Settings:
     """Read ``path`` (YAML, optional) plus the environment; ``overrides`` win (None = not given)."""
     data: dict[str, Any] = {}
@@ -414,14 +427,7 @@ def load_settings(path: str | Path | None = None, **overrides: Any) -> Settings:
     if path is not None:
         path = Path(path)
         origin = str(path)
-        try:
-            loaded = yaml.safe_load(path.read_text())
-        except OSError as error:
-            raise MomlocError(f"{path}: cannot read settings file ({error.strerror})") from None
-        except yaml.YAMLError as error:
-            mark = getattr(error, "problem_mark", None)
-            where = f" at line {mark.line + 1}" if mark else ""
-            raise MomlocError(f"{path}: not valid YAML{where}") from None
+        loaded = read_yaml(path, "settings file")
         if loaded is not None and not isinstance(loaded, dict):
             raise MomlocError(f"{path}: the top level must be a mapping of settings")
         data = loaded or {}
