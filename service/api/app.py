@@ -58,6 +58,7 @@ from service.api.setup_routes import create_setup_router
 from service.api.snapshot_image import render_camera_jpeg
 from service.api.state import Daemon
 from service.api.zones import create_zones_router, outputs_running
+from service.snapshot import SnapshotBody
 
 WEB_DIR = Path(__file__).resolve().parent / "web"
 WS_AUTH_CLOSE = 4401
@@ -166,9 +167,15 @@ def create_app(daemon: Daemon, *, manage_pipeline: bool = True) -> FastAPI:
         responses=error_responses(400, 401, 403, 409, 413, 415, 422, 503),
     )
 
-    @app.get("/v1/positions", dependencies=secured, responses=auth, summary="Newest snapshot")
-    def positions() -> JSONResponse:
-        return JSONResponse(daemon.hub.latest().as_dict())
+    @app.get(
+        "/v1/positions",
+        dependencies=secured,
+        responses=auth,
+        summary="Newest snapshot",
+        response_model=SnapshotBody,  # the schema /docs shows; the body is the hub's own text
+    )
+    def positions() -> Response:
+        return Response(daemon.hub.latest().text, media_type="application/json")
 
     @app.get(
         "/v1/health",

@@ -28,6 +28,17 @@ class DetectionSchedule(Protocol):
     def close(self) -> None: ...
 
 
+class Unscheduled:
+    """The part of ``service.stages.DetectStage`` a stage without a detection schedule shares
+    (the simulator's boxes, recorded detections): no counters to report, no thread to stop."""
+
+    def stats(self) -> None:
+        return None
+
+    def close(self) -> None:
+        return None
+
+
 class DetectorStage:
     """Real detector: one batched call for all cameras, keypoints kept with their boxes.
 

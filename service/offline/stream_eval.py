@@ -34,6 +34,7 @@ from models.data.stream_metrics import StreamScorer
 from models.detector.base import Detections
 from models.simulate import FrameObservation, Scene, SceneConfig, get_config
 from service.pipeline.chain import Chain, OutsideArea
+from service.stages import Association, Track
 from service.tracking.association import (
     DEFAULT_MAX_ERROR_PX,
     DEFAULT_MAX_VIEW_GAP_M,
@@ -97,7 +98,7 @@ def run_stream(
     use_covariance: bool = True,
     view_bias: ViewBias | bool = True,
     outside_area: OutsideArea = "drop",
-    on_frame: Callable[[int, list, list], None] | None = None,
+    on_frame: Callable[[int, list[Association], list[Track]], None] | None = None,
 ) -> dict[float, dict]:
     """Stream metrics per gate (metres → :meth:`StreamScorer.result`) of one scene run.
 

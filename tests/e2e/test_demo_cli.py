@@ -32,6 +32,7 @@ def test_demo_command_prints_urls_and_serves():
         env=env,
     )
     try:
+        assert proc.stdout is not None
         lines = [proc.stdout.readline() for _ in range(3)]
         assert f"live map:  http://127.0.0.1:{port}/" in lines[1], lines
         assert f"stream:    ws://127.0.0.1:{port}/v1/stream" in lines[2], lines

@@ -40,6 +40,7 @@ def test_first_run_in_the_browser(browser, tmp_path: Path) -> None:  # noqa: F81
     shots = tmp_path / "screenshots"
     shots.mkdir()
     daemon = build_daemon(setup_settings(tmp_path))
+    assert daemon.training is not None  # build_daemon always makes one
     server = serve_in_thread(daemon)
     base = f"http://127.0.0.1:{server.port}"
     driver = browser

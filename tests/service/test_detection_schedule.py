@@ -13,8 +13,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from capture.worker import Frame
 from models.detector.base import Detections
-from service.detection.box_carrier import box_iou
+from service.detection.box_carrier import CarriedDetections, box_iou
 from service.detection.schedule import (
     DeferredRunner,
     DetectionJob,
@@ -41,6 +42,12 @@ def _scheduler(world: BoxWorld, cost: float, **options) -> tuple[DetectionSchedu
     return DetectionScheduler(detector, runner=runner, clock=clock, **options), clock
 
 
+def _calls(scheduler: DetectionScheduler) -> list[list[tuple[int, int]]]:
+    """The (frame, camera) pairs of each call of the scheduler's fake detector."""
+    assert isinstance(scheduler.detector, FakeDetector)
+    return scheduler.detector.calls
+
+
 def _run(scheduler: DetectionScheduler, clock: Clock, world: BoxWorld, frames: int) -> list:
     out = []
     for i in range(frames):
@@ -55,7 +62,7 @@ def test_slow_detector_never_queues_and_always_gets_the_newest_frame_set() -> No
     world = BoxWorld()
     scheduler, clock = _scheduler(world, cost=0.09)  # ~3 frame slots per call
     published = _run(scheduler, clock, world, 60)
-    calls = scheduler.detector.calls
+    calls = _calls(scheduler)
     # one call at a time, each on the frame set that was newest when the detector became free
     assert [c[0][0] for c in calls] == list(range(0, 60, 3))
     assert all(c == [(c[0][0], 0), (c[0][0], 1)] for c in calls)
@@ -82,7 +89,7 @@ def test_very_slow_detector_still_publishes_every_frame_set_with_carried_boxes()
     world = BoxWorld()
     scheduler, clock = _scheduler(world, cost=0.25)  # ~7.5 frame slots
     published = _run(scheduler, clock, world, 60)
-    assert len(scheduler.detector.calls) == 8  # frames 0, 8, 16, ..., 56
+    assert len(_calls(scheduler)) == 8  # frames 0, 8, 16, ..., 56
     boxes = [out[0] for out in published[16:]]
     assert all(len(d) == 1 for d in boxes)
     errors = [np.abs(d.boxes[0] - world.box(i, 0)).max() for i, d in enumerate(boxes, start=16)]
@@ -141,7 +148,7 @@ def test_duty_cycle_leaves_time_between_calls() -> None:
     world = BoxWorld()
     scheduler, clock = _scheduler(world, cost=0.09, max_duty=0.5)
     _run(scheduler, clock, world, 40)
-    starts = [c[0][0] for c in scheduler.detector.calls]
+    starts = [c[0][0] for c in _calls(scheduler)]
     assert starts == list(range(0, 40, 6))  # 3 slots busy, then as long again idle
     assert scheduler.stats()["detector_ms"] == pytest.approx(90.0)
 
@@ -150,8 +157,8 @@ def test_alternating_cameras() -> None:
     world = BoxWorld(cameras=3)
     scheduler, clock = _scheduler(world, cost=0.02, cameras_per_call=1)
     _run(scheduler, clock, world, 12)
-    cameras = [camera for call in scheduler.detector.calls for _, camera in call]
-    assert all(len(call) == 1 for call in scheduler.detector.calls)
+    cameras = [camera for call in _calls(scheduler) for _, camera in call]
+    assert all(len(call) == 1 for call in _calls(scheduler))
     assert cameras[:6] == [0, 1, 2, 0, 1, 2]
 
 
@@ -273,11 +280,13 @@ def test_daemon_builds_the_scheduled_stage_from_settings() -> None:
 
     settings = demo_settings(detections="rendered")
     stage = build_detect_stage(settings, None)
-    assert stage.schedule is not None and stage.schedule.mode == "auto"
+    assert isinstance(stage, DetectorStage) and isinstance(stage.schedule, DetectionScheduler)
+    assert stage.schedule.mode == "auto"
     inline = settings.model_copy(
         update={"detection": settings.detection.model_copy(update={"schedule": "every_frame"})}
     )
-    assert build_detect_stage(inline, None).schedule is None
+    every = build_detect_stage(inline, None)
+    assert isinstance(every, DetectorStage) and every.schedule is None
     with pytest.raises(Exception, match="detection"):
         load_settings(None, cameras=[{"type": "synthetic", "index": 0}], detection={"often": 1})
 
@@ -286,11 +295,13 @@ def test_a_job_looks_again_at_known_small_people_in_windows():
     """With a window refiner the job carries the boxes known when it was made, and a small
     person the full pass misses is found in its window (real NanoDet, pasted photograph)."""
     from models.detector import create_detector
+    from models.detector.nanodet import NanoDetDetector
     from models.detector.preprocessing import box_iou as iou
     from models.detector.validation import person_frame
     from models.detector.windows import WindowRefiner
 
     detector = create_detector("nanodet")
+    assert isinstance(detector, NanoDetDetector)
     frame, truth = person_frame("camera", 55, anchor=(0.1, 0.9))
     assert (
         not len(detector.detect([frame])[0])
@@ -298,13 +309,15 @@ def test_a_job_looks_again_at_known_small_people_in_windows():
     )
     refiner = WindowRefiner(detector.resized((96, 160)))
     scheduler = DetectionScheduler(detector, refiner=refiner, runner=_NoRunner())
-    carried = [SimpleNamespace(boxes=(truth + 3)[None].astype(np.float32))]
-    job = scheduler._job([SimpleNamespace(timestamp=1.0, image=frame)], carried)
+    carried = [CarriedDetections((truth + 3)[None].astype(np.float32), np.ones(1, np.float32))]
+    frames = [Frame(camera=0, image=frame, timestamp=1.0, seq=0)]
+    job = scheduler._job(frames, carried)
     assert job is not None and len(job.priors) == 1
     (found,) = scheduler.detect_job(job)
     assert iou(truth, found.boxes).max() > 0.7
     without = DetectionScheduler(detector, runner=_NoRunner())
-    assert without._job([SimpleNamespace(timestamp=1.0, image=frame)], carried).priors == ()
+    plain = without._job(frames, carried)
+    assert plain is not None and plain.priors == ()
 
 
 class _NoRunner:
