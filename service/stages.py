@@ -18,10 +18,10 @@ and an earlier pipeline that passed boxes only silently threw them away. A stage
 delivers keypoints (:attr:`DetectStage.keypoints`), so a keypoint model on a box-only detector is
 refused at load instead of failing on every frame.
 
-The stages are Protocols so the real ones (``service.pipeline.live.DetectorStage``, the demo's
-``SimulatedDetections``, ``service.tracking.association.associate``,
-``service.tracking.tracker.Tracker``) and tests' doubles are interchangeable without inheriting from
-anything.
+The stages are Protocols so the real ones (``service.detection.schedule.DetectionScheduler``,
+the demo's ``SimulatedDetections``, ``service.tracking.association.associate``,
+``service.tracking.tracker.Tracker``) and tests' doubles are interchangeable without inheriting
+from anything.
 """
 
 from __future__ import annotations
@@ -52,6 +52,7 @@ __all__ = [
     "Snapshot",
     "Track",
     "TrackStage",
+    "Unscheduled",
     "WithCovariance",
     "WorldBounds",
 ]
@@ -195,11 +196,22 @@ class DetectStage(Protocol):
     @property
     def keypoints(self) -> bool: ...
 
-    def __call__(self, frame_set: FrameSet) -> list[Detections]: ...
+    def __call__(self, frame_set: FrameSet) -> Sequence[Detections]: ...
 
     def stats(self) -> dict[str, Any] | None: ...
 
     def close(self) -> None: ...
+
+
+class Unscheduled:
+    """The part of :class:`DetectStage` a stage without a detection schedule shares (the
+    simulator's boxes, recorded detections): no counters to report, no thread to stop."""
+
+    def stats(self) -> None:
+        return None
+
+    def close(self) -> None:
+        return None
 
 
 class AssociateStage(Protocol):

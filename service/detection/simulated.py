@@ -17,8 +17,8 @@ import numpy as np
 from capture.rig import FrameSet
 from models.detector.base import Detections
 from models.simulate import Scene, make_scene
-from service.detection.stage import Unscheduled
 from service.settings import SyntheticSettings
+from service.stages import Unscheduled
 
 
 def scene_for(synthetic: SyntheticSettings) -> Scene:

@@ -38,12 +38,11 @@ from common.errors import MomlocError
 from models.data.dataset import MomDataset
 from models.data.detections_replay import DetectionsReplay, is_replay
 from models.detector.base import Detections
-from service.detection.stage import Unscheduled
 from service.pipeline.hub import Hub
 from service.pipeline.live import Pipeline
 from service.settings import Settings
 from service.snapshot import Snapshot
-from service.stages import DetectStage, LocalizationModel
+from service.stages import DetectStage, LocalizationModel, Unscheduled
 from service.tracking.smoother import FixedLagSmoother
 
 if TYPE_CHECKING:  # imported where used (scoring reads the simulator's truth tables)

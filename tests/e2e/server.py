@@ -21,6 +21,7 @@ from service.api.server import serve_in_thread
 from service.api.state import Daemon
 from service.daemon import build_daemon
 from service.demo import demo_settings
+from service.outputs.wiring import Outputs
 from service.pipeline.hub import Hub
 from service.pipeline.live import Rig
 from service.setup.session import SetupSession
@@ -47,6 +48,12 @@ class RunningServer:
         """The daemon's set-up session (``build_daemon`` always makes one)."""
         assert self.daemon.setup is not None
         return self.daemon.setup
+
+    @property
+    def outputs(self) -> Outputs:
+        """The daemon's outputs (``build_daemon`` always builds them)."""
+        assert self.daemon.outputs is not None
+        return self.daemon.outputs
 
     @property
     def training(self) -> TrainingJob:

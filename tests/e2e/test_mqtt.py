@@ -262,7 +262,9 @@ def test_a_broker_that_never_reads_does_not_slow_the_pipeline(mosquitto):
             sub.close()
 
             # the daemon's side of the link buffers little too (Linux would take megabytes)
-            link = server.daemon.outputs.mqtt._client.socket()
+            publisher = server.outputs.mqtt
+            assert publisher is not None
+            link = publisher._client.socket()
             link.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 4096)
             proxy.stall()
 

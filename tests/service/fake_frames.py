@@ -16,7 +16,7 @@ import numpy as np
 from capture.rig import FrameSet
 from capture.worker import CameraState, Frame
 from models.detector.base import Detections, PersonDetector
-from service.detection.stage import Unscheduled
+from service.stages import Unscheduled
 
 FPS = 30.0
 

@@ -8,8 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
-from service.api.app import _parse_rate
 from service.api.metrics import metrics_text
+from service.api.routes.stream import _parse_rate
 from service.api.snapshot_image import id_colour, render_camera_jpeg
 from service.pipeline.hub import Hub
 from service.pipeline.listeners import CameraView
@@ -72,7 +72,7 @@ def test_metrics_text_reads_live_state():
         runtime=object(),
     )
     states = [{"connected": True, "fps": 30.0, "last_frame_age": 0.01}]
-    daemon = SimpleNamespace(pipeline=pipeline, hub=hub, camera_states=lambda: states)
+    daemon = SimpleNamespace(pipeline=pipeline, hub=hub, camera_states=lambda: states, outputs=None)
     body, content_type = metrics_text(daemon)
     text = body.decode()
     assert content_type.startswith("text/plain")

@@ -51,7 +51,7 @@ def test_cameras_are_opened_by_their_settings_type(tmp_path: Path) -> None:
 
 def test_the_detectors_input_growth_is_a_setting() -> None:
     from models.detector.nanodet import NanoDetDetector
-    from service.detection.stage import DetectorStage
+    from service.detection.schedule import DetectionScheduler
     from service.pipeline.build import build_detect_stage
 
     def stage(**detector: object) -> NanoDetDetector:
@@ -62,7 +62,8 @@ def test_the_detectors_input_growth_is_a_setting() -> None:
             detection={"schedule": "every_frame"},
         )
         built = build_detect_stage(settings, None)
-        assert isinstance(built, DetectorStage) and isinstance(built.detector, NanoDetDetector)
+        assert isinstance(built, DetectionScheduler)
+        assert isinstance(built.detector, NanoDetDetector)
         return built.detector
 
     assert stage().max_shrink == 3.0  # the kind's default

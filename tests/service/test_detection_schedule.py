@@ -8,11 +8,11 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Sequence
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+from capture.rig import FrameSet
 from capture.worker import Frame
 from models.detector.base import Detections
 from service.detection.box_carrier import CarriedDetections, box_iou
@@ -22,10 +22,9 @@ from service.detection.schedule import (
     DetectionScheduler,
     ThreadRunner,
 )
-from service.detection.stage import DetectorStage
 from service.pipeline.hub import Hub
 from service.pipeline.live import Pipeline
-from tests.service.fake_frames import FPS, BoxWorld, Clock, FakeDetector
+from tests.service.fake_frames import FPS, BoxWorld, Clock, FakeDetector, NoRig
 
 
 def jobs(detector):
@@ -52,7 +51,7 @@ def _run(scheduler: DetectionScheduler, clock: Clock, world: BoxWorld, frames: i
     out = []
     for i in range(frames):
         clock.t = i / FPS
-        out.append(scheduler.step(world.frame_set(i)))
+        out.append(scheduler(world.frame_set(i)))
         for carrier in scheduler.carriers:  # this frame set, not an older one
             assert carrier.time == pytest.approx(i / FPS)
     return out
@@ -137,7 +136,7 @@ def test_flow_is_dropped_while_it_costs_more_than_its_budget(monkeypatch) -> Non
     monkeypatch.setattr(BoxCarrier, "advance", slow_flow)
     for i in range(60):
         clock.t = i / FPS
-        scheduler.step(world.frame_set(i))
+        scheduler(world.frame_set(i))
     stats = scheduler.stats()
     assert stats["flow_ms"] == pytest.approx(10.0)
     # measured on the first frame set, then only on every 30th one
@@ -227,15 +226,13 @@ def test_detector_error_reaches_the_pipeline_thread() -> None:
         FakeDetector(world), runner=DeferredRunner(failing, clock, cost=lambda j: 0.0), clock=clock
     )
     with pytest.raises(ValueError):
-        scheduler.step(world.frame_set(0))  # DeferredRunner runs at submit
+        scheduler(world.frame_set(0))  # DeferredRunner runs at submit
 
 
 def test_pipeline_runs_the_scheduled_stage() -> None:
     world = BoxWorld()
     scheduler, clock = _scheduler(world, cost=0.05)
-    stage = DetectorStage(scheduler.detector, scheduler)
-    rig = SimpleNamespace(start=lambda: None, stop=lambda: None, states=lambda: [])
-    pipeline = Pipeline(rig, stage, Hub(), num_cameras=2, shift_threaded=False)
+    pipeline = Pipeline(NoRig(), scheduler, Hub(), num_cameras=2, shift_threaded=False)
     for i in range(6):
         clock.t = i / FPS
         pipeline.process(world.frame_set(i))
@@ -258,11 +255,10 @@ def test_real_detector_on_rendered_frames_produces_boxes() -> None:
     found = []
     for i in range(8):
         clock.t = i / FPS
-        frames = [
-            SimpleNamespace(camera=k, image=scene.render(i, k), timestamp=i / FPS, seq=i)
-            for k in range(2)
+        frames: list[Frame | None] = [
+            Frame(camera=k, image=scene.render(i, k), timestamp=i / FPS, seq=i) for k in range(2)
         ]
-        out = scheduler.step(SimpleNamespace(frames=frames, skew=0.0))
+        out = scheduler(FrameSet(frames=frames, skew=0.0))
         truth = np.asarray(scene.observe(i).true_boxes)
         for k, det in enumerate(out):
             boxes = truth[:, k][np.all(np.isfinite(truth[:, k]), axis=1)]
@@ -280,13 +276,14 @@ def test_daemon_builds_the_scheduled_stage_from_settings() -> None:
 
     settings = demo_settings(detections="rendered")
     stage = build_detect_stage(settings, None)
-    assert isinstance(stage, DetectorStage) and isinstance(stage.schedule, DetectionScheduler)
-    assert stage.schedule.mode == "auto"
+    assert isinstance(stage, DetectionScheduler)
+    assert stage.mode == "auto" and stage.runner is not None
     inline = settings.model_copy(
         update={"detection": settings.detection.model_copy(update={"schedule": "every_frame"})}
     )
-    every = build_detect_stage(inline, None)
-    assert isinstance(every, DetectorStage) and every.schedule is None
+    every_frame = build_detect_stage(inline, None)
+    assert isinstance(every_frame, DetectionScheduler)
+    assert every_frame.mode == "every_frame" and every_frame.runner is None
     with pytest.raises(Exception, match="detection"):
         load_settings(None, cameras=[{"type": "synthetic", "index": 0}], detection={"often": 1})
 
@@ -360,6 +357,6 @@ def test_boxes_are_kept_as_the_detector_scored_them() -> None:
 
     world = BoxWorld()
     scheduler = DetectionScheduler(LowScores(world), mode="every_frame", clock=Clock())
-    out = scheduler.step(world.frame_set(0))
+    out = scheduler(world.frame_set(0))
     assert [len(d) for d in out] == [1, 1]
     assert out[0].scores.tolist() == pytest.approx([0.05])

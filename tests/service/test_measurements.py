@@ -21,10 +21,10 @@ from service.tracking.measurements import (
     SINGLE_VIEW_DEPTH_STD_M,
     coverage_function,
     default_covariance,
-    line_of_sight,
     measurement_covariances,
 )
 from service.tracking.tracker import RECOMMENDED, Tracker
+from service.tracking.view_geometry import line_of_sight
 from tests.service.fake_frames import FunctionStage, NoRig, frames_at
 from tests.service.mom_doubles import ModelDouble, OracleRuntime, person_boxes, room_cameras
 
