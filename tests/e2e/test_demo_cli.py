@@ -73,6 +73,7 @@ def test_demo_in_privacy_mode_from_the_environment():
     port = free_port()
     proc = demo_process(port, MOMLOC_PRIVACY="positions_only")
     try:
+        assert proc.stdout is not None
         lines = [proc.stdout.readline() for _ in range(5)]
         assert "privacy:   positions only, no camera image" in lines[4], lines
         base = f"http://127.0.0.1:{port}"

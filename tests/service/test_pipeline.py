@@ -133,7 +133,7 @@ def test_previews_without_images_keep_boxes_ids_and_size_but_no_frame():
     """Privacy mode: the preview store holds no reference to any frame."""
     pipeline, hub = make(preview_images=False)
     for _ in range(10):
-        pipeline.process(pipeline.rig.frame_set())
+        pipeline.process(next_set(pipeline))
     (person,) = hub.latest().people
     view = pipeline.view(0)
     assert view.image is None and view.size == (640, 480)
