@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from service.camera_health.reprojection import CameraMoved
+from service.learning.room import LearningRoom
 from service.pipeline.hub import Hub
 from service.pipeline.live import Pipeline
 from service.pipeline.model_watch import ModelWatcher
@@ -45,6 +46,7 @@ class Daemon:
     outputs: Any = None  # service.outputs.wiring.Outputs: zones, MQTT
     training: TrainingJob | None = None  # the /setup page's Train button
     verifier: Verifier | None = None  # the /setup page's check step
+    learning: LearningRoom | None = None  # self-labels (service.learning); None: turned off
 
     @property
     def setup_mode(self) -> bool:
@@ -97,6 +99,7 @@ class Daemon:
             "clients": self.hub.subscriber_count,
             "stream": self.hub.stream_stats(),
             "model_reload": None if self.watcher is None else self.watcher.last_reload,
+            "learning": {"enabled": False} if self.learning is None else self.learning.stats(),
             **({} if self.outputs is None else self.outputs.health()),
             **self.extras,
         }

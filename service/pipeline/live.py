@@ -180,7 +180,10 @@ class Pipeline:
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=5)
-        self.camera_watch.close()
+        for listener in self._listeners:  # those with a thread or pending writes
+            close = getattr(listener, "close", None)
+            if callable(close):
+                close()
         close = getattr(self.detect, "close", None)
         if close is not None:
             close()  # the detection scheduler's worker thread, if any
