@@ -13,6 +13,7 @@ from typing import Any
 
 from common.errors import MomlocError
 from service.api.state import NO_MODEL, Daemon
+from service.learning.healer import Healer
 from service.learning.improve import ImproveOptions, Improver
 from service.learning.labels import LabelRules
 from service.learning.listener import SelfLabeler
@@ -154,7 +155,12 @@ def build_learning(settings: Settings, pipeline: Pipeline) -> LearningRoom:
         improver = Improver(
             settings.data_dir, labeler, pipeline, marks=learning.marks, options=options
         )
-    room = LearningRoom(labeler, improver)
+    healer = None
+    if learning.heal:
+        healer = Healer(
+            settings.data_dir, labeler, pipeline, min_positions=learning.heal_min_positions
+        )
+    room = LearningRoom(labeler, improver, healer)
     pipeline.add_listener(room)
     return room
 

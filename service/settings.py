@@ -330,6 +330,14 @@ class LearningSettings(BaseModel):
     improve_time_budget_s: float = Field(
         120.0, gt=0, le=3600, description="CPU-time cap: training stops after this long."
     )
+    heal: bool = Field(
+        True,
+        description="When a camera is flagged as moved, re-learn its floor map from the "
+        "positions the other cameras give and serve the repair once its check passes.",
+    )
+    heal_min_positions: int = Field(
+        200, ge=20, le=100_000, description="Positions to collect before the first repair."
+    )
     marks: Path | None = Field(
         None,
         description="Floor-mark recording (.npz) the improvement trains on and is checked "

@@ -54,7 +54,7 @@ SERVICE_ALLOWED = {
         "setup",
         "stop_signals",
     },
-    "learning": {"stages", "snapshot", "settings", "setup"},
+    "learning": {"stages", "snapshot", "settings", "setup", "camera_health"},
     "api": {
         "stages",
         "snapshot",

@@ -56,6 +56,7 @@ class Daemon:
     def camera_states(self) -> list[dict[str, Any]]:
         states = self.pipeline.rig.states()
         alignment = self.pipeline.alignment_status(self.camera_names)
+        repairs = {} if self.learning is None else self.learning.repair_messages()
         out = []
         for k, state in enumerate(states):
             d = dataclasses.asdict(state) if dataclasses.is_dataclass(state) else dict(vars(state))
@@ -68,6 +69,7 @@ class Daemon:
                 "reconnects": int(d.get("reconnects") or 0),
                 "error": d.get("error"),
                 "alignment": _alignment(alignment[k]) if k < len(alignment) else None,
+                "repair": repairs.get(k),  # self-healing (service.learning.healer)
             }
             out.append(d)
         return out

@@ -11,7 +11,7 @@ scored on the very same rows:
   statistic of the set-up page's check step, :mod:`service.setup.check_score`). The marks are
   the only ground truth the room has; both models saw them in training, so this is a
   "not worse" check, not an estimate of the room's error;
-- **held-out self-labels** (:func:`held_out`: whole minutes of labels the candidate never saw):
+- **held-out self-labels** (:func:`held_out`: whole 15 s blocks of labels the candidate never saw):
   each label's cameras one at a time, the single-view position against the label's multi-view
   position. Why single views: a label *is* the serving model's own fused output, so its fused
   error on it is zero by construction and no candidate could ever win; its single views are
@@ -25,6 +25,7 @@ the verdict says why, in numbers.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -34,7 +35,7 @@ from models.data.dataset import MomDataset
 from service.learning.labels import LabelBatch
 from service.stages import LocalizationModel
 
-HELD_OUT_BLOCK_S = 60.0  # labels are held out in whole blocks of this long (near-copies inside)
+HELD_OUT_BLOCK_S = 15.0  # labels are held out in whole blocks of this long (near-copies inside)
 HELD_OUT_EVERY = 5  # every 5th block: ~20 % of the labels
 MIN_GAIN = 0.02
 MARKS_TOLERANCE_M = 0.001  # the check is reported in millimetres: equal within one
@@ -90,18 +91,23 @@ def marks_error(model: LocalizationModel, marks: MomDataset) -> float | None:
     return round(float(np.median(per_mark)), 4) if per_mark else None
 
 
-def labels_error(model: LocalizationModel, labels: LabelBatch) -> float | None:
-    """Mean distance of each label's single-view positions from its multi-view position."""
+def labels_error(
+    model: LocalizationModel, labels: LabelBatch, cameras: Sequence[int] | None = None
+) -> float | None:
+    """Mean distance of each label's single-view positions (of ``cameras``, default all) from
+    its multi-view position."""
     views = labels.views()
-    rows, cameras = np.nonzero(views)
+    if cameras is not None:
+        views = views & np.isin(np.arange(labels.num_cameras), list(cameras))[None]
+    rows, seen = np.nonzero(views)
     if not len(rows):
         return None
     boxes = np.full((len(rows), labels.num_cameras, 4), np.nan, np.float32)
-    boxes[np.arange(len(rows)), cameras] = labels.boxes[rows, cameras]
+    boxes[np.arange(len(rows)), seen] = labels.boxes[rows, seen]
     kwargs = {}
     if model.observation == "keypoints":
         points = np.full((len(rows), *labels.keypoints.shape[1:]), np.nan, np.float32)
-        points[np.arange(len(rows)), cameras] = labels.keypoints[rows, cameras]
+        points[np.arange(len(rows)), seen] = labels.keypoints[rows, seen]
         kwargs["keypoints"] = points
     xy = np.asarray(model.localize(boxes, **kwargs), np.float64)
     error = np.linalg.norm(xy - labels.world[rows].astype(np.float64), axis=1)

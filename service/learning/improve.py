@@ -3,7 +3,7 @@ model.
 
 When the room has gathered ``every_labels`` new self-labels since the last run, one run:
 
-1. splits the labels into training and held-out rows (whole minutes, :func:`service.learning.
+1. splits the labels into training and held-out rows (whole blocks, :func:`service.learning.
    gate.held_out`) and writes the training set (the floor marks plus the weighted labels,
    :mod:`service.learning.training_set`) into the room's folder;
 2. runs ``momloc train`` on it in a child process at ``nice`` + ``nice_by`` with a time budget,
@@ -96,6 +96,7 @@ class Improver:
         self._thread: threading.Thread | None = None
         self._run_lock = threading.Lock()
         self._last_count = 0
+        self.candidate: LocalizationModel | None = None  # the last run's, served or not
         self.state: dict[str, Any] = {"state": "waiting", "runs": 0, "served": 0, "last": None}
 
     # -- background ------------------------------------------------------------------------------
@@ -161,6 +162,7 @@ class Improver:
         try:
             self._train(recording, staging)
             candidate = self._load(staging)
+            self.candidate = candidate  # loaded in memory: benches score it against the truth
             test = labels.subset(hold)
             verdict = judge(score(current, marks, test), score(candidate, marks, test))
             if verdict.serve:

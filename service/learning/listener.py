@@ -59,6 +59,8 @@ class SelfLabeler:
         self.rejected: Counter[str] = Counter()
         self.dropped = 0
         self.frames = 0
+        # called on the worker thread after the labels of each frame set, with the moved cameras
+        self.followers: list[Callable[[FrameResult, set[int]], None]] = []
 
     def __call__(self, result: FrameResult) -> None:
         if result.runtime is None:
@@ -90,12 +92,15 @@ class SelfLabeler:
         store = self._store_for(result.runtime)
         if store is None:
             return
-        selection = select_labels(result, self.rules, self._moved(), self._last_label)
+        moved = self._moved()
+        selection = select_labels(result, self.rules, moved, self._last_label)
         with self._lock:
             self.frames += 1
             self.rejected.update(selection.rejected)
         if selection.labels is not None:
             store.add(selection.labels)
+        for follower in self.followers:  # the self-healing job (service.learning.healer)
+            follower(result, moved)
 
     def _store_for(self, runtime: LocalizationModel | None) -> SelfLabelStore | None:
         if runtime is None:

@@ -13,7 +13,15 @@ import pytest
 
 import service.learning.improve as improve
 from models.data.dataset import MomDataset
-from service.learning.gate import Score, held_out, judge, labels_error, marks_error, score
+from service.learning.gate import (
+    HELD_OUT_BLOCK_S,
+    Score,
+    held_out,
+    judge,
+    labels_error,
+    marks_error,
+    score,
+)
 from service.learning.labels import LabelBatch
 from service.learning.listener import SelfLabeler
 from tests.service.learning.frames import SIZES
@@ -78,8 +86,8 @@ def test_the_checks_measure_what_they_say() -> None:
     assert labels_error(Line((0.2, 0.0)), labels) == pytest.approx(0.1 * np.sqrt(2), abs=1e-3)
     hold = held_out(labels)
     assert 0.15 < hold.mean() < 0.25
-    blocks = np.floor(labels.t / 60.0)
-    assert all(len(set(hold[blocks == b])) == 1 for b in np.unique(blocks))  # whole minutes
+    blocks = np.floor(labels.t / HELD_OUT_BLOCK_S)
+    assert all(len(set(hold[blocks == b])) == 1 for b in np.unique(blocks))  # whole blocks
 
 
 def test_a_worse_candidate_is_never_served() -> None:
