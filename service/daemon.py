@@ -107,9 +107,9 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
         allowed_origins=list(settings.allowed_origins),
         setup=session,
     )
-    if settings.learning.enabled:
-        daemon.learning = build_learning(settings, pipeline)
     daemon.training = TrainingJob(lambda: session.data_dir, pipeline.reload_model, session.steps)
+    if settings.learning.enabled:
+        daemon.learning = build_learning(settings, pipeline, daemon.training)
     verifier = Verifier(
         hub.latest,
         lambda: pipeline.model_dir if pipeline.runtime else None,
@@ -129,9 +129,11 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
     return daemon
 
 
-def build_learning(settings: Settings, pipeline: Pipeline) -> LearningRoom:
-    """The self-label collector and the background improver (``service.learning``), hung off
-    the pipeline."""
+def build_learning(
+    settings: Settings, pipeline: Pipeline, training: TrainingJob | None = None
+) -> LearningRoom:
+    """The self-label collector, the background improver and the self-healing job
+    (``service.learning``), hung off the pipeline."""
     learning = settings.learning
     labeler = SelfLabeler(
         settings.data_dir,
@@ -153,7 +155,15 @@ def build_learning(settings: Settings, pipeline: Pipeline) -> LearningRoom:
             time_budget_s=learning.improve_time_budget_s,
         )
         improver = Improver(
-            settings.data_dir, labeler, pipeline, marks=learning.marks, options=options
+            settings.data_dir,
+            labeler,
+            pipeline,
+            marks=learning.marks,
+            options=options,
+            paused=lambda: (
+                any(c.moved for c in pipeline.alignment_status())
+                or (training is not None and training.status()["state"] == "running")
+            ),
         )
     healer = None
     if learning.heal:

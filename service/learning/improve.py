@@ -85,6 +85,7 @@ class Improver:
         marks: Path | None = None,
         options: ImproveOptions | None = None,
         load: Callable[[Path], LocalizationModel] | None = None,
+        paused: Callable[[], bool] = lambda: False,
     ) -> None:
         self.data_dir = Path(data_dir)
         self.labeler = labeler
@@ -92,6 +93,9 @@ class Improver:
         self.marks = marks
         self.options = options or ImproveOptions()
         self._load = load or _load_runtime
+        # no run while a camera is flagged as moved (its labels are refused, its repair comes
+        # first) or the set-up page trains (both would install data_dir/model)
+        self._paused = paused
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._run_lock = threading.Lock()
@@ -113,6 +117,8 @@ class Improver:
 
     def _loop(self) -> None:
         while not self._stop.wait(self.options.poll_s):
+            if self._paused():
+                continue
             if self._count() - self._last_count >= self.options.every_labels:  # new labels
                 try:
                     self.run()
