@@ -79,6 +79,8 @@ bench-setup: $(VENV)/.stamp-dev
 	$(PY) -m bench.setup.floor_prior_study
 	$(PY) -m bench.setup.setup_study
 	$(PY) -m bench.setup.setup_stream
+	$(PY) -m bench.setup.self_learning
+	$(PY) -m bench.setup.self_healing
 
 # mediapipe pins numpy<2, so its keypoint tests run in an environment of their own.
 KP_VENV := .venv-keypoints

@@ -69,9 +69,10 @@ class Verdict:
 
 def held_out(labels: LabelBatch) -> np.ndarray:
     """[N] bool: the labels kept out of training for the gate (whole ``HELD_OUT_BLOCK_S``
-    blocks, every ``HELD_OUT_EVERY``-th, counted from the first label)."""
+    blocks, every ``HELD_OUT_EVERY``-th counted from the first label's, starting with the
+    third: a minute of labels holds one out)."""
     block = np.floor((labels.t - labels.t.min()) / HELD_OUT_BLOCK_S).astype(np.int64)
-    return block % HELD_OUT_EVERY == HELD_OUT_EVERY - 1
+    return block % HELD_OUT_EVERY == 2
 
 
 def marks_error(model: LocalizationModel, marks: MomDataset) -> float | None:
