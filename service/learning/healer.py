@@ -118,6 +118,15 @@ class Healer:
             f"camera {session.camera} moved at {moved_at}; re-learned from {fixed.positions} "
             f"positions; error {fixed.error_m:.2f} m (reachable {fixed.reachable_m:.2f} m)"
         )
+        fixed.meta["learning"] = {  # its own room: the labels of the former one saw m elsewhere
+            "repaired": {
+                "camera": session.camera,
+                "positions": fixed.positions,
+                "error_m": fixed.error_m,
+                "reachable_m": fixed.reachable_m,
+                "time": time.time(),
+            }
+        }
         try:
             self._serve(Path(model_dir), fixed)
         except (MomlocError, OSError) as error:

@@ -152,6 +152,13 @@ class Improver:
         current = self.serving.runtime
         if current is None:
             raise MomlocError("no model in service to improve")
+        learned = getattr(current, "meta", {}).get("learning") or {}
+        if learned.get("repaired"):
+            raise MomlocError(
+                f"camera {learned['repaired'].get('camera')} was repaired: the floor-mark "
+                "recording shows it where it was before the bump; record the marks again to "
+                "improve further"
+            )
         room, store = self.labeler.room, self.labeler.store
         labels = None if store is None else store.load()
         if room is None or labels is None:

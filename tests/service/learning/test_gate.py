@@ -163,3 +163,13 @@ def test_a_run_serves_only_a_better_model_and_keeps_the_current_one_otherwise(
         assert "kept the model in service" in job.status()["last"]["reason"]
     assert not (tmp_path / "learning" / str(labeler.room) / "candidate").exists()
     assert job.status()["state"] == "done"
+
+
+def test_no_improvement_on_marks_that_no_longer_match_a_repaired_camera(tmp_path: Path) -> None:
+    marks_dataset().save(tmp_path / "marks.npz")
+    repaired = Line((0.0, 0.0), "repaired")
+    repaired.meta = {"learning": {"repaired": {"camera": 1}}}
+    labeler = SelfLabeler(tmp_path, threaded=False)
+    job = improve.Improver(tmp_path, labeler, Serving(repaired))
+    assert job.run() is None
+    assert job.status()["state"] == "failed" and "record the marks again" in job.status()["error"]
