@@ -28,7 +28,7 @@ from bench.setup.setup_stream import collect_marks
 from models.mom.evaluate import evaluate
 from models.mom.runtime import MomRuntime
 from models.simulate import Perturbation, simulate
-from service.learning.healer import Healer
+from service.learning.healer import MIN_POSITIONS, Healer
 from service.offline.stream_eval import scene_config
 from service.stages import LocalizationModel
 
@@ -41,7 +41,13 @@ def bump(start_frame: int) -> Perturbation:
 
 
 def heal_run(
-    seed: int, model_dir: Path, work: Path, profile: str, bump_s: float, max_s: float
+    seed: int,
+    model_dir: Path,
+    work: Path,
+    profile: str,
+    bump_s: float,
+    max_s: float,
+    min_positions: int = MIN_POSITIONS,
 ) -> dict[str, Any]:
     config = scene_config(PRESET, 3, profile)
     fps = config.fps
@@ -49,7 +55,7 @@ def heal_run(
     data_dir = work / f"heal-{seed}"
     runtime = MomRuntime.load(model_dir)
     room = RoomRun(config, seed, runtime, data_dir, watch=True)
-    healer = Healer(data_dir, room.labeler, room)
+    healer = Healer(data_dir, room.labeler, room, min_positions=min_positions)
     room.labeler.followers.append(healer)
     alert = repaired = None
     while room.frame < int(max_s * fps):
@@ -88,7 +94,9 @@ def run(args: argparse.Namespace) -> Path:
         start = train(marks, work / "model")
         e_before, e_bumped = per_frame(start, before), per_frame(start, after)
         for seed in seeds:
-            got = heal_run(seed, work / "model", work, args.profile, args.bump_s, args.max_s)
+            got = heal_run(
+                seed, work / "model", work, args.profile, args.bump_s, args.max_s, args.positions
+            )
             repaired = got["model"] if got["repaired_s"] is not None else None
             e_repaired = None if repaired is None else per_frame(repaired, after)
             message = got["status"][-1]["message"] if got["status"] else "no repair started"
@@ -111,13 +119,14 @@ def run(args: argparse.Namespace) -> Path:
         rows,
     )  # fmt: skip
     name = "self_healing_quick.md" if args.quick else "self_healing.md"
-    path = RESULTS / name
+    path = args.out or RESULTS / name
     path.write_text(
         "# The room that learns: a bumped camera repairs itself\n\n"
         f"{machine_line()}\n\n"
         f"indoor-2cam, detector profile `{args.profile}`, a model set up on 9 floor marks × "
         f"{args.seconds:g} s; 3 people walk; camera {CAMERA} bumped (roll 3°, shift 10 px) "
-        f"{args.bump_s:g} s into the run (scene time). Times are scene seconds after the bump; "
+        f"{args.bump_s:g} s into the run (scene time); repaired from {args.positions} positions "
+        "(`learning.heal_min_positions`). Times are scene seconds after the bump; "
         f"errors are per-frame means on a dense test room ({before.n} person instances, seed "
         f"{TEST_SEED}) seen by the unbumped and by the bumped cameras. With two cameras the "
         "repair re-learns from the other camera's single views (`service/learning/heal.py`). "
@@ -139,6 +148,10 @@ def main() -> None:
     parser.add_argument("--bump-s", type=float, default=60.0)
     parser.add_argument("--max-s", type=float, default=300.0, help="give up after this long")
     parser.add_argument("--seeds", type=int, nargs="+", default=[31, 32])
+    parser.add_argument(
+        "--positions", type=int, default=MIN_POSITIONS, help="learning.heal_min_positions"
+    )
+    parser.add_argument("--out", type=Path, default=None, help="results file")
     print(run(parser.parse_args()))
 
 

@@ -172,7 +172,8 @@ class Healer:
 
     def status(self) -> list[dict[str, Any]]:
         with self._lock:
-            sessions = [*self.done, *self.sessions.values()]
+            waiting = [s for s in self.sessions.values() if s.state != "repaired"]
+            sessions = [*self.done, *waiting]  # a repaired one until its alert clears: once
         out = []
         for s in sessions:
             out.append(
