@@ -10,7 +10,11 @@ scored on the very same rows:
   of the localized positions from the mark, summarised by the median over the marks (the
   statistic of the set-up page's check step, :mod:`service.setup.check_score`). The marks are
   the only ground truth the room has; both models saw them in training, so this is a
-  "not worse" check, not an estimate of the room's error;
+  "not worse" check, not an estimate of the room's error. "Not worse" within what the check
+  can tell apart: the figure's own standard error (each mark's rows scatter by the detector's
+  noise), at least 1 mm. Why not exactly: a model fitted on the marks alone is the best
+  possible fit *to the marks*, so any model that also fits the rest of the room loses a few
+  millimetres there; the first measured run refused a candidate at 0.0714 m against 0.0702 m;
 - **held-out self-labels** (:func:`held_out`: whole 15 s blocks of labels the candidate never saw):
   each label's cameras one at a time, the single-view position against the label's multi-view
   position. Why single views: a label *is* the serving model's own fused output, so its fused
@@ -49,6 +53,7 @@ class Score:
     labels_m: float | None
     marks: int
     labels: int
+    marks_se_m: float | None = None  # standard error of marks_m
 
 
 @dataclass(frozen=True)
@@ -75,8 +80,9 @@ def held_out(labels: LabelBatch) -> np.ndarray:
     return block % HELD_OUT_EVERY == 2
 
 
-def marks_error(model: LocalizationModel, marks: MomDataset) -> float | None:
-    """Median over the marks of each mark's median localization error (metres)."""
+def marks_error(model: LocalizationModel, marks: MomDataset) -> tuple[float, float] | None:
+    """Median over the marks of each mark's median localization error (metres), and the
+    standard error of that figure (the rows' spread on each mark; :func:`judge`'s tolerance)."""
     seen = marks.visible().any(axis=1)
     if not seen.any():
         return None
@@ -87,9 +93,16 @@ def marks_error(model: LocalizationModel, marks: MomDataset) -> float | None:
     error = np.linalg.norm(xy - world, axis=1)
     _, mark = np.unique(np.round(world / 0.05), axis=0, return_inverse=True)
     mark = mark.ravel()
-    per_mark = [np.nanmedian(error[mark == m]) for m in np.unique(mark)]
-    per_mark = [e for e in per_mark if np.isfinite(e)]
-    return round(float(np.median(per_mark)), 4) if per_mark else None
+    medians, spreads = [], []
+    for m in np.unique(mark):
+        rows = error[(mark == m) & np.isfinite(error)]
+        if len(rows):
+            medians.append(float(np.median(rows)))
+            # the standard error of a median: 1.25 std / sqrt(n)
+            spreads.append(1.2533 * float(np.std(rows)) / np.sqrt(len(rows)))
+    if not medians:
+        return None
+    return round(float(np.median(medians)), 4), round(float(np.median(spreads)), 4)
 
 
 def labels_error(
@@ -116,8 +129,10 @@ def labels_error(
 
 
 def score(model: LocalizationModel, marks: MomDataset | None, labels: LabelBatch | None) -> Score:
+    on_marks = None if marks is None else marks_error(model, marks)
     return Score(
-        marks_m=None if marks is None else marks_error(model, marks),
+        marks_m=None if on_marks is None else on_marks[0],
+        marks_se_m=None if on_marks is None else on_marks[1],
         labels_m=None if labels is None else labels_error(model, labels),
         marks=0 if marks is None else len(np.unique(np.round(marks.world[:, :2] / 0.05), axis=0)),
         labels=0 if labels is None else labels.n,
@@ -135,7 +150,8 @@ def judge(current: Score, candidate: Score, min_gain: float = MIN_GAIN) -> Verdi
         return verdict(False, "kept the model in service: no floor-mark check to compare on")
     if current.labels_m is None or candidate.labels_m is None:
         return verdict(False, "kept the model in service: no held-out self-labels to compare on")
-    if candidate.marks_m > current.marks_m + MARKS_TOLERANCE_M:
+    tolerance = max(MARKS_TOLERANCE_M, current.marks_se_m or 0.0)
+    if candidate.marks_m > current.marks_m + tolerance:
         return verdict(
             False,
             f"kept the model in service: the new one is worse on the floor marks "

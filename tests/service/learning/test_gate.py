@@ -80,8 +80,8 @@ def labels_batch(n: int = 400, seconds: float = 600.0) -> LabelBatch:
 
 def test_the_checks_measure_what_they_say() -> None:
     marks, labels = marks_dataset(), labels_batch()
-    assert marks_error(Line(), marks) == 0.0
-    assert marks_error(Line((0.3, 0.3)), marks) == pytest.approx(0.3 * np.sqrt(2), abs=1e-3)
+    assert marks_error(Line(), marks) == (0.0, 0.0)
+    assert marks_error(Line((0.3, 0.3)), marks)[0] == pytest.approx(0.3 * np.sqrt(2), abs=1e-3)
     assert labels_error(Line(), labels) == 0.0
     assert labels_error(Line((0.2, 0.0)), labels) == pytest.approx(0.1 * np.sqrt(2), abs=1e-3)
     hold = held_out(labels)
@@ -173,3 +173,10 @@ def test_no_improvement_on_marks_that_no_longer_match_a_repaired_camera(tmp_path
     job = improve.Improver(tmp_path, labeler, Serving(repaired))
     assert job.run() is None
     assert job.status()["state"] == "failed" and "record the marks again" in job.status()["error"]
+
+
+def test_the_marks_check_tolerates_no_more_than_its_own_standard_error() -> None:
+    current = Score(0.070, 0.30, 4, 100, marks_se_m=0.004)
+    assert judge(current, Score(0.073, 0.25, 4, 100)).serve  # within the check's noise
+    refused = judge(current, Score(0.075, 0.25, 4, 100))
+    assert not refused.serve and "worse on the floor marks" in refused.reason
