@@ -17,6 +17,7 @@ from service.learning.room import LearningRoom
 from service.pipeline.hub import Hub
 from service.pipeline.live import Pipeline
 from service.pipeline.model_watch import ModelWatcher
+from service.settings import POSITIONS_ONLY, Privacy
 from service.setup.session import SetupSession
 from service.setup.training import TrainingJob
 from service.setup.verify import Verifier
@@ -47,6 +48,12 @@ class Daemon:
     training: TrainingJob | None = None  # the /setup page's Train button
     verifier: Verifier | None = None  # the /setup page's check step
     learning: LearningRoom | None = None  # self-labels (service.learning); None: turned off
+    privacy: Privacy = "off"  # positions_only: no camera image leaves the process
+
+    @property
+    def images_allowed(self) -> bool:
+        """Whether camera images may be served (settings ``privacy``)."""
+        return self.privacy != POSITIONS_ONLY
 
     @property
     def setup_mode(self) -> bool:
@@ -94,6 +101,7 @@ class Daemon:
             "status": "setup" if self.setup_mode else "ok" if ok else "degraded",
             "degraded": degraded,
             "setup_mode": self.setup_mode,
+            "privacy": self.privacy,
             "uptime_s": round(time.time() - self.started, 1),
             "cameras": cameras,
             "model": model,
@@ -122,6 +130,7 @@ class Daemon:
             "stream_rate": self.stream_rate,
             "auth": self.token is not None,
             "setup_mode": self.setup_mode,
+            "privacy": self.privacy,
             "zones": []
             if self.outputs is None
             else [z.as_dict() for z in self.outputs.zones.zones],
