@@ -38,7 +38,9 @@ def reserved_calls(path: Path) -> list[str]:
 
 def test_only_common_atomic_renames_or_makes_temporary_files() -> None:
     files = [
-        p for pkg in ("capture", "common", "models", "service", "tools") for p in (ROOT / pkg).rglob("*.py")
+        p
+        for pkg in ("capture", "common", "models", "service", "tools")
+        for p in (ROOT / pkg).rglob("*.py")
     ]
     copies = [hit for path in files if path != WRITER for hit in reserved_calls(path)]
     assert not copies, "atomic-write copies (use common.atomic):\n" + "\n".join(copies)
