@@ -10,6 +10,11 @@ Wire format (version 1)::
 client on the same host measures latency as receive time - ``t``. A person outside the floor area
 the model was set up on carries ``"outside": true``, and only when the daemon is set to serve
 them (``tracking.outside_area: flag``; by default they are not served at all).
+
+Optional since issue 27 (v1 clients ignore unknown keys): ``"posture"`` (``"standing"``,
+``"sitting"`` or ``"lying"``, crouching counts as sitting) and ``"posture_confidence"`` (0..1)
+when the model can tell (:mod:`service.tracking.posture`: it needs the set-up area's height
+model; absent means unknown).
 """
 
 from __future__ import annotations

@@ -9,8 +9,9 @@ persistent misses, ``[seed, 9, b]`` and ``[seed, 9, b + 1]`` for the keypoint no
 have a correlation time (without one both come from ``[seed, 1, b]``), ``[seed, 4, b]``,
 ``[seed, 4, b + 1]`` and ``[seed, 8, b]`` for the false positives, ``[seed, 5]`` for their fixed
 places; ``[seed, 11]`` and ``[seed, 12, s]`` for the people outside the set-up area, see
-:mod:`models.simulate.outside`; ``[seed, 13, i]`` for the height of scripted person ``i``), so ``observe(i)`` returns the same arrays whatever was
-observed before, and ``simulate`` (which observes whole blocks at once) agrees with it.
+:mod:`models.simulate.outside`; ``[seed, 13, i]`` for the height of scripted person ``i``), so
+``observe(i)`` returns the same arrays whatever was observed before, and ``simulate`` (which
+observes whole blocks at once) agrees with it.
 ``[seed, 1, b]`` is drawn from in a fixed order, boxes first and the keypoints' gross errors
 last, so the boxes do not depend on the keypoint model.
 

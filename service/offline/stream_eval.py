@@ -98,6 +98,7 @@ def run_stream(
     view_bias: ViewBias | bool = True,
     outside_area: OutsideArea = "drop",
     on_frame: Callable[[int, list, list], None] | None = None,
+    postures: bool = True,
 ) -> dict[float, dict]:
     """Stream metrics per gate (metres → :meth:`StreamScorer.result`) of one scene run.
 
@@ -109,7 +110,8 @@ def run_stream(
     ``False``: none);
     ``outside_area``: what the chain does with people outside the model's set-up area
     (:mod:`service.pipeline.chain`);
-    ``on_frame(i, associations, tracks)`` taps every frame (diagnostics, other scorers).
+    ``on_frame(i, associations, tracks)`` taps every frame (diagnostics, other scorers);
+    ``postures``: seated and lying boxes read as standing ones (:mod:`service.tracking.posture`).
     """
     scene = Scene(config, seed=seed)
     tracker = tracker if tracker is not None else Tracker(fps_hint=scene.fps, **RECOMMENDED)
@@ -122,6 +124,7 @@ def run_stream(
         outside_area=outside_area,
         use_covariance=use_covariance,
         view_bias=None if view_bias is False else view_bias,
+        postures=postures,
     )
     delivered = [True] * int(runtime.num_cameras)
     for i in range(frames):

@@ -41,6 +41,8 @@ from service.stages import (
 from service.tracking.association import DEFAULT_MAX_ERROR_PX
 from service.tracking.association import associate as associate_people
 from service.tracking.measurements import coverage_function, measurement_covariances
+from service.tracking.posture import BoxPostures, PostureSmoother
+from service.tracking.posture import normalise as normalise_postures
 from service.tracking.view_bias import ViewBias
 
 OutsideArea = Literal["drop", "flag"]
@@ -66,6 +68,7 @@ class Chain:
         outside_area: OutsideArea = "drop",
         use_covariance: bool = True,
         view_bias: ViewBias | Literal[True] | None = True,
+        postures: bool = True,
     ) -> None:
         if outside_area not in OUTSIDE_AREA_POLICIES:
             raise ValueError(f"outside_area {outside_area!r}: expected one of drop, flag")
@@ -77,6 +80,10 @@ class Chain:
         # lone-view offsets (service.tracking.view_bias); None: single views are not corrected
         self.view_bias: ViewBias | None = ViewBias() if view_bias is True else view_bias
         self.timings_ms: dict[str, float] = {}  # of the last call, per step
+        # seated and lying boxes read as standing ones, and each track's posture
+        # (service.tracking.posture); False: boxes as detected, no posture
+        self.postures = postures
+        self.posture_smoother = PostureSmoother()
 
     def new_model(self) -> None:
         """Forget what was learned about the former model's localizer (lone-view offsets)."""
@@ -96,7 +103,12 @@ class Chain:
         the tracker still ages its tracks."""
         started = time.perf_counter()
         associations: list[Association] = []
+        box_postures: BoxPostures | None = None
         if runtime is not None:
+            if self.postures:
+                detections, box_postures = normalise_postures(
+                    detections, getattr(runtime, "setup_area", None), runtime.image_sizes
+                )
             found = self.associate(detections, runtime, max_error_px=self.max_error_px)
             associations = gate_to_area(found, runtime, self.outside_area)
         associated = time.perf_counter()
@@ -107,6 +119,11 @@ class Chain:
                 "association": i,
                 "cost": a.cost,
                 "inside": a.inside,
+                **(
+                    {"posture": box_postures.of(a.detection_index)}
+                    if box_postures is not None
+                    else {}
+                ),
             }
             for i, a in enumerate(associations)
         ]
@@ -123,11 +140,29 @@ class Chain:
             tracks = self.tracker.update(
                 t, positions.reshape(-1, 2), meta, covariances=covariances, coverage=coverage
             )
+        if self.postures:
+            self._smooth_postures(t, tracks)
         self.timings_ms = {
             "associate": (associated - started) * 1e3,
             "track": (time.perf_counter() - associated) * 1e3,
         }
         return associations, tracks
+
+    def _smooth_postures(self, t: float, tracks: list[Track]) -> None:
+        """Each served track's posture, averaged over time (``meta["posture"]``: label and
+        confidence; a coasting track keeps the last one)."""
+        smoother = self.posture_smoother
+        for track in tracks:
+            seen = track.meta.get("posture") if not track.coasting else None
+            track.meta["posture"] = (
+                smoother.update(track.id, t, *seen) if seen else smoother.current(track.id)
+            )
+        smoother.forget({track.id for track in tracks} | set(self.tracker_ids()))
+
+    def tracker_ids(self) -> list[int]:
+        """Ids the tracker still holds (served or not): their postures are kept."""
+        hidden = getattr(self.tracker, "hidden", None)
+        return [track.id for track, _ in hidden()] if callable(hidden) else []
 
 
 def gate_to_area(

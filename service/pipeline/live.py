@@ -383,6 +383,10 @@ def _person(track: Track) -> dict[str, Any]:
     }
     if not served_inside(track):  # served flagged (tracking.outside_area: flag)
         person["outside"] = True
+    posture = track.meta.get("posture")
+    if posture and posture[0] != "unknown":  # service.tracking.posture; absent: unknown
+        person["posture"] = str(posture[0])
+        person["posture_confidence"] = round(float(posture[1]), 3)
     return person
 
 
