@@ -7,7 +7,7 @@ PIP := $(PY) -m pip install --quiet
 HOST ?= 127.0.0.1
 PORT ?= 8765
 
-.PHONY: demo test lint format bench bench-real bench-model bench-detector bench-service bench-setup bench-keypoints test-keypoints test-floors test-docker clean
+.PHONY: demo test lint format docs bench bench-real bench-model bench-detector bench-service bench-setup bench-keypoints test-keypoints test-floors test-docker clean
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -37,6 +37,15 @@ lint: $(VENV)/.stamp-dev
 format: $(VENV)/.stamp-dev
 	$(VENV)/bin/ruff check --fix .
 	$(VENV)/bin/ruff format .
+
+# The docs site (docs/ + mkdocs.yml) built with --strict into site/: a broken link, a missing
+# include of bench/results or a page left out of the nav fails the build.
+$(VENV)/.stamp-docs: pyproject.toml | $(VENV)/bin/python
+	$(PIP) -e '.[docs]'
+	touch $@
+
+docs: $(VENV)/.stamp-docs
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --site-dir site
 
 bench: bench-model bench-detector bench-service bench-setup bench-keypoints
 
@@ -111,4 +120,4 @@ test-docker: $(VENV)/.stamp-dev
 	MOMLOC_DOCKER_TESTS=1 tools/with_dockerd.sh $(PY) -m pytest -q -p no:cacheprovider tests/e2e/test_docker.py
 
 clean:
-	rm -rf $(VENV) $(KP_VENV) $(FLOOR_VENV) .pytest_cache .ruff_cache
+	rm -rf $(VENV) $(KP_VENV) $(FLOOR_VENV) .pytest_cache .ruff_cache site

@@ -229,10 +229,9 @@ def summary(runs: list[dict]) -> dict:
 
 def scheduled(detector: Any, **options: Any) -> Any:
     from service.detection.schedule import DetectionScheduler
-    from service.detection.stage import DetectorStage
 
     carrier = {k: options.pop(k) for k in ("flow",) if k in options}
-    return DetectorStage(detector, DetectionScheduler(detector, carrier=carrier, **options))
+    return DetectionScheduler(detector, carrier=carrier, **options)
 
 
 VARIANTS: list[tuple[str, int, dict[str, Any] | None]] = [
@@ -251,13 +250,14 @@ def live_table(
 ) -> list:
     """Every configuration in ``rounds`` interleaved slices, so changing load on the shared
     machine falls on all of them alike."""
-    from service.detection.stage import DetectorStage
+    from service.detection.schedule import DetectionScheduler
 
     detectors = {1: make_detector(1), 2: make_detector(2)}
     stages = [(baseline_name, baseline)]
     for label, threads, options in VARIANTS:
         det = detectors[threads]
-        stage = DetectorStage(det) if options is None else scheduled(det, **dict(options))
+        inline = DetectionScheduler(det, mode="every_frame")
+        stage = inline if options is None else scheduled(det, **dict(options))
         stages.append((label, stage))
     raw: dict[str, list[dict]] = {label: [] for label, _ in stages}
     for _ in range(rounds):

@@ -70,7 +70,9 @@ class PersonDetector(ABC):
 
 
 _REGISTRY: dict[str, Callable[..., PersonDetector]] = {}
-DEFAULT_DETECTOR = "nanodet"  # chosen by bench/detector/accuracy.py (README, Perception)
+DEFAULT_DETECTOR = (
+    "nanodet"  # chosen by bench/detector/accuracy.py (bench/results/detector_accuracy.md)
+)
 
 
 def register_detector(kind: str) -> Callable[[type[PersonDetector]], type[PersonDetector]]:

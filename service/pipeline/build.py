@@ -12,7 +12,7 @@ from typing import Any
 
 from common.errors import MomlocError
 from models.detector.windows import WindowRefiner
-from service.detection.stage import DetectorStage
+from service.detection.schedule import DetectionScheduler
 from service.settings import FileCamera, Settings, SyntheticCamera, V4l2Camera
 from service.tracking.tracker import RECOMMENDED, Tracker
 
@@ -98,20 +98,19 @@ def build_detect_stage(settings: Settings, player: Any) -> Any:
         keypoints=settings.detector.keypoints,
         **{key: value for key, value in options.items() if value is not None},
     )
-    schedule = None
-    if settings.detection.schedule == "auto":
-        from service.detection.schedule import DetectionScheduler
-
-        detection = settings.detection
-        schedule = DetectionScheduler(
-            detector,
-            max_duty=detection.max_duty,
-            cameras_per_call=detection.cameras_per_call,
-            nice=detection.nice,
-            carrier={"flow": detection.flow, "max_age_s": detection.max_age_s},
-            refiner=_window_refiner(detector, detection.windows, detection.window_below_px),
-        )
-    return DetectorStage(detector, schedule)
+    detection = settings.detection
+    return DetectionScheduler(
+        detector,
+        mode=detection.schedule,
+        max_duty=detection.max_duty,
+        cameras_per_call=detection.cameras_per_call,
+        nice=detection.nice,
+        carrier={"flow": detection.flow, "max_age_s": detection.max_age_s},
+        # every_frame is the plain detector on every frame set (offline runs): no second look
+        refiner=None
+        if detection.schedule == "every_frame"
+        else _window_refiner(detector, detection.windows, detection.window_below_px),
+    )
 
 
 def _window_refiner(detector: Any, windows: int, below_px: float) -> WindowRefiner | None:

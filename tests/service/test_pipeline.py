@@ -17,7 +17,7 @@ from capture.rig import FrameSet
 from capture.worker import Frame
 from common.errors import MomlocError
 from models.detector.base import Detections
-from service.detection.stage import DetectorStage
+from service.detection.schedule import DetectionScheduler
 from service.pipeline.hub import Hub
 from service.pipeline.live import Pipeline
 from service.stages import Association
@@ -203,7 +203,7 @@ def test_detector_stage_batches_and_leaves_scores_to_the_detector():
             ]
 
     det = Det()
-    stage = DetectorStage(det)
+    stage = DetectionScheduler(det, mode="every_frame")
     frame = SimpleNamespace(image=np.zeros((4, 4, 3), np.uint8))
     out = stage(SimpleNamespace(frames=[frame, None, frame]))
     assert det.batches == [2]
@@ -280,7 +280,7 @@ def test_detector_stage_keeps_each_boxs_keypoints():
             points = np.stack([np.full((17, 3), 1.0), np.full((17, 3), 2.0)]).astype(np.float32)
             return [Detections(boxes, np.array([0.2, 0.9], np.float32), points) for _ in frames]
 
-    stage = DetectorStage(Det())
+    stage = DetectionScheduler(Det(), mode="every_frame")
     frame = SimpleNamespace(image=np.zeros((4, 4, 3), np.uint8))
     (out,) = stage(SimpleNamespace(frames=[frame]))
     assert stage.keypoints
@@ -316,7 +316,7 @@ def test_scheduled_detection_carries_keypoints_between_detections():
     """With ``detection.schedule: auto`` the detector runs every few frame sets; the boxes
     carried in between keep their keypoints (moved with the box), so a keypoint model gets
     keypoints on every frame set, not only on the detected ones."""
-    from service.detection.schedule import DeferredRunner, DetectionScheduler
+    from service.detection.schedule import DeferredRunner
 
     class Walker:
         keypoints = True
@@ -332,10 +332,7 @@ def test_scheduled_detection_carries_keypoints_between_detections():
     runner = DeferredRunner(
         lambda job: detector.detect(job.images), lambda: clock.t, cost=lambda job: 0.1
     )
-    schedule = DetectionScheduler(
-        detector, runner=runner, clock=lambda: clock.t, wall=lambda: clock.t
-    )
-    stage = DetectorStage(detector, schedule)
+    stage = DetectionScheduler(detector, runner=runner, clock=lambda: clock.t, wall=lambda: clock.t)
     assert stage.keypoints
     image = np.zeros((480, 640, 3), np.uint8)
     outputs = []
@@ -346,4 +343,4 @@ def test_scheduled_detection_carries_keypoints_between_detections():
     later = [d for out in outputs[4:] for d in out]  # after the first detection arrived
     assert later and all(len(d) == 1 and d.keypoints.shape == (1, 17, 3) for d in later)
     assert all(np.isfinite(d.keypoints).all() for d in later)
-    assert schedule.jobs < 12  # most frame sets were carried, not detected
+    assert stage.jobs < 12  # most frame sets were carried, not detected

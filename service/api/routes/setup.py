@@ -10,7 +10,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -19,12 +18,12 @@ from fastapi.responses import JSONResponse
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from common.errors import MomlocError
+from service.api.auth import TokenCheck
 from service.api.errors import error_responses
+from service.api.state import Daemon
 from service.setup.marks import MAX_MARKS, MarkIn, grid_marks, marks_from_entries
-from service.setup.session import SAFE_RECORDING_NAME, SetupSession
+from service.setup.session import SAFE_RECORDING_NAME
 from service.setup.steps import SetupConflict
-from service.setup.training import TrainingJob
-from service.setup.verify import Verifier
 
 # The schema's form of session.SAFE_RECORDING_NAME (JSON Schema's $ is the end of the text).
 # Declared in the schema, checked by plain_npz: pydantic's own pattern message shows the regex.
@@ -125,14 +124,22 @@ class VerifyRequest(BaseModel):
 VERIFY_DEFAULT_MARKS = 4
 
 
-def create_setup_router(
-    session: SetupSession,
-    training: TrainingJob,
-    verifier: Verifier,
-    cameras_now: Callable[[], list[int]],
-) -> APIRouter:
-    """``cameras_now()``: how many people each camera's detector sees in the newest frames."""
-    router = APIRouter(prefix="/v1/setup", tags=["setup"])
+def setup_router(daemon: Daemon, token: TokenCheck) -> APIRouter:
+    """The set-up routes; none when the daemon was built without the set-up flow's three parts
+    (``service.daemon`` wires them; tests of other routes leave them out)."""
+    router = APIRouter(
+        prefix="/v1/setup",
+        tags=["setup"],
+        dependencies=token.secured,
+        responses=error_responses(401, 403),
+    )
+    session, training, verifier = daemon.setup, daemon.training, daemon.verifier
+    if session is None or training is None or verifier is None:
+        return router
+
+    def cameras_now() -> list[int]:
+        """How many people each camera's detector sees in the newest frames."""
+        return [len(daemon.pipeline.view(k).boxes) for k in range(len(daemon.camera_names))]
 
     @router.post(
         "/start",
