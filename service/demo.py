@@ -64,11 +64,13 @@ def demo_settings(
     people: int | None = None,
     seed: int | None = None,
     profile: str | None = None,
+    scene: str = DEMO_SCENE,
 ) -> Settings:
-    """Settings for the demo scene; ``MOMLOC_*`` environment variables still apply."""
-    config = get_config(DEMO_SCENE)
+    """Settings for the demo scene (``scene``: another preset with the demo's cameras, e.g.
+    ``DEMO_PRESET`` for the walkers alone); ``MOMLOC_*`` environment variables still apply."""
+    config = get_config(scene)
     synthetic = {
-        "preset": DEMO_SCENE,
+        "preset": scene,
         "seed": DEMO_SEED if seed is None else seed,
         "people": DEMO_PEOPLE if people is None else people,
         "fps": DEMO_FPS,
