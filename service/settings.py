@@ -42,6 +42,8 @@ from service.tracking.association import DEFAULT_MAX_ERROR_PX
 
 DEMO_MODEL_DIR = Path(__file__).resolve().parent.parent / "models" / "demo_model"
 _STRICT = ConfigDict(extra="forbid")
+Privacy = Literal["off", "positions_only"]
+POSITIONS_ONLY: Privacy = "positions_only"
 _ORIGIN = r"^(\*|https?://[A-Za-z0-9.\-\[\]:]+)$"
 _HOST = r"^(\*|[A-Za-z0-9.\-]+|\[?[0-9A-Fa-f:.]+\]?)$"
 
@@ -371,6 +373,13 @@ class Settings(BaseSettings):
     )
     mqtt: MqttSettings | None = Field(None, description="MQTT publisher; absent: off.")
     osc: OscSettings | None = Field(None, description="OSC bundles over UDP; absent: off.")
+    privacy: Privacy = Field(
+        "off",
+        description="positions_only: the daemon serves and stores no camera images (no "
+        "snapshot JPEGs, previews drawn as boxes on an empty background, no momloc record); "
+        "positions, zones, events and the set-up flow work as before. off: previews and "
+        "recordings allowed (docs/guides/security.md).",
+    )
 
     @classmethod
     def settings_customise_sources(

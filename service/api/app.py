@@ -6,7 +6,8 @@ Routes (version 1; OpenAPI at ``/docs``):
 
 - ``WS  /v1/stream``, ``GET /v1/positions``: ``routes.stream``;
 - ``GET /v1/health``, ``/v1/config``, ``/v1/settings/schema``: ``routes.health``;
-- ``GET /v1/cameras/{k}/snapshot.jpg``, ``POST /v1/alignment/reset``: ``routes.cameras``;
+- ``GET /v1/cameras/{k}/snapshot.jpg`` (403 under ``privacy: positions_only``),
+  ``/v1/cameras/{k}/boxes``, ``POST /v1/alignment/reset``: ``routes.cameras``;
 - ``POST /v1/model/reload``: ``routes.model``; ``GET /metrics``: ``routes.metrics``;
 - ``/v1/zones``, ``WS /v1/events``, ``/v1/mqtt/...``: ``routes.zones``;
 - ``/v1/setup/...``: ``routes.setup``; ``GET /``, ``/setup``, ``/web/*``: ``routes.pages``.

@@ -116,6 +116,7 @@ class Pipeline:
         outside_area: OutsideArea = "drop",
         load_runtime: Callable[[Path], LocalizationModel] | None = None,
         shift_threaded: bool = True,
+        preview_images: bool = True,
     ) -> None:
         if tracker is None:
             from service.tracking.tracker import RECOMMENDED, Tracker
@@ -144,7 +145,7 @@ class Pipeline:
         self.failure_log = FailureLog(log, "frame sets")
         # the standard listeners (service.pipeline.listeners); more via add_listener
         self.camera_watch = CameraWatch(num_cameras, shift_threaded=shift_threaded)
-        self.previews = Previews(num_cameras)
+        self.previews = Previews(num_cameras, images=preview_images)
         self.throughput = Throughput()
         self._listeners: list[FrameListener] = [self.camera_watch, self.previews, self.throughput]
         self._taps: dict[Callable[..., None], DetectionTap] = {}

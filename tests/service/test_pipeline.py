@@ -94,6 +94,7 @@ def make(rig=None, runtime=None, **kw) -> tuple[Pipeline, Hub]:
         tracker=Tracker(fps_hint=30.0),
         associate=fake_associate,
         load_runtime=kw.pop("load_runtime", lambda path: FakeRuntime()),
+        **kw,
     )
     return pipeline, hub
 
@@ -114,6 +115,18 @@ def test_process_publishes_tracked_people_with_capture_time():
     assert view.image is not None
     ((box, track_id),) = view.boxes
     assert track_id == person["id"] and box[0] == pytest.approx(120.0)
+
+
+def test_previews_without_images_keep_boxes_ids_and_size_but_no_frame():
+    """Privacy mode: the preview store holds no reference to any frame."""
+    pipeline, hub = make(preview_images=False)
+    for _ in range(10):
+        pipeline.process(pipeline.rig.frame_set())
+    (person,) = hub.latest().people
+    view = pipeline.view(0)
+    assert view.image is None and view.size == (640, 480)
+    ((box, track_id),) = view.boxes
+    assert track_id == person["id"] and box[0] == pytest.approx(110.0)
 
 
 def test_no_model_publishes_empty_snapshots():
