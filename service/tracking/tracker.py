@@ -55,8 +55,8 @@ Output policy (documented for API users):
   and each loss used to end their id and empty their zone (issue 27; 60 simulated minutes on
   the sofa with 60 dropouts of 1-8 s: zone right 91.8 % → 100 %, 11 ids → 1,
   ``bench/results/still_presence.md``). The price is a person who stood still and then left
-  unseen (out of view) is served where they stood for up to 15 s; walking scenes:
-  ``bench/results/stream_accuracy.md``;
+  unseen (out of view) is served where they stood for up to 15 s; the walking scenes' MOTA
+  did not move (same file);
 - ``confidence`` is a running detection rate (exponential average of seen / unseen frame sets
   over ``rate_time_s`` seconds, so the same at any frame rate) times the coasting factor, in 0..1;
 - a track counts as seen by two cameras (``multi_view``: no longer subject to the single-view
@@ -138,7 +138,7 @@ RECOMMENDED: dict[str, Any] = {
     "merge_m": 0.35,
     "merge_s": 0.5,
     # issue 27: a still person lost for seconds keeps their id and their zone
-    # (bench/results/still_presence.md; walking scenes: bench/results/stream_accuracy.md)
+    # (bench/results/still_presence.md, with the walking scenes' MOTA with and without it)
     "hold_still_s": 15.0,
 }
 ASSIGN_COSTS = ("euclidean", "likelihood")
