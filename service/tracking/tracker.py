@@ -52,9 +52,8 @@ Output policy (documented for API users):
   for ``hold_still_s`` (15 s in ``RECOMMENDED``) instead of ``serve_coast_s`` / ``max_missing_s``,
   and its gate stops growing after ``max_missing_s`` (they did not walk off). Why: a seated or
   standing person is the one a detector loses for seconds (half hidden, still, low contrast),
-  and each loss used to end their id and empty their zone (issue 27; 60 simulated minutes on
-  the sofa with 60 dropouts of 1-8 s: zone right 91.8 % → 100 %, 11 ids → 1,
-  ``bench/results/still_presence.md``). The price is a person who stood still and then left
+  and each loss used to end their id and empty their zone (issue 27: an hour on the sofa with
+  dropouts of seconds, ``bench/results/still_presence.md``). The price is a person who stood still and then left
   unseen (out of view) is served where they stood for up to 15 s; the walking scenes' MOTA
   did not move (same file);
 - ``confidence`` is a running detection rate (exponential average of seen / unseen frame sets
