@@ -53,9 +53,9 @@ Output policy (documented for API users):
   and its gate stops growing after ``max_missing_s`` (they did not walk off). Why: a seated or
   standing person is the one a detector loses for seconds (half hidden, still, low contrast),
   and each loss used to end their id and empty their zone (issue 27: an hour on the sofa with
-  dropouts of seconds, ``bench/results/still_presence.md``). The price is a person who stood still and then left
-  unseen (out of view) is served where they stood for up to 15 s; the walking scenes' MOTA
-  did not move (same file);
+  dropouts of seconds, ``bench/results/still_presence.md``). The price is a person who stood
+  still and then left unseen (out of view) is served where they stood for up to 15 s; the
+  walking scenes' MOTA did not move (same file);
 - ``confidence`` is a running detection rate (exponential average of seen / unseen frame sets
   over ``rate_time_s`` seconds, so the same at any frame rate) times the coasting factor, in 0..1;
 - a track counts as seen by two cameras (``multi_view``: no longer subject to the single-view
