@@ -147,6 +147,15 @@ def _cell(text: str) -> str:
     return " ".join(text.split()).replace("``", "`").replace("|", "\\|")
 
 
+def _tag(model: type[BaseModel]) -> str:
+    """The Literal value of a union member's ``type`` or ``kind`` field."""
+    for tag_name in ("type", "kind"):
+        tag_field = model.model_fields.get(tag_name)
+        if tag_field is not None and get_origin(tag_field.annotation) is Literal:
+            return f"{tag_name}: {get_args(tag_field.annotation)[0]}"
+    return model.__name__
+
+
 def _section(
     title: str, model: type[BaseModel], env: str | None, intro: str, out: list[str]
 ) -> None:
@@ -168,15 +177,19 @@ def _section(
             variable = ""
         description = field.description or ""
         type_name = _type_name(annotation)
+        if len(models) > 1:
+            type_name = "section (one of: " + ", ".join(f"`{_tag(m)}`" for m in models) + ")"
         if models:
             child_env = None if listed or env is None else f"{env}{name.upper()}__"
             key = f"{title.strip('`')}.{name}" if model is not Settings else name
             for child in models:
-                kind = child.model_fields.get("type")
-                tag = get_args(kind.annotation)[0] if kind is not None else None
+                # a union's member is told apart by its tag: cameras by ``type``, detectors by
+                # ``kind`` (only when the tag is a Literal: a plain str field is no tag)
                 label = f"`{key}[]`" if listed else f"`{key}`"
-                if tag is not None:
-                    label += f" (`type: {tag}`)"
+                for tag_name in ("type", "kind"):
+                    tag_field = child.model_fields.get(tag_name)
+                    if tag_field is not None and get_origin(tag_field.annotation) is Literal:
+                        label += f" (`{tag_name}: {get_args(tag_field.annotation)[0]}`)"
                 nested.append((label, child, child_env, child.__doc__ or ""))
             type_name = "list of sections" if listed else type_name
             description += " See below."

@@ -36,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from common.worker_thread import WorkerThread
 from models.detector.base import Detections
 
 RESULTS = Path(__file__).resolve().parents[1] / "results" / "realtime.md"
@@ -67,18 +68,14 @@ class ClipRig:
         self.clips, self.fps, self._state = clips, fps, CameraState
         self._latest: Any = None
         self._cond = threading.Condition()
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._worker = WorkerThread(self._run, "clip-rig")
+        self._stop = self._worker.stopping
 
     def start(self) -> None:
-        self._stop.clear()
-        self._thread = threading.Thread(target=self._run, name="clip-rig", daemon=True)
-        self._thread.start()
+        self._worker.start()
 
     def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5)
+        self._worker.stop()
 
     def _run(self) -> None:
         from capture.rig import FrameSet

@@ -25,6 +25,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
+from common.worker_thread import WorkerThread
 from service.snapshot import Snapshot
 
 
@@ -93,8 +94,8 @@ class ThreadedPublisher(ABC):
     def __init__(self) -> None:
         self._slot = LatestSlot()
         self._wake = threading.Event()
-        self._stopping = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._sender = WorkerThread(self._run, f"momloc-{self.name}", join_s=3.0)
+        self._stopping = self._sender.stopping
         self._hungry = True  # the sender waits for a snapshot (wake it only then)
         self.counters: dict[str, int] = {}
         self.last_error: str | None = None
@@ -106,17 +107,13 @@ class ThreadedPublisher(ABC):
 
     def start(self) -> None:
         """Start the sender thread."""
-        self._stopping.clear()
-        self._thread = threading.Thread(target=self._run, name=f"momloc-{self.name}", daemon=True)
-        self._thread.start()
+        self._sender.start()
 
     def stop(self, timeout: float = 3.0) -> None:
         """Stop the sender thread (it finishes what it is sending)."""
         self._stopping.set()
-        self._wake.set()
-        if self._thread is not None:
-            self._thread.join(timeout=timeout)
-            self._thread = None
+        self._wake.set()  # a sender waiting for a snapshot sees the flag now
+        self._sender.stop(timeout)
 
     def offer(self, snapshot: Snapshot) -> None:
         """Take ``snapshot`` (pipeline thread; never blocks)."""

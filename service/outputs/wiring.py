@@ -38,11 +38,6 @@ class Outputs:
         publisher = self.publishers.get(MqttPublisher.name)
         return publisher if isinstance(publisher, MqttPublisher) else None
 
-    @property
-    def osc(self) -> OscPublisher | None:
-        publisher = self.publishers.get(OscPublisher.name)
-        return publisher if isinstance(publisher, OscPublisher) else None
-
     def health(self) -> dict[str, Any]:
         out: dict[str, Any] = {"zones": self.zones.stats()}
         out.update({name: p.stats() for name, p in self.publishers.items()})

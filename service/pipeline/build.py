@@ -77,27 +77,17 @@ def build_detect_stage(settings: Settings, player: Any) -> Any:
 
         indices = [c.index for c in settings.cameras if isinstance(c, SyntheticCamera)]
         return SimulatedDetections(player, indices)  # a player: build_rig saw only synthetic
-    from models.detector import create_detector
+    from models.detector.base import detector_from_settings
 
-    options = {
-        "model_path": settings.detector.model_path,
-        "letterbox": settings.detector.letterbox,
-        "input_size": settings.detector.input_size,
-        "max_shrink": settings.detector.max_shrink,
-    }
     threads = settings.detector.threads
-    explicit = settings.detector.model_fields_set
-    if settings.detection.schedule == "auto" and "threads" not in explicit:
+    if (
+        settings.detection.schedule == "auto"
+        and "threads" not in settings.detector.model_fields_set
+    ):
         threads = (
             1  # beside the pipeline, one thread leaves a core free (bench/serving/realtime.py)
         )
-    detector = create_detector(
-        settings.detector.kind,
-        score_threshold=settings.detector.score_threshold,
-        threads=threads,
-        keypoints=settings.detector.keypoints,
-        **{key: value for key, value in options.items() if value is not None},
-    )
+    detector = detector_from_settings(settings.detector, threads)
     detection = settings.detection
     return DetectionScheduler(
         detector,

@@ -37,7 +37,6 @@ stays. A frame set that fails anyway is logged once, then counted
 from __future__ import annotations
 
 import logging
-import threading
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -48,6 +47,7 @@ import numpy as np
 from capture.rig import FrameSet
 from capture.worker import CameraState, Frame
 from common.errors import MomlocError
+from common.worker_thread import WorkerThread
 from service.camera_health.reprojection import CameraMoved
 from service.pipeline.chain import Chain, OutsideArea, served_inside
 from service.pipeline.failure_log import FailureLog
@@ -135,8 +135,8 @@ class Pipeline:
         self.error: str | None = None
         self._seq = 0
         self._last_frame_seqs: tuple[int, ...] | None = None
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._worker = WorkerThread(self._run, "momloc-pipeline")
+        self._stop = self._worker.stopping
         self.frames_processed = 0
         self.frames_dropped = 0
         self.views_left_out = 0  # frames left out of fusion by the skew rule
@@ -173,14 +173,10 @@ class Pipeline:
 
     def start(self) -> None:
         self.rig.start()
-        self._stop.clear()
-        self._thread = threading.Thread(target=self._run, name="momloc-pipeline", daemon=True)
-        self._thread.start()
+        self._worker.start()
 
     def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5)
+        self._worker.stop()
         self.camera_watch.close()
         close = getattr(self.detect, "close", None)
         if close is not None:
@@ -189,7 +185,7 @@ class Pipeline:
 
     @property
     def running(self) -> bool:
-        return self._thread is not None and self._thread.is_alive()
+        return self._worker.alive
 
     def _run(self) -> None:
         previous: FrameSet | None = None

@@ -10,6 +10,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -22,8 +23,10 @@ from service.api.auth import TokenCheck
 from service.api.errors import error_responses
 from service.api.state import Daemon
 from service.setup.marks import MAX_MARKS, MarkIn, grid_marks, marks_from_entries
-from service.setup.session import SAFE_RECORDING_NAME
+from service.setup.session import SAFE_RECORDING_NAME, SetupSession
 from service.setup.steps import SetupConflict
+from service.setup.training import TrainingJob
+from service.setup.verify import Verifier
 
 # The schema's form of session.SAFE_RECORDING_NAME (JSON Schema's $ is the end of the text).
 # Declared in the schema, checked by plain_npz: pydantic's own pattern message shows the regex.
@@ -141,6 +144,25 @@ def setup_router(daemon: Daemon, token: TokenCheck) -> APIRouter:
         """How many people each camera's detector sees in the newest frames."""
         return [len(daemon.pipeline.view(k).boxes) for k in range(len(daemon.camera_names))]
 
+    def status() -> dict[str, Any]:
+        return {
+            **session.status(),
+            "cameras_now": cameras_now(),
+            "training": training.status(),
+            "verify": verifier.status(),
+        }
+
+    _collection_routes(router, session, status)
+    _training_routes(router, session, training)
+    _check_routes(router, session, verifier)
+    return router
+
+
+def _collection_routes(
+    router: APIRouter, session: SetupSession, status: Callable[[], dict[str, Any]]
+) -> None:
+    """Record at floor marks: start, status (of every step), record one mark again, stop."""
+
     @router.post(
         "/start",
         summary="Start a guided collection at floor marks",
@@ -165,14 +187,7 @@ def setup_router(daemon: Daemon, token: TokenCheck) -> APIRouter:
         except MomlocError as error:
             raise refused(error) from None
 
-    @router.get("/status", summary="Collection, training and check; what each camera sees")
-    def status() -> dict[str, Any]:
-        return {
-            **session.status(),
-            "cameras_now": cameras_now(),
-            "training": training.status(),
-            "verify": verifier.status(),
-        }
+    router.get("/status", summary="Collection, training and check; what each camera sees")(status)
 
     @router.post(
         "/record-again",
@@ -184,6 +199,18 @@ def setup_router(daemon: Daemon, token: TokenCheck) -> APIRouter:
             return session.record_again(request.mark)
         except MomlocError as error:
             raise refused(error) from None
+
+    @router.post(
+        "/stop",
+        summary="Stop the collection, keeping what was recorded",
+        responses=error_responses(400, 413, 415, 422),
+    )
+    def stop(body: Annotated[StopRequest, Body()]) -> dict[str, Any]:
+        return session.stop()
+
+
+def _training_routes(router: APIRouter, session: SetupSession, training: TrainingJob) -> None:
+    """Train a model on a recording in a child process, or cancel it."""
 
     @router.post(
         "/train",
@@ -212,6 +239,10 @@ def setup_router(daemon: Daemon, token: TokenCheck) -> APIRouter:
     def cancel_training(body: Annotated[StopRequest, Body()]) -> dict[str, Any]:
         return training.cancel()
 
+
+def _check_routes(router: APIRouter, session: SetupSession, verifier: Verifier) -> None:
+    """The check step: live error at a few marks."""
+
     @router.post(
         "/verify",
         summary="Check the served model: stand on marks, see the error at each",
@@ -232,16 +263,6 @@ def setup_router(daemon: Daemon, token: TokenCheck) -> APIRouter:
     )
     def stop_verify(body: Annotated[StopRequest, Body()]) -> dict[str, Any]:
         return verifier.stop()
-
-    @router.post(
-        "/stop",
-        summary="Stop the collection, keeping what was recorded",
-        responses=error_responses(400, 413, 415, 422),
-    )
-    def stop(body: Annotated[StopRequest, Body()]) -> dict[str, Any]:
-        return session.stop()
-
-    return router
 
 
 def refused(error: MomlocError) -> HTTPException:
