@@ -8,6 +8,10 @@ the chain by hand and a fix to one copy could silently leave the other behind.
 
 Per frame set (time ``t``, one :class:`~models.detector.base.Detections` per camera):
 
+0. **postures**: a seated or lying person's box is replaced by the box a standing person at the
+   same place would give (the model was set up on standing people), and every box gets a
+   posture that the track carries, smoothed, into the snapshot (:mod:`service.tracking.posture`;
+   ``postures=False``: boxes as detected);
 1. **associate** the boxes of all cameras into people (:mod:`service.tracking.association`); each
    association says whether it lies in the model's set-up area (:mod:`models.mom.setup_area`);
 2. **the set-up area**: ``outside_area="drop"`` (default) keeps people outside the area the model
