@@ -21,7 +21,7 @@ from capture.worker import Frame
 from service.api.server import serve_in_thread
 from service.api.state import Daemon
 from service.daemon import build_daemon
-from service.demo import demo_settings
+from service.demo import DEMO_PRESET, demo_settings
 
 
 @dataclass
@@ -111,6 +111,9 @@ def running_server(
     # The simulator's boxes unless a test asks for the drawn frames through the detector: these
     # tests are about the server, and the detector would only add CPU load and timing slack.
     settings.setdefault("detections", "simulated")
+    # The walkers alone (the counts and zones these tests were written for) unless a test asks
+    # for the demo as it plays (scene=DEMO_SCENE: a person seated on the sofa too).
+    settings.setdefault("scene", DEMO_PRESET)
     model_dir = settings.pop("model_dir", None)
     guard = {k: settings.pop(k) for k in ("allowed_origins", "allowed_hosts") if k in settings}
     config = demo_settings(host="127.0.0.1", **settings)
