@@ -143,7 +143,7 @@ def run(runtime: MomRuntime, config: SceneConfig, seed: int, frames: int, postur
                     person = int(want[c])
                     tally.streamed[posture[person]].append(float(cost[r, c]))
                     tally.ids[person].add(tracks[r].id)
-                    served_posture = tracks[r].meta.get("posture", (UNKNOWN, 0.0))[0]
+                    served_posture = (tracks[r].posture or (UNKNOWN, 0.0))[0]
                     truth = SITTING if posture[person] == "crouching" else posture[person]
                     tally.labelled[posture[person]].append(served_posture == truth)
     return tally

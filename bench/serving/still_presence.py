@@ -34,6 +34,7 @@ from bench.report import command_line
 from models.simulate import PRESETS, Scene
 from models.simulate.presets import seated
 from service.outputs.zones import Zone, ZoneTracker
+from service.stages import Origin
 from service.tracking.tracker import RECOMMENDED, Tracker
 
 RESULTS = Path(__file__).resolve().parents[1] / "results"
@@ -88,7 +89,7 @@ def still_presence(
         else:
             gap += 1.0 / scene.fps
             longest = max(longest, gap)
-        tracks = tracker.update(t, positions, [{"cameras": cameras}] * len(positions))
+        tracks = tracker.update(t, positions, [Origin(cameras=tuple(cameras))] * len(positions))
         people = [{"id": tr.id, "x": tr.x, "y": tr.y} for tr in tracks]
         happened = zones.update(t, people)
         if t < warmup_s:

@@ -93,6 +93,7 @@ def test_a_table_hides_the_legs_in_the_drawn_frame() -> None:
     )  # fmt: skip
     scene = Scene(config, seed=1)
     image = scene.render(40, 0)
+    assert scene._renderer is not None
     background = scene._renderer.background(scene.cameras_at(40)[0])
     changed = np.abs(image.astype(int) - background.astype(int)).sum(-1) > 30
     visible = scene.observe(40).true_boxes[0, 0]

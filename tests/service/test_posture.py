@@ -73,7 +73,7 @@ def test_one_odd_box_does_not_flip_a_track_posture() -> None:
 
 
 def test_snapshot_person_carries_the_posture_only_when_known() -> None:
-    track = Track(3, 1.0, 2.0, 0.0, 0.0, 0.9, [0, 1], meta={"posture": (SITTING, 0.83)})
+    track = Track(3, 1.0, 2.0, 0.0, 0.0, 0.9, [0, 1], posture=(SITTING, 0.83))
     person = _person(track)
     assert person["posture"] == "sitting" and person["posture_confidence"] == 0.83
     assert "posture" not in _person(Track(4, 1.0, 2.0, 0.0, 0.0, 0.9))

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from bench.serving.still_presence import blackouts, sitter_scene, still_presence
+from service.stages import Origin
 from service.tracking.tracker import RECOMMENDED, Tracker
 
 FPS = 5.0  # the tracker's rules are in seconds; 5 frame sets a second keep the hour short
@@ -31,7 +32,7 @@ def test_without_the_hold_the_same_dropouts_break_presence() -> None:
 def _feed(tracker: Tracker, points: np.ndarray, fps: float, start: float = 0.0) -> list:
     tracks: list = []
     for i, p in enumerate(points):
-        tracks = tracker.update(start + i / fps, p.reshape(1, 2), [{"cameras": [0, 1]}])
+        tracks = tracker.update(start + i / fps, p.reshape(1, 2), [Origin(cameras=(0, 1))])
     return tracks
 
 
