@@ -149,7 +149,9 @@ def replay_demo(settings: Settings, frames: int = 600, warmup: int = 30) -> Demo
     # Offline means every frame set gets its own detection: the live scheduler detects on wall
     # clock time beside the pipeline, so its rate (and the score) would follow the machine's load.
     inline = settings.detection.model_copy(update={"schedule": "every_frame"})
-    daemon = build_daemon(settings.model_copy(update={"detection": inline}))
+    # the score is of this model: the room must not learn (or write labels) while replaying
+    fixed = settings.learning.model_copy(update={"enabled": False})
+    daemon = build_daemon(settings.model_copy(update={"detection": inline, "learning": fixed}))
     pipeline, rig = daemon.pipeline, daemon.pipeline.rig
     if not isinstance(rig, SyntheticRig):
         raise MomlocError("replay_demo: the settings must describe synthetic cameras")

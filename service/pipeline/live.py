@@ -56,6 +56,7 @@ from service.pipeline.listeners import CameraView, CameraWatch, DetectionTap, Pr
 from service.snapshot import Person, Snapshot
 from service.stages import (
     AssociateStage,
+    Closeable,
     DetectStage,
     FrameListener,
     FrameResult,
@@ -177,7 +178,9 @@ class Pipeline:
 
     def stop(self) -> None:
         self._worker.stop()
-        self.camera_watch.close()
+        for listener in self._listeners:  # those with a thread or pending writes
+            if isinstance(listener, Closeable):
+                listener.close()
         self.detect.close()  # the detection scheduler's worker thread, if any
         self.rig.stop()
 

@@ -144,9 +144,18 @@ def running_server(
     settings.setdefault("scene", DEMO_PRESET)
     model_dir = settings.pop("model_dir", None)
     guard = {k: settings.pop(k) for k in ("allowed_origins", "allowed_hosts") if k in settings}
+    # self-labels only where a test asks (with its own data_dir): not into the working folder
+    learning = settings.pop("learning", {"enabled": False})
+    data_dir = settings.pop("data_dir", None)
     config = demo_settings(host="127.0.0.1", **settings)
     if model_dir:
         config = config.model_copy(update={"model_dir": Path(model_dir)})
+    config = config.model_copy(
+        update={
+            "learning": config.learning.model_copy(update=learning),
+            **({} if data_dir is None else {"data_dir": Path(data_dir)}),
+        }
+    )
     if lockstep:
         inline = config.detection.model_copy(update={"schedule": "every_frame"})
         config = config.model_copy(update={"detection": inline})
