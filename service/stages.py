@@ -102,6 +102,8 @@ class Track:
     association: int | None = None
     cost: float | None = None
     inside: bool = True
+    # (label, confidence) of service.tracking.posture, set by the chain; None: not judged
+    posture: tuple[str, float] | None = None
 
 
 @dataclass
