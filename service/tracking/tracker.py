@@ -174,6 +174,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from service.stages import Track
+from service.tracking.image_continuity import ImageContinuity, ViewMemory
 from service.tracking.motion import ConstantVelocity, StandOrWalk
 
 _UNASSIGNED = 1e9
@@ -197,6 +198,10 @@ RECOMMENDED: dict[str, Any] = {
     "birth_clearance_m": 0.8,
     "merge_m": 0.35,
     "merge_s": 0.5,
+    # each camera's box centre continues the track's (service.tracking.image_continuity)
+    "image_std_h": 0.15,
+    "image_growth_hps": 0.3,
+    "image_cap": 4.0,
 }
 ASSIGN_COSTS = ("euclidean", "likelihood")
 MOTION_MODELS = {"cv": ConstantVelocity, "imm": StandOrWalk}
@@ -217,6 +222,7 @@ class _State:
     shadowed_s: float = 0.0  # time spent within merge_m of an older track
     cameras: list[int] = field(default_factory=list)
     meta: dict[str, Any] = field(default_factory=dict)
+    views: ViewMemory = field(default_factory=ViewMemory)  # last box per camera
 
 
 class Tracker:
@@ -250,6 +256,9 @@ class Tracker:
         birth_clearance_m: float = 0.0,
         merge_s: float = 0.0,
         merge_m: float = 0.0,
+        image_std_h: float = 0.0,
+        image_growth_hps: float = 0.6,
+        image_cap: float = 16.0,
     ) -> None:
         if fps_hint <= 0 or max_missing_s <= 0 or gate_m <= 0:
             raise ValueError("fps_hint, max_missing_s and gate_m must be positive")
@@ -281,6 +290,9 @@ class Tracker:
         self.merge_s = max(0.0, float(merge_s))
         self.merge_m = max(0.0, float(merge_m))
         self.serve_coast_s = self.max_missing_s if serve_coast_s is None else float(serve_coast_s)
+        self.image = ImageContinuity(
+            max(0.0, float(image_std_h)), float(image_growth_hps), float(image_cap)
+        )
         self._frame_dt = 1.0 / self.fps_hint
         self._motion_options = (
             {"stand_std": stand_std_m, "stand_s": stand_s, "walk_s": walk_s}
@@ -315,6 +327,9 @@ class Tracker:
         uncertainty of each measurement; ``None`` (or a non-finite one) means the isotropic
         ``measurement_std_m``. ``coverage`` (optional): floor positions [N, 2] → [N, K] bool,
         which cameras should see a person standing there (used with ``ghost_s``).
+        ``meta[i]["boxes"]`` (optional, [K, 4] px, NaN where camera k does not see the person):
+        the association's boxes, for the image continuity cost (``image_std_h`` > 0,
+        :mod:`service.tracking.image_continuity`).
         """
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
         keep = np.all(np.isfinite(positions), axis=1)
@@ -333,7 +348,8 @@ class Tracker:
         for track in self._tracks:
             self._predict(track, dt)
 
-        rows, cols = self._assign(positions, noise, self._time)
+        boxes = [m.get("boxes") for m in meta]
+        rows, cols = self._assign(positions, noise, self._time, boxes)
         matched_tracks = set(rows.tolist())
         for r, c in zip(rows, cols, strict=True):
             self._correct(self._tracks[r], positions[c], noise[c], meta[c], self._time)
@@ -434,6 +450,7 @@ class Tracker:
         weight = self._rate_weight(self._frame_dt)
         track.rate = track.rate * (1.0 - weight) + weight
         track.cameras = [int(k) for k in meta.get("cameras", [])]
+        track.views.remember(meta.get("boxes"), t)
         self._count_views(track, self._frame_dt)
         self._confirm(track, t)
         track.meta = dict(meta)
@@ -529,6 +546,7 @@ class Tracker:
             cameras=[int(k) for k in meta.get("cameras", [])],
             meta=dict(meta),
         )
+        state.views.remember(meta.get("boxes"), t)
         # credited for one frame interval, as measured (the hint before a second update)
         self._count_views(state, self._frame_dt if self._frame_dt > 0 else 1.0 / self.fps_hint)
         self._confirm(state, t)
@@ -536,7 +554,11 @@ class Tracker:
         return state
 
     def _assign(
-        self, positions: np.ndarray, noise: np.ndarray, now: float
+        self,
+        positions: np.ndarray,
+        noise: np.ndarray,
+        now: float,
+        boxes: Sequence[np.ndarray | None] = (),
     ) -> tuple[np.ndarray, np.ndarray]:
         empty = np.zeros(0, dtype=int)
         if not self._tracks or not len(positions):
@@ -554,6 +576,10 @@ class Tracker:
             s = np.stack([tr.motion.cov[:2, :2] for tr in self._tracks])[:, None] + noise[None]
             d2 = np.einsum("tpi,tpij,tpj->tp", nu, np.linalg.inv(s), nu)
             cost = d2 + np.log(np.linalg.det(s))
+        if self.image.enabled and len(boxes) == len(positions):
+            # each camera's box centre against the track's last one there, moved on by its
+            # image velocity (service.tracking.image_continuity)
+            cost = cost + self.image.cost([tr.views for tr in self._tracks], boxes, now)
         # Tentative tracks lose ties to confirmed ones: a small penalty keeps ids stable.
         penalty = np.array([0.0 if tr.confirmed else 0.05 for tr in self._tracks])
         cost = np.where(admit, cost + penalty[:, None], _UNASSIGNED)
