@@ -63,6 +63,16 @@ def strict_json(value: Any, digits: int | None = None) -> Any:
     return value
 
 
+def write_result(name: str, text: str) -> Path:
+    """Write ``bench/results/<name>``, print the text and where it went; returns the path."""
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    out = RESULTS / name
+    out.write_text(text)
+    print(text)
+    print(f"wrote {out}")
+    return out
+
+
 def markdown_table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
     """A GitHub Markdown table; the first column left-aligned, the others right-aligned."""
     lines = [

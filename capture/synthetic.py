@@ -32,6 +32,7 @@ import numpy as np
 
 from capture.rig import FrameSet
 from capture.worker import CameraState, Frame
+from common.worker_thread import WorkerThread
 
 
 class RenderedScene(Protocol):
@@ -126,20 +127,16 @@ class SyntheticRig(SceneClock):
         self.render_every = render_every
         self._latest: FrameSet | None = None
         self._new_frames = threading.Condition()
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._worker = WorkerThread(self._run, "synthetic-rig")
+        self._stop = self._worker.stopping
         self._produced: list[float] = []
 
     def start(self) -> None:
-        self._stop.clear()
         self.t0 = time.time()
-        self._thread = threading.Thread(target=self._run, name="synthetic-rig", daemon=True)
-        self._thread.start()
+        self._worker.start()
 
     def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5)
+        self._worker.stop()
 
     def _run(self) -> None:
         index = 0
@@ -182,7 +179,7 @@ class SyntheticRig(SceneClock):
         stamps = self._produced
         fps = (len(stamps) - 1) / (stamps[-1] - stamps[0]) if len(stamps) > 1 else 0.0
         age = now - stamps[-1] if stamps else None
-        alive = self._thread is not None and self._thread.is_alive()
+        alive = self._worker.alive
         return [
             CameraState(
                 connected=alive and age is not None and age < 2.0,

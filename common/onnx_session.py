@@ -27,14 +27,20 @@ if TYPE_CHECKING:  # imported when a session is made: `momloc --help` need not l
 MAX_DEFAULT_THREADS = 4
 
 
+def default_threads(threads: int | None = None) -> int:
+    """``threads``, or by default the CPUs this process may use, at most 4 (every inference
+    runtime of the project: onnxruntime here, OpenVINO and ncnn in models.detector.runtimes)."""
+    if threads:
+        return int(threads)
+    return max(1, min(MAX_DEFAULT_THREADS, len(os.sched_getaffinity(0))))
+
+
 def session_options(threads: int | None = None) -> ort.SessionOptions:
     """The project's CPU session settings (see the module docstring)."""
     import onnxruntime as ort
 
-    if threads is None:
-        threads = max(1, min(MAX_DEFAULT_THREADS, len(os.sched_getaffinity(0))))
     options = ort.SessionOptions()
-    options.intra_op_num_threads = int(threads)
+    options.intra_op_num_threads = default_threads(threads)
     options.inter_op_num_threads = 1
     options.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
     options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL

@@ -17,7 +17,7 @@ from service.pipeline.build import build_detect_stage, build_rig, build_tracker,
 from service.pipeline.hub import Hub
 from service.pipeline.live import Pipeline
 from service.pipeline.model_watch import ModelWatcher
-from service.settings import Settings
+from service.settings import POSITIONS_ONLY, Settings
 from service.setup.session import SetupSession
 from service.setup.training import TrainingJob, model_path
 from service.setup.verify import Verifier
@@ -76,6 +76,7 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
         tracker=build_tracker(settings),
         max_error_px=settings.tracking.max_error_px,
         outside_area=settings.tracking.outside_area,
+        preview_images=settings.privacy != POSITIONS_ONLY,
     )
     extras = {}
     if player is not None:
@@ -101,6 +102,7 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
         allowed_hosts=list(settings.allowed_hosts),
         allowed_origins=list(settings.allowed_origins),
         setup=session,
+        privacy=settings.privacy,
     )
     daemon.training = TrainingJob(lambda: session.data_dir, pipeline.reload_model, session.steps)
     verifier = Verifier(

@@ -15,12 +15,11 @@ choice is where the boxes come from (``synthetic.detections``):
   by size, occlusion and truncation, edge errors, false positives, persisting over frames;
   ``--profile ideal`` for the former kind noise).
 
-Why rendered is the default: measured with :func:`replay_demo` on frames 30..599 (README, "The
-daemon"), the drawn frames through NanoDet localise the three people at least as well as the
-simulated boxes do (mean 0.089 m vs 0.117 m, 97.8 % vs 97.7 % within 0.5 m, recall 100 % both);
-the price is precision 0.91 instead of 1.0 (tracks coasting on after brief misses). With SSDLite
-the drawn people were found only 42-56 % of the time (``bench/results/render_recall*.md``),
-which is why ``simulated`` used to be the default.
+Why rendered is the default: measured with :func:`replay_demo` on frames 30..599
+(``bench/results/demo_scene.md``), the drawn frames through NanoDet localise the three people at
+least as well as the simulated boxes do; the price is a lower precision (tracks coasting on
+after brief misses). SSDLite found too few of the drawn people
+(``bench/results/render_recall*.md``), which is why ``simulated`` used to be the default.
 ``MOMLOC_SYNTHETIC__DETECTIONS`` still chooses either.
 """
 

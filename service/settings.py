@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import contextvars
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, get_args
 
 import yaml
 from pydantic import (
@@ -37,11 +37,16 @@ from pydantic import (
 from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict
 
 from common.errors import MomlocError
+from models.detector.nanodet import NanoDetSettings
+from models.detector.ssdlite import SsdliteSettings
+from models.detector.yolov8 import Yolov8Settings
 from service.outputs.settings import MqttSettings, OscSettings, ZoneList
 from service.tracking.association import DEFAULT_MAX_ERROR_PX
 
 DEMO_MODEL_DIR = Path(__file__).resolve().parent.parent / "models" / "demo_model"
 _STRICT = ConfigDict(extra="forbid")
+Privacy = Literal["off", "positions_only"]
+POSITIONS_ONLY: Privacy = "positions_only"
 _ORIGIN = r"^(\*|https?://[A-Za-z0-9.\-\[\]:]+)$"
 _HOST = r"^(\*|[A-Za-z0-9.\-]+|\[?[0-9A-Fa-f:.]+\]?)$"
 
@@ -94,46 +99,13 @@ class SyntheticCamera(BaseModel):
 CameraSettings = Annotated[V4l2Camera | FileCamera | SyntheticCamera, Field(discriminator="type")]
 
 
-class DetectorSettings(BaseModel):
-    """Person detector options (see ``models.detector.create_detector``)."""
-
-    model_config = _STRICT
-    kind: str = Field(
-        "nanodet",
-        description="Detector backend name in the detector registry: nanodet (shipped default), "
-        "ssdlite (shipped, smaller and blinder), yolov8 (bring your own ONNX).",
-    )
-    score_threshold: float = Field(
-        0.4, ge=0.0, le=1.0, description="Boxes scoring below this are ignored."
-    )
-    threads: int = Field(2, ge=1, le=64, description="onnxruntime intra-op threads.")
-    model_path: Path | None = Field(
-        None,
-        description="ONNX file for detectors you bring (kind: yolov8); nanodet and ssdlite ship "
-        "their own.",
-    )
-    input_size: tuple[int, int] | None = Field(
-        None,
-        description="Network input width, height in pixels (nanodet: multiples of 32, default "
-        "320x256; yolov8: for dynamic exports). Default: the kind's.",
-    )
-    letterbox: bool | None = Field(
-        None, description="Pad to the model's square input instead of stretching (default: kind's)."
-    )
-    max_shrink: float | None = Field(
-        None,
-        ge=1.0,
-        le=100.0,
-        description="nanodet: a frame that would shrink by more than this into input_size gets a "
-        "larger input, the frame shrunk by exactly this much (1920x1080: 640x384 at the default "
-        "3, ~2.4x the CPU of 320x256), so high-resolution cameras keep their small people; 100 "
-        "keeps input_size for every frame. Default: the kind's.",
-    )
-    keypoints: bool = Field(
-        False,
-        description="Add COCO-17 keypoints to every box (MediaPipe Pose on each person's crop, "
-        "needs momloc[keypoints]); required by a model trained with --observation keypoints.",
-    )
+# One settings class per detector kind, in the kind's plugin module (after Frigate's detector
+# plugins), told apart by ``kind``; a detector section without ``kind`` is NanoDet's.
+_DETECTOR_CLASSES = (NanoDetSettings, SsdliteSettings, Yolov8Settings)
+DetectorSettings = Annotated[
+    NanoDetSettings | SsdliteSettings | Yolov8Settings, Field(discriminator="kind")
+]
+DETECTOR_KINDS = tuple(get_args(c.model_fields["kind"].annotation)[0] for c in _DETECTOR_CLASSES)
 
 
 class DetectionSettings(BaseModel):
@@ -180,10 +152,9 @@ class DetectionSettings(BaseModel):
         le=16,
         description=(
             "auto, nanodet: after each detection, look again at up to this many known people "
-            "shorter than window_below_px in 96x160 windows (~7 CPU-ms each on the 2-core "
-            "host): on hand-checked video, small people's bottom edge 0.019 -> 0.013 of box "
-            "height and precision 0.95 -> 0.99, but the detector runs less often "
-            "(bench/results/small_people.md). 0: off."
+            "shorter than window_below_px in 96x160 windows: small people get a sharper "
+            "bottom edge and fewer false boxes, but each window costs CPU and the detector "
+            "runs less often (bench/results/small_people.md). 0: off."
         ),
     )
     window_below_px: float = Field(
@@ -323,7 +294,9 @@ class Settings(BaseSettings):
     )
 
     detector: DetectorSettings = Field(
-        default_factory=DetectorSettings, description="Person detector options."
+        default_factory=NanoDetSettings,
+        description="Person detector: kind (nanodet, ssdlite, yolov8; nanodet when not given) and "
+        "that kind's options.",
     )
     detection: DetectionSettings = Field(
         default_factory=DetectionSettings, description="Detection scheduling options."
@@ -372,6 +345,13 @@ class Settings(BaseSettings):
     )
     mqtt: MqttSettings | None = Field(None, description="MQTT publisher; absent: off.")
     osc: OscSettings | None = Field(None, description="OSC bundles over UDP; absent: off.")
+    privacy: Privacy = Field(
+        "off",
+        description="positions_only: the daemon serves and stores no camera images (no "
+        "snapshot JPEGs, previews drawn as boxes on an empty background, no momloc record); "
+        "positions, zones, events and the set-up flow work as before. off: previews and "
+        "recordings allowed (docs/guides/security.md).",
+    )
 
     @classmethod
     def settings_customise_sources(
@@ -392,6 +372,14 @@ class Settings(BaseSettings):
             return None
         if len(str(value)) > 4096 or any(len(part.encode()) > 255 for part in value.parts):
             raise ValueError("path too long (at most 255 bytes per name, 4096 in all)")
+        return value
+
+    @field_validator("detector", mode="before")
+    @classmethod
+    def _nanodet_unless_told(cls, value: Any) -> Any:
+        """A detector section without ``kind`` (or an environment override alone) is NanoDet's."""
+        if isinstance(value, dict) and "kind" not in value:
+            return {"kind": "nanodet", **value}
         return value
 
     @model_validator(mode="after")
@@ -416,7 +404,20 @@ def format_validation_error(error: ValidationError, origin: str = "settings") ->
     return "\n".join(lines)
 
 
-_UNION_TAGS = {"v4l2", "file", "synthetic"}
+_UNION_TAGS = {"v4l2", "file", "synthetic", *DETECTOR_KINDS}
+
+
+def read_yaml(path: Path, what: str) -> Any:
+    """The YAML document in ``path``; an unreadable file or bad YAML is one MomlocError line
+    (``what`` names the file's role; the line of a YAML error, never its echo of the text)."""
+    try:
+        return yaml.safe_load(path.read_text())
+    except OSError as error:
+        raise MomlocError(f"{path}: cannot read {what} ({error.strerror})") from None
+    except yaml.YAMLError as error:
+        mark = getattr(error, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark else ""
+        raise MomlocError(f"{path}: not valid YAML{where}") from None
 
 
 def load_settings(path: str | Path | None = None, **overrides: Any) -> Settings:
@@ -426,14 +427,7 @@ def load_settings(path: str | Path | None = None, **overrides: Any) -> Settings:
     if path is not None:
         path = Path(path)
         origin = str(path)
-        try:
-            loaded = yaml.safe_load(path.read_text())
-        except OSError as error:
-            raise MomlocError(f"{path}: cannot read settings file ({error.strerror})") from None
-        except yaml.YAMLError as error:
-            mark = getattr(error, "problem_mark", None)
-            where = f" at line {mark.line + 1}" if mark else ""
-            raise MomlocError(f"{path}: not valid YAML{where}") from None
+        loaded = read_yaml(path, "settings file")
         if loaded is not None and not isinstance(loaded, dict):
             raise MomlocError(f"{path}: the top level must be a mapping of settings")
         data = loaded or {}

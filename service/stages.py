@@ -18,10 +18,10 @@ and an earlier pipeline that passed boxes only silently threw them away. A stage
 delivers keypoints (:attr:`DetectStage.keypoints`), so a keypoint model on a box-only detector is
 refused at load instead of failing on every frame.
 
-The stages are Protocols so the real ones (``service.pipeline.live.DetectorStage``, the demo's
-``SimulatedDetections``, ``service.tracking.association.associate``,
-``service.tracking.tracker.Tracker``) and tests' doubles are interchangeable without inheriting from
-anything.
+The stages are Protocols so the real ones (``service.detection.schedule.DetectionScheduler``,
+the demo's ``SimulatedDetections``, ``service.tracking.association.associate``,
+``service.tracking.tracker.Tracker``) and tests' doubles are interchangeable without inheriting
+from anything.
 """
 
 from __future__ import annotations

@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 import onnxruntime
 
-from bench.report import RESULTS, machine_line, markdown_table
+from bench.report import machine_line, markdown_table, write_result
 from capture import CameraRig, CameraWorker, VideoFileSource
 from models.detector import create_detector
 from models.detector.validation import person_frame, recall_by_height
@@ -260,11 +260,7 @@ until the worker reports the camera disconnected (for a stall: 2 intervals of th
 
 {markdown_table(RECOVERY_HEADER, recover)}
 """
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    out = RESULTS / "detector_speed.md"
-    out.write_text(text)
-    print(text)
-    print(f"wrote {out}")
+    write_result("detector_speed.md", text)
     return 0
 
 

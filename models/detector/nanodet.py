@@ -24,25 +24,27 @@ import copy
 import functools
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
+from pydantic import Field
 
 from common.errors import MomlocError
-from common.onnx_session import open_session
 from models.detector.base import (
     Detections,
+    DetectorSettingsBase,
     PersonDetector,
     register_detector,
     verify_shipped,
     warm_up,
 )
 from models.detector.preprocessing import Geometry, check_frame, input_for_frame, make_batch, nms
+from models.detector.runtimes import Runtime, open_graph
 
 WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
 DEFAULT_MODEL = WEIGHTS_DIR / "nanodet_person.onnx"
+NCNN_FILES = (WEIGHTS_DIR / "nanodet_person.ncnn.param", WEIGHTS_DIR / "nanodet_person.ncnn.bin")
 STRIDES = (8, 16, 32)
-INPUT_NAME = "images"
-OUTPUT_NAME = "person"
 
 
 @functools.lru_cache(maxsize=16)
@@ -71,6 +73,37 @@ def _check_size(input_size: tuple[int, int]) -> tuple[int, int]:
     return width, height
 
 
+class NanoDetSettings(DetectorSettingsBase):
+    """Settings of the shipped default detector (``kind: nanodet``)."""
+
+    kind: Literal["nanodet"] = Field("nanodet", description="NanoDet (shipped default).")
+    runtime: Runtime = Field(
+        "auto",
+        description="Inference runtime: auto (the installed one using the least CPU: ncnn, "
+        "else OpenVINO, else onnxruntime; bench/results/detector_runtimes.md), onnxruntime "
+        "(always installed), openvino (momloc[openvino]) "
+        "or ncnn (the shipped model only).",
+    )
+    model_path: Path | None = Field(
+        None, description="Your own NanoDet person ONNX file (tools/convert_nanodet.py interface)."
+    )
+    input_size: tuple[int, int] | None = Field(
+        None, description="Network input width, height (multiples of 32). Default 320x256."
+    )
+    letterbox: bool | None = Field(
+        None, description="Pad to the input's aspect ratio instead of stretching (default off)."
+    )
+    max_shrink: float | None = Field(
+        None,
+        ge=1.0,
+        le=100.0,
+        description="A frame that would shrink by more than this into input_size gets a larger "
+        "input, the frame shrunk by exactly this much (1920x1080: 640x384 at the default 3, "
+        "~2.4x the CPU of 320x256), so high-resolution cameras keep their small people; 100 "
+        "keeps input_size for every frame. Default 3.",
+    )
+
+
 @register_detector("nanodet")
 class NanoDetDetector(PersonDetector):
     """NanoDet person detector (default).
@@ -95,7 +128,9 @@ class NanoDetDetector(PersonDetector):
     letterbox: pad to the input's aspect ratio instead of stretching.
     iou_threshold: greedy NMS overlap.
     max_detections: at most this many people per frame.
-    threads: onnxruntime intra-op threads (default: available CPUs, at most 4).
+    threads: inference threads (default: available CPUs, at most 4).
+    runtime: which inference runtime runs the graph (:mod:`models.detector.runtimes`): ``auto``
+        (default) the fastest installed one, else ``onnxruntime``, ``openvino`` or ``ncnn``.
     """
 
     def __init__(
@@ -108,10 +143,12 @@ class NanoDetDetector(PersonDetector):
         iou_threshold: float = 0.6,
         max_detections: int = 100,
         threads: int | None = None,
+        runtime: Runtime = "auto",
     ) -> None:
         path = Path(model_path) if model_path is not None else DEFAULT_MODEL
         if model_path is None:
-            verify_shipped(path)
+            for shipped in (path, *NCNN_FILES):
+                verify_shipped(shipped)
         width, height = _check_size(input_size)
         self.model_path = path
         self.score_threshold = float(score_threshold)
@@ -122,42 +159,27 @@ class NanoDetDetector(PersonDetector):
         self.letterbox = bool(letterbox)
         self.iou_threshold = float(iou_threshold)
         self.max_detections = int(max_detections)
-        self.session = open_session(path, threads, what="detector model")
-        self._check_interface()
+        self.graph = open_graph(runtime, path, NCNN_FILES if model_path is None else None, threads)
         warm_up(self, path, frames=2)
 
     def resized(self, input_size: tuple[int, int]) -> NanoDetDetector:
-        """The same network at another input size, sharing this one's onnxruntime session (the
-        graph takes any size), e.g. for :class:`models.detector.windows.WindowRefiner`."""
+        """The same network at another input size, sharing this one's inference graph (the graph
+        takes any size), e.g. for :class:`models.detector.windows.WindowRefiner`."""
         twin = copy.copy(self)
         twin.input_size = _check_size(input_size)
         twin.max_shrink = None  # a window is cut to the size it is detected at
         return twin
 
-    def _check_interface(self) -> None:
-        inputs, outputs = self.session.get_inputs(), self.session.get_outputs()
-        ok = (
-            len(inputs) == 1
-            and inputs[0].name == INPUT_NAME
-            and inputs[0].type == "tensor(uint8)"
-            and len(inputs[0].shape) == 4
-            and any(o.name == OUTPUT_NAME for o in outputs)
-        )
-        if not ok:
-            got = ", ".join(f"{i.name} {i.type} {i.shape}" for i in inputs)
-            raise MomlocError(
-                f"detector model {self.model_path}: not a NanoDet person model (expected uint8 "
-                f"input {INPUT_NAME!r} [N, H, W, 3] and output {OUTPUT_NAME!r}; got {got})"
-            )
-
     def describe(self) -> str:
         mode = "letterbox" if self.letterbox else "resize"
         width, height = self.input_size
         grows = "" if self.max_shrink is None else f", larger frames shrunk {self.max_shrink:g}x"
-        return f"nanodet {self.model_path.name} {width}x{height} {mode}{grows}"
+        return (
+            f"nanodet {self.model_path.name} {width}x{height} {mode}{grows}, {self.graph.runtime}"
+        )
 
     def detect(self, frames: Sequence[np.ndarray]) -> list[Detections]:
-        """One onnxruntime call per input size (one call for cameras of one resolution)."""
+        """One inference call per input size (one call for cameras of one resolution)."""
         by_size: dict[tuple[int, int], list[int]] = {}
         for index, frame in enumerate(frames):
             check_frame(frame, index)
@@ -170,7 +192,7 @@ class NanoDetDetector(PersonDetector):
             batch, geometries = make_batch(
                 [frames[i] for i in indices], size, self.letterbox, False
             )
-            (raw,) = self.session.run([OUTPUT_NAME], {INPUT_NAME: batch})
+            raw = self.graph.run(batch)
             centres, strides = anchor_grid(size)
             if raw.shape[1] != len(centres):
                 raise MomlocError(

@@ -18,13 +18,16 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
+from pydantic import Field
 
 from common.errors import MomlocError
 from common.onnx_session import open_session
 from models.detector.base import (
     Detections,
+    DetectorSettingsBase,
     PersonDetector,
     register_detector,
     verify_shipped,
@@ -38,6 +41,16 @@ INPUT_SIZE = (300, 300)
 INPUT_NAME = "image_tensor:0"
 OUTPUT_NAMES = ("detection_boxes:0", "detection_scores:0", "detection_classes:0")
 PERSON_CLASS = 1
+
+
+class SsdliteSettings(DetectorSettingsBase):
+    """Settings of the shipped SSDLite pedestrian detector (``kind: ssdlite``)."""
+
+    kind: Literal["ssdlite"] = Field(description="SSDLite (shipped, smaller and blinder).")
+    model_path: Path | None = Field(None, description="Your own file with the same interface.")
+    letterbox: bool | None = Field(
+        None, description="Pad to the square input instead of stretching (default off)."
+    )
 
 
 @register_detector("ssdlite")

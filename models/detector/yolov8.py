@@ -22,18 +22,34 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
+from pydantic import Field
 
 from common.errors import MomlocError
 from common.onnx_session import open_session
 from models.detector.base import (
     Detections,
+    DetectorSettingsBase,
     PersonDetector,
     register_detector,
     warm_up,
 )
 from models.detector.preprocessing import Geometry, make_batch, nms
+
+
+class Yolov8Settings(DetectorSettingsBase):
+    """Settings of a YOLOv8 ONNX export you bring (``kind: yolov8``)."""
+
+    kind: Literal["yolov8"] = Field(description="YOLOv8 (bring your own ONNX export).")
+    model_path: Path = Field(description="Your YOLOv8 ONNX export.")
+    input_size: tuple[int, int] | None = Field(
+        None, description="Network input width, height for dynamic exports. Default 640x640."
+    )
+    letterbox: bool | None = Field(
+        None, description="Pad to the square input instead of stretching (default on)."
+    )
 
 
 @register_detector("yolov8")

@@ -8,9 +8,9 @@ result per camera is ``[12, 2]`` in normalised pixels (``2 * p / image_size - 1`
 resolution looks alike to the network); a missing camera gives zeros and mask 0.
 
 Beyond the paper, ``extent`` (default on) appends two rows per camera: the observation's min and
-max corners. Measured on indoor-2cam: mean error 0.162 → 0.128 m, single-view rows 0.41 → 0.28 m;
-the estimators locate the body's mass well but carry its extent (the foot point, which gives depth
-when only one camera sees the person) only noisily.
+max corners (measured: ``bench/results/sampling.md``): the estimators locate the body's mass well
+but carry its extent (the foot point, which gives depth when only one camera sees the person) only
+noisily.
 
 Every estimator is a weighted mean ``W @ points`` with ``W`` an ``[E, n]`` matrix of ``1/m`` on the
 chosen subset. A subset is drawn as "the ``m`` points with the smallest random keys", with
@@ -22,25 +22,22 @@ whatever the number of visible keypoints.
 * Inference (:func:`inference_estimators`): ``D`` fixed draws from a scrambled Sobol sequence with
   a fixed seed (stored in ``model.json`` so a different numpy cannot change them). Each row uses
   only its own observation and the fixed draws, so a result never depends on batch composition.
-  The encoder's predictions are averaged over the ``D`` draws. Measured on indoor-2cam: with the
-  paper's input alone one draw is 20 % worse than 32 (0.194 vs 0.162 m); with the extent rows
-  (below) the sampled points matter far less (1 draw 0.130, 4 draws 0.128, 32 draws 0.128 m), so
-  ``D = 4`` keeps the encoder fast.
+  The encoder's predictions are averaged over the ``D`` draws: with the paper's input alone one
+  draw is much worse than many; with the extent rows (below) the sampled points matter far less,
+  so ``D = 4`` keeps the encoder fast (``bench/results/sampling.md``).
 
 Keypoint mode leaves a camera out when its box holds no visible keypoint (the pose estimator
-found no pose: MediaPipe on real video in 27-67 % of boxes under 100 px,
-``bench/results/keypoint_noise.md``). Measured and rejected (2026-12-02, stream bench
-``--observation keypoints``, nanodet profile, seeds 7 8 × 600, MOTA on indoor-2cam 1 / 3 / 5
-people, indoor-4cam, living-room): such a camera reading a template pose placed in its box
-(joints at Drillis & Contini's heights), in training and serving alike: 79.4 / 70.4 / 57.6 /
-82.6 / 83.3 % against 74.3 / 65.3 / 57.9 / 87.8 / 89.0 % without (373.3 against 374.3 summed:
-it recovers small people on indoor-2cam, and localizes the pose-less false boxes where people
-are large); only for boxes under 100 px of 480: 71.9 / 66.8 / 61.6 / 84.7 / 88.3 % (373.3).
+found no pose, often for small people on real video: ``bench/results/keypoint_noise.md``).
+Measured and rejected (``bench/results/sampling.md``): such a camera reading a template pose
+placed in its box (joints at Drillis & Contini's heights), in training and serving alike, for
+every pose-less box or only for small ones: a wash over the five stream scenes (it recovers
+small people where they are small, and localizes the pose-less false boxes where people are
+large).
 
 Point distributions for bbox mode: ``"uniform"`` (uniform in the box, as in the paper) or
 ``"body"`` (a narrower, body-like horizontal spread: x ~ clipped normal around the box centre,
-y uniform). Measured on indoor-2cam over two recordings they tie (mean 0.136 vs 0.133 m and
-0.132 vs 0.136 m), so the default stays the paper's uniform points.
+y uniform). They tie on indoor-2cam (``bench/results/sampling.md``), so the default stays the
+paper's uniform points.
 """
 
 from __future__ import annotations

@@ -132,13 +132,7 @@ class PinholeCamera:
 
     def project(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """World points [..., 3] → pixels [..., 2] (distorted) and in_front [...] bool."""
-        pixels, depth = project_points(
-            np.asarray(points, dtype=np.float64),
-            self.K,
-            self.R,
-            self.t,
-            np.asarray(self.distortion),
-        )
+        pixels, depth = self.project_depth(points)
         return pixels, depth > NEAR
 
     def project_depth(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

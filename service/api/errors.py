@@ -41,7 +41,8 @@ class ErrorBody(BaseModel):
 _WHAT = {
     400: "Malformed request",
     401: "Missing or wrong token",
-    403: "Refused: foreign Origin or Host (see README, Security)",
+    403: "Refused: foreign Origin or Host, or a camera image under privacy: positions_only "
+    "(docs/guides/security.md)",
     404: "No such thing",
     409: "Conflicts with the daemon's state (e.g. model refused, collection running)",
     413: "Request body too large",

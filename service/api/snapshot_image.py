@@ -1,4 +1,6 @@
-"""Camera preview JPEGs: the newest frame with detector boxes and track ids drawn on it.
+"""Camera previews: the newest frame as a JPEG with detector boxes and track ids drawn on it, or
+the boxes alone as JSON (what the pages draw on an empty background under ``privacy:
+positions_only``, when no view holds an image).
 
 Drawing happens on request (in FastAPI's thread pool), on a copy, so the pipeline thread never
 pays for previews nobody is looking at.
@@ -10,6 +12,33 @@ from typing import Any
 
 import cv2
 import numpy as np
+from pydantic import BaseModel, Field
+
+
+class PreviewBox(BaseModel):
+    """One detector box of a camera preview."""
+
+    box: list[float] = Field(description="xmin, ymin, xmax, ymax in pixels of the frame.")
+    id: int | None = Field(description="Track id the box fed; null: not assigned to a track.")
+
+
+class CameraBoxes(BaseModel):
+    """A camera's newest boxes, the JSON twin of its snapshot JPEG (no pixels)."""
+
+    width: int | None = Field(description="Frame width in pixels; null before the first frame.")
+    height: int | None = Field(description="Frame height in pixels; null before the first frame.")
+    boxes: list[PreviewBox] = Field(description="Boxes of the newest previewed frame.")
+
+
+def camera_boxes_of(view: Any) -> CameraBoxes:
+    """``view``'s finite boxes and ids with the frame size."""
+    width, height = view.size if view.size is not None else (None, None)
+    boxes = [
+        PreviewBox(box=[round(float(v), 1) for v in box[:4]], id=track_id)
+        for box, track_id in view.boxes
+        if np.all(np.isfinite(box[:4]))
+    ]
+    return CameraBoxes(width=width, height=height, boxes=boxes)
 
 
 def id_colour(track_id: int | None) -> tuple[int, int, int]:

@@ -16,6 +16,7 @@ from service.camera_health.reprojection import CameraMoved
 from service.pipeline.hub import Hub
 from service.pipeline.live import Pipeline
 from service.pipeline.model_watch import ModelWatcher
+from service.settings import POSITIONS_ONLY, Privacy
 from service.setup.session import SetupSession
 from service.setup.training import TrainingJob
 from service.setup.verify import Verifier
@@ -45,6 +46,12 @@ class Daemon:
     outputs: Any = None  # service.outputs.wiring.Outputs: zones, MQTT
     training: TrainingJob | None = None  # the /setup page's Train button
     verifier: Verifier | None = None  # the /setup page's check step
+    privacy: Privacy = "off"  # positions_only: no camera image leaves the process
+
+    @property
+    def images_allowed(self) -> bool:
+        """Whether camera images may be served (settings ``privacy``)."""
+        return self.privacy != POSITIONS_ONLY
 
     @property
     def setup_mode(self) -> bool:
@@ -90,6 +97,7 @@ class Daemon:
             "status": "setup" if self.setup_mode else "ok" if ok else "degraded",
             "degraded": degraded,
             "setup_mode": self.setup_mode,
+            "privacy": self.privacy,
             "uptime_s": round(time.time() - self.started, 1),
             "cameras": cameras,
             "model": model,
@@ -117,6 +125,7 @@ class Daemon:
             "stream_rate": self.stream_rate,
             "auth": self.token is not None,
             "setup_mode": self.setup_mode,
+            "privacy": self.privacy,
             "zones": []
             if self.outputs is None
             else [z.as_dict() for z in self.outputs.zones.zones],

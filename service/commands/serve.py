@@ -36,6 +36,7 @@ def serve_settings(settings: Any, banner: str) -> int:
     """Build the daemon, print where to find it, serve until Ctrl-C."""
     from service.api.server import run_server
     from service.daemon import build_daemon
+    from service.settings import POSITIONS_ONLY
 
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
     daemon = build_daemon(settings)
@@ -53,6 +54,8 @@ def serve_settings(settings: Any, banner: str) -> int:
         print(f"  live map:  http://{shown}:{port}/{query}", flush=True)
         print(f"  stream:    ws://{shown}:{port}/v1/stream{query}", flush=True)
         print(f"  API docs:  http://{shown}:{port}/docs", flush=True)
+        if settings.privacy == POSITIONS_ONLY:
+            print("  privacy:   positions only, no camera image is served or stored", flush=True)
         print("  Ctrl-C to stop", file=sys.stderr, flush=True)
 
     run_server(daemon, host, settings.port, on_ready=announce)

@@ -1,9 +1,9 @@
 """Carry person boxes between detections: image-space tracking per camera.
 
-Why: the detector costs more than a 33 ms frame slot on 2 cores (SSDLite: ~42 CPU-ms for two
-640x480 frames on one thread, ~51 on two), so :mod:`service.detection.schedule` runs it on some
-frame sets only, in the background. Every frame set in between still needs boxes, and when a
-detection arrives it describes a frame that is already 1-3 frames old. :class:`BoxCarrier` keeps
+Why: the detector costs more than a 33 ms frame slot on 2 cores
+(``bench/results/detector_speed.md``), so :mod:`service.detection.schedule` runs it on some frame
+sets only, in the background. Every frame set in between still needs boxes, and when a detection
+arrives it describes a frame that is already 1-3 frames old. :class:`BoxCarrier` keeps
 one small track per box of one camera and answers both needs:
 
 - :meth:`BoxCarrier.advance` moves every box to the newest frame: a constant-velocity Kalman
@@ -22,20 +22,14 @@ Every box carries its **age**: seconds since a detector last found it (0 = found
 frame). Boxes older than ``max_age_s`` or missed by ``max_misses`` detections in a row expire,
 so a person who left does not linger as a ghost.
 
-Measured choices (``bench/serving/realtime.py``, 2 cores; ``bench/results/realtime.md``): with the
-detector every 3rd frame set and its result 2 frame sets late, the carried boxes' centres were
-off the detector's own boxes of the frames in between by a median 9.7 % of box height when held
-still, 2.5 % with the filter and 2.7 % with filter + flow on drawn frames (the simulator's people
-walk steadily); 12.4 / 8.7 / 7.8 % on ``vtest.avi``, whose people stop, turn and cross, where
-flow also kept more boxes on their person (733 matched pairs against 639). Cost per camera
-frame, idle host: filter 0.4-0.7 ms, filter + flow 2-4 ms (3x5 point grid per box, 3 pyramid
-levels, forward-backward check); at load 8-11: 2-3 ms and 11-19 ms. So flow is on by default
-but the scheduler drops it while it costs more than its budget (``service.detection.schedule``);
-trusting flow more than a detection (1 % of box height instead of 3 %) was worse on the video
-(10.0 % instead of 8.2 %): legs and background points make its shifts noisy. Rejected:
-re-running the detector on crops around known people (these graphs take a fixed input, so each
-crop costs a full call), and dense flow (Farneback on a 640x480 frame took ~27x the time of LK
-on 150 points both ways, measured together at load 11).
+Measured choices (``bench/serving/realtime.py``; figures in ``bench/results/box_carrier.md``):
+the filter alone keeps carried boxes much closer to the detector's own boxes than holding them
+still, and flow helps where people stop, turn and cross (real video) and keeps more boxes on
+their person, so flow is on by default but the scheduler drops it while it costs more than its
+budget (``service.detection.schedule``). Trusting flow more than a detection was worse on the
+video: legs and background points make its shifts noisy. Rejected: re-running the detector on
+crops around known people (these graphs take a fixed input, so each crop costs a full call),
+and dense flow (Farneback: many times the time of sparse LK).
 
 Example::
 

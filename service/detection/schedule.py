@@ -77,6 +77,7 @@ from typing import Any, Literal, Protocol
 
 import numpy as np
 
+from capture.rig import FrameSet
 from models.detector.base import Detections, PersonDetector
 from models.detector.windows import WindowRefiner
 from service.detection.box_carrier import BoxCarrier, CarriedDetections
@@ -222,7 +223,9 @@ class DeferredRunner:
 
 
 class DetectionScheduler:
-    """The detection stage with scheduling: ``scheduler(frame_set) -> [boxes [M_k, 4]]``.
+    """The detection stage (``service.stages.DetectStage``) in either mode:
+    ``scheduler(frame_set) -> [CarriedDetections per camera]``; ``every_frame`` detects inline,
+    ``auto`` beside the pipeline (module docstring).
 
     ``runner`` defaults to a :class:`ThreadRunner` (``nice``) around ``detector.detect``;
     ``clock`` (seconds, monotonic) times the duty cycle and must be the runner's clock when a
@@ -286,10 +289,13 @@ class DetectionScheduler:
             found = self.refiner(job.images, found, job.priors)
         return found
 
-    def __call__(self, frame_set: Any) -> list[np.ndarray]:
-        return [d.boxes for d in self.step(frame_set)]
+    @property
+    def keypoints(self) -> bool:
+        """Whether the detector adds COCO-17 keypoints
+        (``models.detector.keypoints.KeypointDetector``): a keypoint model reads them downstream."""
+        return bool(self.detector.keypoints)
 
-    def step(self, frame_set: Any) -> list[CarriedDetections]:
+    def __call__(self, frame_set: FrameSet) -> list[CarriedDetections]:
         """Boxes for every camera of ``frame_set`` (the newest), detected or carried."""
         frames = list(frame_set.frames)
         self.frame_sets += 1
@@ -310,8 +316,12 @@ class DetectionScheduler:
         self.jobs += 1
         self.frames_detected += len(present)
         for k, det in zip(present, results, strict=True):
+            boxes = np.asarray(det.boxes, np.float32).reshape(-1, 4)
             out[k] = CarriedDetections(
-                det.boxes, det.scores, det.keypoints, np.zeros(len(det), np.float32)
+                boxes,
+                np.asarray(det.scores, np.float32),
+                None if det.keypoints is None else np.asarray(det.keypoints),
+                np.zeros(len(boxes), np.float32),
             )
         return out
 

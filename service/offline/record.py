@@ -34,7 +34,7 @@ from capture.recording import RecordingWriter, check_new_folder
 from capture.rig import FrameSet
 from capture.worker import Frame
 from common.errors import MomlocError
-from service.settings import Settings, SyntheticCamera
+from service.settings import POSITIONS_ONLY, Settings, SyntheticCamera
 from service.stop_signals import deferred
 
 NO_FRAMES_S = 10.0  # no camera delivered anything this long: the rig is dead, stop with an error
@@ -71,6 +71,11 @@ def record_live(
     """Record the configured cameras for ``seconds`` (None: until Ctrl-C) into ``out``."""
     from service.pipeline.build import build_rig, camera_name
 
+    if settings.privacy == POSITIONS_ONLY:  # before opening cameras or making the folder
+        raise MomlocError(
+            "privacy is positions_only (setting privacy, MOMLOC_PRIVACY): recording camera "
+            "video is off"
+        )
     if any(isinstance(c, SyntheticCamera) for c in settings.cameras):
         drawn = settings.synthetic.model_copy(update={"detections": "rendered"})
         settings = settings.model_copy(update={"synthetic": drawn})

@@ -33,6 +33,7 @@ import numpy as np
 from models.data.stream_metrics import StreamScorer
 from models.detector.base import Detections
 from models.simulate import FrameObservation, Scene, SceneConfig, get_config
+from service.detection.box_carrier import BoxCarrier
 from service.pipeline.chain import Chain, OutsideArea
 from service.tracking.association import (
     DEFAULT_MAX_ERROR_PX,
@@ -83,6 +84,34 @@ def frame_detections(obs: FrameObservation, rng: np.random.Generator) -> list[De
     return out
 
 
+class ScheduledBoxes:
+    """The scheduled detector of the daemon, replayed: the detector's report of every
+    ``every``-th frame set arrives ``delay`` frame sets later and corrects a per-camera
+    :class:`~service.detection.box_carrier.BoxCarrier` (Kalman filter only: the simulator draws
+    no images for optical flow), whose carried boxes are served on every frame set. So the
+    stream's accuracy with detected-every-frame and scheduled boxes compares in one bench."""
+
+    def __init__(self, every: int, delay: int) -> None:
+        self.every, self.delay = int(every), int(delay)
+        self.carriers: list[BoxCarrier] = []
+        self.pending: dict[int, list[Detections]] = {}
+
+    def __call__(self, i: int, t: float, found: list[Detections], fps: float) -> list[Detections]:
+        if not self.carriers:
+            self.carriers = [BoxCarrier(flow=False) for _ in found]
+        if i % self.every == 0:
+            self.pending[i] = found
+        ready = self.pending.pop(i - self.delay, None)
+        out = []
+        for k, carrier in enumerate(self.carriers):
+            if ready is not None:
+                det = ready[k]
+                carrier.correct((i - self.delay) / fps, det.boxes, det.scores, det.keypoints)
+            carried = carrier.advance(t)
+            out.append(Detections(carried.boxes, carried.scores, carried.keypoints))
+        return out
+
+
 def run_stream(
     runtime: LocalizationModel,
     config: SceneConfig,
@@ -98,6 +127,8 @@ def run_stream(
     view_bias: ViewBias | bool = True,
     outside_area: OutsideArea = "drop",
     on_frame: Callable[[int, list, list], None] | None = None,
+    detect_every: int = 1,
+    detect_delay: int = 0,
 ) -> dict[float, dict]:
     """Stream metrics per gate (metres → :meth:`StreamScorer.result`) of one scene run.
 
@@ -109,7 +140,8 @@ def run_stream(
     ``False``: none);
     ``outside_area``: what the chain does with people outside the model's set-up area
     (:mod:`service.pipeline.chain`);
-    ``on_frame(i, associations, tracks)`` taps every frame (diagnostics, other scorers).
+    ``on_frame(i, associations, tracks)`` taps every frame (diagnostics, other scorers);
+    ``detect_every`` > 1 models the daemon's scheduled detector (:class:`ScheduledBoxes`).
     """
     scene = Scene(config, seed=seed)
     tracker = tracker if tracker is not None else Tracker(fps_hint=scene.fps, **RECOMMENDED)
@@ -124,10 +156,14 @@ def run_stream(
         view_bias=None if view_bias is False else view_bias,
     )
     delivered = [True] * int(runtime.num_cameras)
+    schedule = ScheduledBoxes(detect_every, detect_delay) if detect_every > 1 else None
     for i in range(frames):
         obs = scene.observe(i)
         t = i / scene.fps
-        result, tracks = chain(t, frame_detections(obs, rng), runtime, delivered, i)
+        detections = frame_detections(obs, rng)
+        if schedule is not None:
+            detections = schedule(i, t, detections, scene.fps)
+        result, tracks = chain(t, detections, runtime, delivered, i)
         if on_frame is not None:
             on_frame(i, result, tracks)
         want = in_view(obs.true_boxes, scene.image_sizes, min_visible_fraction)

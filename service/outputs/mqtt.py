@@ -46,7 +46,8 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any
 
-from service.outputs.publisher import LatestSlot
+from service.outputs.ha_discovery import discovery_messages
+from service.outputs.publisher import OutputContext, ThreadedPublisher
 from service.outputs.settings import MqttSettings
 from service.snapshot import Snapshot
 
@@ -55,11 +56,12 @@ log = logging.getLogger("momloc.mqtt")
 HealthSource = Callable[[], dict[str, Any]]
 
 
-class MqttPublisher:
+class MqttPublisher(ThreadedPublisher):
     """Publisher (see ``service.outputs.publisher``) to one broker; ``start`` / ``stop`` around
     serving."""
 
     name = "mqtt"
+    settings_key = "mqtt"
 
     def __init__(
         self,
@@ -69,21 +71,17 @@ class MqttPublisher:
         occupancy: Callable[[], list[dict[str, Any]]] | None = None,
         discovery: Callable[[], list[tuple[str, str]]] | None = None,
     ) -> None:
+        super().__init__()
         self.settings = settings
         self._health = health
         self._occupancy = occupancy
         self._discovery = discovery
-        self._positions = LatestSlot()
         self._zones: dict[str, dict[str, Any]] = {}
         self._events: deque[str] = deque(maxlen=settings.max_pending_events)
         self._lock = threading.Lock()
-        self._wake = threading.Event()
-        self._stopping = threading.Event()
         self._unsent: list[Any] = []  # MQTTMessageInfo of QoS 0 messages paho has not written
         self._client: Any = None
-        self._thread: threading.Thread | None = None
         self.connected = False
-        self._hungry = True  # the sender is due to send a position and waits for one
         self.counters = {
             "connects": 0,
             "disconnects": 0,
@@ -96,7 +94,16 @@ class MqttPublisher:
             "events_dropped": 0,
             "health_sent": 0,
         }
-        self.last_error: str | None = None
+
+    @classmethod
+    def from_settings(cls, settings: MqttSettings, context: OutputContext) -> MqttPublisher:
+        """With Home Assistant discovery of the zones (``service.outputs.ha_discovery``)."""
+        return cls(
+            settings,
+            health=context.health,
+            occupancy=context.occupancy,
+            discovery=lambda: discovery_messages(settings, context.zone_names),
+        )
 
     # -- topics ----------------------------------------------------------------------------------
 
@@ -128,16 +135,11 @@ class MqttPublisher:
         self._client = client
         client.connect_async(s.host, s.port, keepalive=s.keepalive)
         client.loop_start()
-        self._stopping.clear()
-        self._thread = threading.Thread(target=self._run, name="momloc-mqtt", daemon=True)
-        self._thread.start()
+        super().start()
 
     def stop(self, timeout: float = 3.0) -> None:
         """Clean shutdown: flush events, publish ``offline`` (retained), disconnect."""
-        self._stopping.set()
-        self._wake.set()
-        if self._thread is not None:
-            self._thread.join(timeout=timeout)
+        super().stop(timeout)
         client = self._client
         if client is None:
             return
@@ -154,9 +156,7 @@ class MqttPublisher:
     # -- inputs (any thread, never block) --------------------------------------------------------
 
     def offer(self, snapshot: Snapshot) -> None:
-        self._positions.put(snapshot if self.settings.include_outside else snapshot.inside_only())
-        if self._hungry:  # wake the sender only when it waits for a position, not per frame
-            self._wake.set()
+        super().offer(snapshot if self.settings.include_outside else snapshot.inside_only())
 
     def on_zone_events(self, events: list[dict[str, Any]], occupancy: list[dict[str, Any]]) -> None:
         changed = {e["zone"] for e in events}
@@ -227,20 +227,20 @@ class MqttPublisher:
             self._hungry = now >= next_position
             if not self._hungry:
                 timeout = min(timeout, next_position - now)
-            elif self._positions.peek() is not None:
+            elif self._slot.peek() is not None:
                 timeout = 0.0
             self._wake.wait(timeout)
             self._wake.clear()
             try:
                 if not self.connected:
-                    if self._positions.take() is not None:
+                    if self._slot.take() is not None:
                         self.counters["positions_dropped_offline"] += 1
                     next_position = time.monotonic() + interval
                     continue
                 self._send_zones_and_events()
                 now = time.monotonic()
-                if now >= next_position and self._positions.peek() is not None:
-                    self._send_position(self._positions.take())
+                if now >= next_position and self._slot.peek() is not None:
+                    self._send_position(self._slot.take())
                     next_position = max(next_position + interval, now)
                 if now >= self._next_health:
                     self._send_health()
@@ -302,6 +302,27 @@ class MqttPublisher:
 
     # -- introspection ---------------------------------------------------------------------------
 
+    def degraded(self) -> str | None:
+        if self.connected:
+            return None
+        broker = f"{self.settings.host}:{self.settings.port}"
+        return f"not connected to the broker {broker} ({self.last_error or 'connecting'})"
+
+    def counters_exported(self) -> dict[str, int]:
+        keys = (
+            "connects",
+            "connect_failures",
+            "positions_sent",
+            "positions_dropped_offline",
+            "positions_dropped_backpressure",
+            "events_sent",
+            "events_dropped",
+        )
+        return {key: self.counters[key] for key in keys}
+
+    def gauges_exported(self) -> dict[str, tuple[str, float]]:
+        return {"connected": ("1 while connected", int(self.connected))}
+
     def stats(self) -> dict[str, Any]:
         with self._lock:
             pending = len(self._events)
@@ -312,7 +333,7 @@ class MqttPublisher:
             "connected": self.connected,
             "pending_events": pending,
             "unsent": unsent,
-            "positions_overwritten": self._positions.overwritten,
+            "positions_overwritten": self._slot.overwritten,
             "error": self.last_error,
             **self.counters,
         }

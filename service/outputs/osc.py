@@ -30,12 +30,11 @@ from __future__ import annotations
 
 import logging
 import socket
-import threading
 import time
 from collections.abc import Callable
 from typing import Any
 
-from service.outputs.publisher import LatestSlot
+from service.outputs.publisher import OutputContext, ThreadedPublisher
 from service.outputs.settings import OscSettings
 from service.snapshot import Snapshot
 
@@ -76,40 +75,22 @@ def build_bundle(snapshot: Snapshot, occupancy: list[dict[str, Any]] | None = No
     return bundle.build().dgram
 
 
-class OscPublisher:
+class OscPublisher(ThreadedPublisher):
     """Publisher (see ``service.outputs.publisher``) sending bundles to one UDP receiver."""
 
     name = "osc"
+    settings_key = "osc"
 
     def __init__(self, settings: OscSettings, *, occupancy: Occupancy | None = None) -> None:
+        super().__init__()
         self.settings = settings
         self._occupancy = occupancy
-        self._slot = LatestSlot()
-        self._wake = threading.Event()
-        self._stopping = threading.Event()
-        self._thread: threading.Thread | None = None
-        self._hungry = True  # the sender waits for a snapshot (wake it only then)
         self.counters = {"bundles_sent": 0, "send_errors": 0, "resolve_failures": 0}
-        self.last_error: str | None = None
         self.address: tuple[Any, ...] | None = None
 
-    def start(self) -> None:
-        """Start the sender thread (nothing to connect: UDP)."""
-        self._stopping.clear()
-        self._thread = threading.Thread(target=self._run, name="momloc-osc", daemon=True)
-        self._thread.start()
-
-    def stop(self, timeout: float = 3.0) -> None:
-        self._stopping.set()
-        self._wake.set()
-        if self._thread is not None:
-            self._thread.join(timeout=timeout)
-            self._thread = None
-
-    def offer(self, snapshot: Snapshot) -> None:
-        self._slot.put(snapshot)
-        if self._hungry:
-            self._wake.set()
+    @classmethod
+    def from_settings(cls, settings: OscSettings, context: OutputContext) -> OscPublisher:
+        return cls(settings, occupancy=context.occupancy)
 
     # -- sender thread ---------------------------------------------------------------------------
 
@@ -166,6 +147,9 @@ class OscPublisher:
             next_send = max(next_send + interval, now + 0.5 * interval)
         if target is not None:
             target[0].close()
+
+    def degraded(self) -> str | None:
+        return self.last_error
 
     def stats(self) -> dict[str, Any]:
         return {

@@ -1,58 +1,67 @@
 """Wires the optional outputs (zones, MQTT, Home Assistant discovery, OSC) to a daemon's hub.
 
-``build_outputs`` is the one call ``service.daemon.build_daemon`` makes; ``service.api.zones``
-starts and stops the MQTT link with the app and serves the zone routes. Keeping the wiring here
-means the core daemon knows nothing about MQTT beyond "there may be outputs".
+``build_outputs`` is the one call ``service.daemon.build_daemon`` makes; ``service.api.lifespan``
+starts and stops the publishers with the app and ``service.api.routes.zones`` serves the zone
+routes. Keeping the wiring here means the core daemon knows nothing about MQTT beyond "there may
+be outputs".
+
+The zone monitor is always there (zero zones is fine). The publishers come from
+:data:`PUBLISHERS`: each is built when its settings key (``ThreadedPublisher.settings_key``) is
+set, in that order.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
-from service.outputs.ha_discovery import discovery_messages, removal_messages
+from service.outputs.ha_discovery import removal_messages
 from service.outputs.mqtt import MqttPublisher
 from service.outputs.osc import OscPublisher
-from service.outputs.zone_monitor import ZoneMonitor
+from service.outputs.publisher import OutputContext, ThreadedPublisher
+from service.outputs.zone_monitor import ZoneListener, ZoneMonitor
 from service.outputs.zones import Zone
+
+PUBLISHERS: tuple[type[ThreadedPublisher], ...] = (MqttPublisher, OscPublisher)
 
 
 @dataclass
 class Outputs:
-    """The daemon's outputs; each part is None when not configured."""
+    """The daemon's outputs: the zone monitor and the configured publishers by name."""
 
     zones: ZoneMonitor
-    mqtt: MqttPublisher | None = None
-    osc: OscPublisher | None = None
+    publishers: dict[str, ThreadedPublisher] = field(default_factory=dict)
+
+    @property
+    def mqtt(self) -> MqttPublisher | None:
+        """The MQTT link (Home Assistant discovery is MQTT's), if configured."""
+        publisher = self.publishers.get(MqttPublisher.name)
+        return publisher if isinstance(publisher, MqttPublisher) else None
 
     def health(self) -> dict[str, Any]:
         out: dict[str, Any] = {"zones": self.zones.stats()}
-        if self.mqtt is not None:
-            out["mqtt"] = self.mqtt.stats()
-        if self.osc is not None:
-            out["osc"] = self.osc.stats()
+        out.update({name: p.stats() for name, p in self.publishers.items()})
         return out
 
     def degraded(self) -> dict[str, str]:
         """Each configured output that is not delivering now, with why (``/v1/health`` lists
         them and says ``degraded``: positions that reach no broker are not "ok")."""
         out: dict[str, str] = {}
-        if self.mqtt is not None and not self.mqtt.connected:
-            broker = f"{self.mqtt.settings.host}:{self.mqtt.settings.port}"
-            why = self.mqtt.last_error or "connecting"
-            out["mqtt"] = f"not connected to the broker {broker} ({why})"
-        if self.osc is not None and self.osc.last_error is not None:
-            out["osc"] = self.osc.last_error
+        for name, publisher in self.publishers.items():
+            why = publisher.degraded()
+            if why is not None:
+                out[name] = why
         return out
 
     def remove_discovery(self) -> int:
         """Delete this room's Home Assistant entities (empty retained configs)."""
-        if self.mqtt is None:
+        mqtt = self.mqtt
+        if mqtt is None:
             return 0
         names = [z.name for z in self.zones.zones]
         sent = 0
-        for topic, payload in removal_messages(self.mqtt.settings, names):
-            sent += int(self.mqtt.publish_retained(topic, payload))
+        for topic, payload in removal_messages(mqtt.settings, names):
+            sent += int(mqtt.publish_retained(topic, payload))
         return sent
 
 
@@ -72,25 +81,25 @@ def health_summary(daemon: Any) -> dict[str, Any]:
 
 
 def build_outputs(settings: Any, daemon: Any) -> Outputs:
-    """Zone monitor (always; zero zones is fine) and, with ``mqtt`` settings, the publisher."""
+    """Zone monitor (always; zero zones is fine) and each publisher whose settings are set."""
     zones = [Zone.create(z.name, z.polygon, z.hold_s) for z in settings.zones]
     monitor = ZoneMonitor(zones)
     daemon.hub.add_publisher(monitor)
     outputs = Outputs(monitor)
-    if settings.mqtt is not None:
-        names = [z.name for z in zones]
-        publisher = MqttPublisher(
-            settings.mqtt,
-            health=lambda: health_summary(daemon),
-            occupancy=monitor.occupancy,
-            discovery=lambda: discovery_messages(settings.mqtt, names),
-        )
+    context = OutputContext(
+        health=lambda: health_summary(daemon),
+        occupancy=monitor.occupancy,
+        zone_names=[z.name for z in zones],
+    )
+    for kind in PUBLISHERS:
+        section = getattr(settings, kind.settings_key)
+        if section is None:
+            continue
+        publisher = kind.from_settings(section, context)
         daemon.hub.add_publisher(publisher)
-        monitor.add_listener(publisher)
-        outputs.mqtt = publisher
-    if getattr(settings, "osc", None) is not None:
-        outputs.osc = OscPublisher(settings.osc, occupancy=monitor.occupancy)
-        daemon.hub.add_publisher(outputs.osc)
+        if isinstance(publisher, ZoneListener):  # zone states and events go out there too
+            monitor.add_listener(publisher)
+        outputs.publishers[publisher.name] = publisher
     return outputs
 
 
@@ -113,22 +122,11 @@ def output_metrics(daemon: Any) -> list[Any]:
         occupied,
         CounterMetricFamily("momloc_zone_events", "Enter/leave events", outputs.zones.event_count),
     ]
-    if outputs.mqtt is not None:
-        stats = outputs.mqtt.stats()
-        families.append(
-            GaugeMetricFamily("momloc_mqtt_connected", "1 while connected", int(stats["connected"]))
-        )
-        for key in (
-            "connects",
-            "connect_failures",
-            "positions_sent",
-            "positions_dropped_offline",
-            "positions_dropped_backpressure",
-            "events_sent",
-            "events_dropped",
-        ):
-            families.append(CounterMetricFamily(f"momloc_mqtt_{key}", f"MQTT {key}", stats[key]))
-    if outputs.osc is not None:
-        for key, value in outputs.osc.counters.items():
-            families.append(CounterMetricFamily(f"momloc_osc_{key}", f"OSC {key}", value))
+    for name, publisher in outputs.publishers.items():
+        for key, (text, value) in publisher.gauges_exported().items():
+            families.append(GaugeMetricFamily(f"momloc_{name}_{key}", text, value))
+        for key, value in publisher.counters_exported().items():
+            families.append(
+                CounterMetricFamily(f"momloc_{name}_{key}", f"{name.upper()} {key}", value)
+            )
     return families

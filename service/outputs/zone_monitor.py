@@ -22,7 +22,7 @@ import logging
 import threading
 from collections import deque
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 from service.outputs.zones import Zone, ZoneTracker
 from service.snapshot import Snapshot
@@ -89,6 +89,15 @@ class EventHub:
         return len(self._subscribers)
 
 
+@runtime_checkable
+class ZoneListener(Protocol):
+    """An output that also sends zone changes (the MQTT publisher)."""
+
+    def on_zone_events(
+        self, events: list[dict[str, Any]], occupancy: list[dict[str, Any]]
+    ) -> None: ...
+
+
 class ZoneMonitor:
     """Publisher that turns snapshots into zone occupancy and enter/leave events."""
 
@@ -97,7 +106,7 @@ class ZoneMonitor:
     def __init__(self, zones: Sequence[Zone], events: EventHub | None = None) -> None:
         self.tracker = ZoneTracker(zones)
         self.events = events or EventHub()
-        self._listeners: list[Any] = []
+        self._listeners: list[ZoneListener] = []
         self._lock = threading.Lock()  # occupancy is read by REST/metrics threads
         self.recent: deque[dict[str, Any]] = deque(maxlen=50)
         self.event_count = 0
@@ -106,7 +115,7 @@ class ZoneMonitor:
     def zones(self) -> list[Zone]:
         return self.tracker.zones
 
-    def add_listener(self, listener: Any) -> None:
+    def add_listener(self, listener: ZoneListener) -> None:
         """``listener.on_zone_events(events, occupancy)`` after every snapshot with events."""
         self._listeners = [*self._listeners, listener]
 

@@ -12,7 +12,7 @@ from typing import Any
 
 from common.errors import MomlocError
 from models.detector.windows import WindowRefiner
-from service.detection.stage import DetectorStage
+from service.detection.schedule import DetectionScheduler
 from service.settings import FileCamera, Settings, SyntheticCamera, V4l2Camera
 from service.tracking.tracker import RECOMMENDED, Tracker
 
@@ -77,41 +77,30 @@ def build_detect_stage(settings: Settings, player: Any) -> Any:
 
         indices = [c.index for c in settings.cameras if isinstance(c, SyntheticCamera)]
         return SimulatedDetections(player, indices)  # a player: build_rig saw only synthetic
-    from models.detector import create_detector
+    from models.detector.base import detector_from_settings
 
-    options = {
-        "model_path": settings.detector.model_path,
-        "letterbox": settings.detector.letterbox,
-        "input_size": settings.detector.input_size,
-        "max_shrink": settings.detector.max_shrink,
-    }
     threads = settings.detector.threads
-    explicit = settings.detector.model_fields_set
-    if settings.detection.schedule == "auto" and "threads" not in explicit:
+    if (
+        settings.detection.schedule == "auto"
+        and "threads" not in settings.detector.model_fields_set
+    ):
         threads = (
             1  # beside the pipeline, one thread leaves a core free (bench/serving/realtime.py)
         )
-    detector = create_detector(
-        settings.detector.kind,
-        score_threshold=settings.detector.score_threshold,
-        threads=threads,
-        keypoints=settings.detector.keypoints,
-        **{key: value for key, value in options.items() if value is not None},
+    detector = detector_from_settings(settings.detector, threads)
+    detection = settings.detection
+    return DetectionScheduler(
+        detector,
+        mode=detection.schedule,
+        max_duty=detection.max_duty,
+        cameras_per_call=detection.cameras_per_call,
+        nice=detection.nice,
+        carrier={"flow": detection.flow, "max_age_s": detection.max_age_s},
+        # every_frame is the plain detector on every frame set (offline runs): no second look
+        refiner=None
+        if detection.schedule == "every_frame"
+        else _window_refiner(detector, detection.windows, detection.window_below_px),
     )
-    schedule = None
-    if settings.detection.schedule == "auto":
-        from service.detection.schedule import DetectionScheduler
-
-        detection = settings.detection
-        schedule = DetectionScheduler(
-            detector,
-            max_duty=detection.max_duty,
-            cameras_per_call=detection.cameras_per_call,
-            nice=detection.nice,
-            carrier={"flow": detection.flow, "max_age_s": detection.max_age_s},
-            refiner=_window_refiner(detector, detection.windows, detection.window_below_px),
-        )
-    return DetectorStage(detector, schedule)
 
 
 def _window_refiner(detector: Any, windows: int, below_px: float) -> WindowRefiner | None:

@@ -115,15 +115,12 @@ class Chain:
             measurement_covariances(associations, runtime) if self.use_covariance else None
         )
         coverage = coverage_function(runtime, delivered)
-        if self.view_bias is not None:
-            tracks = self.view_bias.update(
-                self.tracker, t, associations, runtime, meta, covariances, coverage
-            )
-        else:
-            positions = np.array([np.asarray(a.world, float)[:2] for a in associations])
-            tracks = self.tracker.update(
-                t, positions.reshape(-1, 2), meta, covariances=covariances, coverage=coverage
-            )
+        positions = np.array([np.asarray(a.world, float)[:2] for a in associations]).reshape(-1, 2)
+        if self.view_bias is not None:  # single views minus their track's lone-view offset
+            positions = self.view_bias.correct(t, associations, positions, runtime)
+        tracks = self.tracker.update(t, positions, meta, covariances=covariances, coverage=coverage)
+        if self.view_bias is not None:  # learn the offsets from what fed each track
+            self.view_bias.learn(t, associations, runtime, tracks)
         self.timings_ms = {
             "associate": (associated - started) * 1e3,
             "track": (time.perf_counter() - associated) * 1e3,

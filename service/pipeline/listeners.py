@@ -10,7 +10,8 @@ slow runs on its own thread (the image camera-moved check does, see
 - :class:`CameraWatch`: the two camera-moved checks (decoder reprojection error of people seen
   by two or more cameras, and the image shift of the static background), combined per camera.
 - :class:`Previews`: the newest image of each camera with its boxes and track ids, for
-  ``/v1/cameras/{k}/snapshot.jpg``.
+  ``/v1/cameras/{k}/snapshot.jpg`` and ``/v1/cameras/{k}/boxes``; without images (settings
+  ``privacy: positions_only``) the boxes and the frame size only.
 - :class:`Throughput`: frame rate, capture -> publish latency and stage timings for health.
 - :class:`DetectionTap`: adapts a ``(t_capture, boxes per camera)`` callback (the set-up recorder)
   to a listener.
@@ -82,16 +83,23 @@ class CameraWatch:
 
 @dataclass
 class CameraView:
-    """What the snapshot endpoint draws for one camera."""
+    """What the preview endpoints show for one camera: the frame (None without images), the
+    boxes with the ids of the tracks they fed, and the frame's width and height."""
 
     image: np.ndarray | None
     boxes: list[tuple[np.ndarray, int | None]] = field(default_factory=list)
+    size: tuple[int, int] | None = None
 
 
 class Previews:
-    """The newest drawn frame per camera with its boxes and the ids of the tracks they fed."""
+    """The newest drawn frame per camera with its boxes and the ids of the tracks they fed.
 
-    def __init__(self, num_cameras: int) -> None:
+    ``images=False`` (privacy mode) keeps no reference to any frame: a view holds the boxes and
+    the frame size only, so no code path that reads views can serve or write pixels.
+    """
+
+    def __init__(self, num_cameras: int, *, images: bool = True) -> None:
+        self.images = images
         self._views = [CameraView(None) for _ in range(num_cameras)]
         self._lock = threading.Lock()
 
@@ -102,8 +110,11 @@ class Previews:
                 # no pixels, or left out of fusion by the skew rule: keep the last view
                 if frame is not None and frame.image is not None and result.fused[k]:
                     boxes = result.detections[k].boxes
+                    height, width = frame.image.shape[:2]
                     self._views[k] = CameraView(
-                        frame.image, [(box, ids.get((k, j))) for j, box in enumerate(boxes)]
+                        frame.image if self.images else None,
+                        [(box, ids.get((k, j))) for j, box in enumerate(boxes)],
+                        (int(width), int(height)),
                     )
 
     def view(self, camera: int) -> CameraView:

@@ -37,7 +37,6 @@ stays. A frame set that fails anyway is logged once, then counted
 from __future__ import annotations
 
 import logging
-import threading
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -48,6 +47,7 @@ import numpy as np
 from capture.rig import FrameSet
 from capture.worker import CameraState, Frame
 from common.errors import MomlocError
+from common.worker_thread import WorkerThread
 from service.camera_health.reprojection import CameraMoved
 from service.pipeline.chain import Chain, OutsideArea, served_inside
 from service.pipeline.failure_log import FailureLog
@@ -116,6 +116,7 @@ class Pipeline:
         outside_area: OutsideArea = "drop",
         load_runtime: Callable[[Path], LocalizationModel] | None = None,
         shift_threaded: bool = True,
+        preview_images: bool = True,
     ) -> None:
         if tracker is None:
             from service.tracking.tracker import RECOMMENDED, Tracker
@@ -134,8 +135,8 @@ class Pipeline:
         self.error: str | None = None
         self._seq = 0
         self._last_frame_seqs: tuple[int, ...] | None = None
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._worker = WorkerThread(self._run, "momloc-pipeline")
+        self._stop = self._worker.stopping
         self.frames_processed = 0
         self.frames_dropped = 0
         self.views_left_out = 0  # frames left out of fusion by the skew rule
@@ -144,7 +145,7 @@ class Pipeline:
         self.failure_log = FailureLog(log, "frame sets")
         # the standard listeners (service.pipeline.listeners); more via add_listener
         self.camera_watch = CameraWatch(num_cameras, shift_threaded=shift_threaded)
-        self.previews = Previews(num_cameras)
+        self.previews = Previews(num_cameras, images=preview_images)
         self.throughput = Throughput()
         self._listeners: list[FrameListener] = [self.camera_watch, self.previews, self.throughput]
         self._taps: dict[Callable[..., None], DetectionTap] = {}
@@ -172,14 +173,10 @@ class Pipeline:
 
     def start(self) -> None:
         self.rig.start()
-        self._stop.clear()
-        self._thread = threading.Thread(target=self._run, name="momloc-pipeline", daemon=True)
-        self._thread.start()
+        self._worker.start()
 
     def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5)
+        self._worker.stop()
         self.camera_watch.close()
         close = getattr(self.detect, "close", None)
         if close is not None:
@@ -188,7 +185,7 @@ class Pipeline:
 
     @property
     def running(self) -> bool:
-        return self._thread is not None and self._thread.is_alive()
+        return self._worker.alive
 
     def _run(self) -> None:
         previous: FrameSet | None = None

@@ -12,12 +12,12 @@ changes again.
 from __future__ import annotations
 
 import logging
-import threading
 import time
 from pathlib import Path
 from typing import Any
 
 from common.errors import MomlocError
+from common.worker_thread import WorkerThread
 
 log = logging.getLogger("momloc.model_watch")
 WATCHED = ("encoder.onnx", "model.json")
@@ -49,18 +49,14 @@ class ModelWatcher:
         self._seen: Signature = signature(pipeline.model_dir)
         self._seen_dir = pipeline.model_dir
         self._pending: Signature = None
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._worker = WorkerThread(self._run, "momloc-model-watch")
+        self._stop = self._worker.stopping
 
     def start(self) -> None:
-        self._stop.clear()
-        self._thread = threading.Thread(target=self._run, name="momloc-model-watch", daemon=True)
-        self._thread.start()
+        self._worker.start()
 
     def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5)
+        self._worker.stop()
 
     def _run(self) -> None:
         while not self._stop.wait(self.interval_s):

@@ -25,6 +25,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from common.atomic import atomic_write_text
 from common.errors import MomlocError, shorten
+from service.settings import read_yaml
 
 MAX_MARKS = 400  # a few hundred marks is already hours of recording; more is a mistake
 MAX_COORD_M = 1000.0  # metres from the origin: any room, and far from overflow
@@ -79,12 +80,7 @@ def marks_from_entries(entries: list[MarkIn], origin: str) -> list[FloorMark]:
 def load_marks(path: str | Path) -> list[FloorMark]:
     """Read a marks YAML file; each problem is one MomlocError line naming the entry."""
     path = Path(path)
-    try:
-        document = yaml.safe_load(path.read_text())
-    except OSError as error:
-        raise MomlocError(f"marks file {path}: {error.strerror}") from None
-    except yaml.YAMLError as error:
-        raise MomlocError(f"marks file {path}: not valid YAML ({error})") from None
+    document = read_yaml(path, "marks file")
     entries = document.get("marks") if isinstance(document, dict) else document
     if not isinstance(entries, list) or not entries:
         raise MomlocError(f"marks file {path}: expected a non-empty list under 'marks'")

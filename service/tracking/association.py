@@ -12,8 +12,8 @@ Cost of a tuple: the reprojection error per seen camera (``MomRuntime.reprojecti
 compares against the same box mean point the decoder was trained to reproduce), *normalised* to a
 box ``REFERENCE_HEIGHT_PX`` (200 px) tall: ``error_px * 200 / box_height_px``. A near person's big
 box carries proportionally bigger noise than a distant person's; on simulated indoor-2cam data the
-normalised error separated right from wrong pairs clearly better than raw pixels (5 % of wrong
-pairs below the 97th percentile of right pairs, against 15 % in raw pixels). The cost is the root
+normalised error separated right from wrong pairs clearly better than raw pixels
+(``bench/results/tracker_tuning.md``). The cost is the root
 mean square over the seen cameras; a tuple is admissible only if *every* camera's normalised error
 is at most ``max_error_px`` (the parameter keeps its name: it is in pixels at the reference height).
 
@@ -23,15 +23,12 @@ missing views) and two clusters are merged only if their own positions are withi
 each camera from two different people far apart can have a small reprojection error (the
 encoder's compromise point splits it between the cameras); this gate removes those merges. A
 model that cannot localize one view alone (NaN) disables it. Defaults (100 px at reference height,
-2 m) come from the gate sweep in ``bench/serving/association.py``. On the served stream (2026-12-02,
-``bench/serving/stream_accuracy.py``'s model, indoor-2cam, nanodet,
-``service.tracking.tracker.RECOMMENDED``, MOTA at 0.5 m, 3 people seeds 7-10 × 600 frames) the view
-gap is what binds: ``max_error_px`` 80, 100 or 130 give the very same 72.3 %; gaps of 1.0 / 1.25 /
-1.5 / 1.75 / 2.0 / 2.5 m give 57.9 / 63.8 / 72.7 / 73.9 / 72.3 / 65.3 % (5 people, seeds 7 8: 1.75 m
-61.3 against 57.7 %; 1 person: equal). Not changed: the optimum sits between two cliffs (a lone
-view's range error splits true pairs below 1.5 m, wrong pairs merge above 2 m) whose places depend
-on the detector's bottom-edge noise, so a gain of ~2 points on one simulated profile is no reason to
-move a default every deployment uses.
+2 m) come from the gate sweep in ``bench/serving/association.py``
+(``bench/results/association.md``). On the served stream the view gap is what binds, and 1.75 m
+scored a little better than 2 m on one simulated profile (``bench/results/tracker_tuning.md``). Not
+changed: the optimum sits between two cliffs (a lone view's range error splits true pairs below 1.5
+m, wrong pairs merge above 2 m) whose places depend on the detector's bottom-edge noise, so a gain
+of ~2 points on one simulated profile is no reason to move a default every deployment uses.
 
 Solver: when exactly two cameras have detections, the optimal gated bipartite assignment
 (``scipy.optimize.linear_sum_assignment`` on the pairwise cost matrix, one batched model call),
@@ -55,7 +52,7 @@ the prior's overconfidence), clusters are fused in information form, and two clu
 if the Mahalanobis rise of the fused χ² is at most ``max_floor_chi2`` (25): that is small only where
 the cameras' lines of sight meet, which the 2 m view gap cannot tell in a crowd. On the real CMC
 room (10 people, ``bench/results/real_cmc_chain_tuning.md``) it cut mixed clusters and lifted
-per-frame MODA by ~3.6 points; 9 refused true merges (more duplicates), 60 let mixes through.
+per-frame MODA; a tighter χ² refused true merges (more duplicates), a looser one let mixes through.
 
 A model with a ``covariance(boxes)`` method (``MomRuntime``: the floor prior's GLS covariance)
 also gives each association the covariance of its position, which the tracker takes as that
@@ -334,27 +331,6 @@ def _single_view_positions(detections: _Views, runtime: LocalizationModel) -> li
         out.append(world[start : start + len(boxes)])
         start += len(boxes)
     return out
-
-
-@runtime_checkable
-class ReprojectingModel(Protocol):
-    """A model whose decoder maps floor positions back into the cameras (``MomRuntime``)."""
-
-    image_sizes: np.ndarray  # [K, 2] width, height
-
-    def reproject(self, world: np.ndarray) -> np.ndarray: ...
-
-
-def covering_cameras(
-    runtime: ReprojectingModel, world: np.ndarray, margin: float = 0.05
-) -> np.ndarray:
-    """[N, K] bool: camera k should see a person at floor position ``world`` [N, 2], i.e. the
-    decoder puts their body's mean point inside its image, ``margin`` (fraction of the image
-    size) away from the border. For the tracker's ghost check (``Tracker(ghost_s=...)``)."""
-    pixels = np.asarray(runtime.reproject(np.asarray(world, dtype=np.float64)), np.float64)
-    size = np.asarray(runtime.image_sizes, dtype=np.float64)[None]
-    inside = (pixels >= margin * size) & (pixels <= (1.0 - margin) * size)
-    return np.all(inside, axis=-1)
 
 
 def _covariance(tuples: _Tuples, runtime: LocalizationModel) -> np.ndarray | None:

@@ -41,12 +41,11 @@ from typing import Any
 
 import numpy as np
 
-from service.tracking.association import covering_cameras
+from service.tracking.view_geometry import covering_cameras, line_of_sight
 
 SINGLE_VIEW_DEPTH_STD_M = 0.6
 SINGLE_VIEW_ACROSS_STD_M = 0.09
 MULTI_VIEW_STD_M = 0.12
-_STEP_M = 0.05  # finite-difference step of the line-of-sight direction
 
 
 def measurement_covariances(associations: Sequence[Any], runtime: Any) -> list[np.ndarray | None]:
@@ -78,25 +77,12 @@ def default_covariance(
     )
 
 
-def line_of_sight(runtime: Any, camera: int, world: np.ndarray) -> np.ndarray | None:
-    """Unit floor direction at ``world`` [2] along which camera ``camera``'s horizontal pixel
-    of the person does not change (its line of sight), from the decoder; None if degenerate."""
-    world = np.asarray(world, dtype=np.float64).reshape(2)
-    probes = world + np.array([[0.0, 0.0], [_STEP_M, 0.0], [0.0, _STEP_M]])
-    u = np.asarray(runtime.reproject(probes), dtype=np.float64)[:, camera, 0]
-    gradient = np.array([u[1] - u[0], u[2] - u[0]])
-    norm = float(np.linalg.norm(gradient))
-    if not np.isfinite(norm) or norm < 1e-9:
-        return None
-    return np.array([-gradient[1], gradient[0]]) / norm
-
-
 def coverage_function(
     runtime: Any, delivered: Sequence[bool]
 ) -> Callable[[np.ndarray], np.ndarray] | None:
     """``floor positions [N, 2] -> [N, K] bool``: cameras that should see a person there and
     delivered a frame this time (a camera without a frame cannot be expected to report), from
-    :func:`service.tracking.association.covering_cameras`; None for a model without a decoder."""
+    :func:`service.tracking.view_geometry.covering_cameras`; None for a model without a decoder."""
     if runtime is None or getattr(runtime, "reproject", None) is None:
         return None
     mask = np.asarray(delivered, dtype=bool)[None]

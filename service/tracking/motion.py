@@ -5,8 +5,8 @@
 
 :class:`StandOrWalk` is an interacting-multiple-model (IMM) filter of two such models, because
 people in a room stand still a lot, and a constant-velocity filter tuned to follow a walk keeps a
-standing person's position wandering with the measurement noise (2-3 cm RMS frame to frame at
-15 fps, bench/results/stream_accuracy.md). The *stand* model holds the position (velocity
+standing person's position wandering with the measurement noise
+(``bench/results/tracking_filters.md``). The *stand* model holds the position (velocity
 reset to 0 at every prediction, a small ``stand_std`` m/√s random walk for sway), the *walk* model
 is the constant-velocity one. Each update mixes the two states by the probabilities of switching
 (mean stay ``stand_s`` / ``walk_s`` seconds, so the switch rate is in time, not frames), corrects
@@ -14,35 +14,13 @@ both, reweighs them by their measurement likelihoods and reports the probability
 and covariance. While the person stands the stand model takes over and the position converges
 like a running mean; when they start to walk the walk model's likelihood wins within a few frames.
 
-Measured (service/motion tests, 10 cm i.i.d. noise at 15 fps): a standing person's position
-changes 2.0 cm RMS frame to frame against 4.0 cm for the constant-velocity filter; on the stream
-benchmark (indoor-2cam, 3 people, nanodet profile) the IMM with covariances lowered the standing
-jitter from 8.0 to 5.2 cm and raised MOTA from 32.6 to 51.0 % (most of that from the
-covariances). The stand probability saturates near 0.75-0.85: a walk model at ~0 m/s explains a
-standing person almost as well. Rejected: reporting the more probable model's state instead of
-the mixture (jitter 3.93 vs 3.83 cm on the flat-noise gate scene: the remaining jitter is a few
-large jumps when a second camera comes or goes, not the mixture); ``stand_std`` 0.01 with
-``stand_s`` 5 (3.65 vs 3.83 cm, MOTA -0.2).
-
-Served-position stages after the filter, measured and rejected (2026-12-02, the stream bench's
-tracker output replayed: indoor-2cam, 3 people, nanodet, seeds 7-14 × 900 frames, with the
-lone-view correction of ``service.tracking.view_bias``; as tracked: MOTA 55.7 %, matched mean 0.161
-m, Acc@0.3 87.5 %, standing jitter 5.17 cm, lag 0.044 s). The jitter is 1,273 frame pairs of a
-standing truth summing to 34,000 cm²; the 25 largest steps (15-77 cm: a coasting track
-re-acquired by a lone view, a second camera arriving, a two-view mis-association) carry 60 %,
-the rest is ~3.3 cm RMS; 1 cm RMS would need the sum under 1,300 cm².
-
-- Holding the served position (running mean, time constant 1 or 3 s) while ``standing`` ≥ 0.5,
-  0.6 or 0.7, released 0.2 below: jitter 5.07-5.39 cm, no gain. While the truth stands the
-  stand probability is 0.21 / 0.54 / 0.73 (quartiles), and a jump lowers it, so the hold
-  releases exactly at the steps it should absorb.
-- A 1€ filter (cutoff ``fmin + beta · speed``) on the filter's speed: ``fmin`` 0.05 Hz, beta 2:
-  jitter 3.2-3.4 cm but lag 0.11-0.12 s and matched mean 0.192 m (Acc@0.3 82.3 %); beta 5:
-  3.75 cm, 0.074 s, 0.172 m; beta 8: 4.09 cm, 0.063 s, 0.167 m; beta 12: 4.36 cm, 0.057 s,
-  0.165 m. On the input's own derivative (the classic 1€), beta 5: 4.4-4.5 cm, 0.066 s. Every
-  setting buys jitter with accuracy, which is also short of its target.
-- Serving a coasting track at its last seen position plus a velocity decaying with 0, 0.3, 0.6
-  or 1 s: MOTA 52.1 / 54.8 / 55.3 / 55.5 %, jitter 4.67 / 4.90 / 5.17 / 5.41 cm.
+The stand probability saturates well below 1 (a walk model at ~0 m/s explains a standing person
+almost as well), so the reported state is the mixture; reporting the more probable model's
+state instead changed nothing (the remaining jitter is a few large jumps when a second camera
+comes or goes, not the mixture). Served-position stages after the filter were measured and
+rejected: holding the position while the person stands (the stand probability drops exactly at
+the jumps the hold should absorb), 1€ filters (every setting buys jitter with lag and accuracy)
+and damped coasting (costs MOTA). Figures: ``bench/results/tracking_filters.md``.
 
 Offline (``momloc track``) a centred window can smooth without lag: ``service.tracking.smoother``.
 

@@ -10,19 +10,12 @@ frame-to-frame shake is averaged over the window, and a jump when a camera comes
 spread over it. Fewer than ``MIN_SAMPLES`` samples of an id in its window leave the position as
 tracked. Velocities are the fitted slope. Ids, confidences and cameras are untouched.
 
-Measured on the stream benchmark's served tracks (indoor-2cam, 3 people, nanodet profile,
-seeds 7-14 × 900 frames at 15 fps, the bench's model, with the lone-view correction of
-:mod:`service.tracking.view_bias`; 2026-12-02, 2 cores, loaded): as tracked live MOTA 55.7 %, 88 id
-switches, matched mean 0.161 m, Acc@0.3 87.5 %, single-view 0.179 m, standing jitter 5.17 cm,
-lag 0.044 s; this smoother at ± 0.5 s: 59.2 %, 84, 0.147 m, 89.2 %, 0.162 m, 2.30 cm, 0.048 s.
-The window was chosen on a frame-count sweep of the same fit, ± 2 / 4 / 8 / 15 frames (± 0.13 /
-0.27 / 0.53 / 1.0 s): jitter 3.57 / 2.85 / 2.19 / 1.78 cm, mean 0.158 / 0.153 / 0.146 / 0.152 m,
-MOTA 57.0 / 57.9 / 59.5 / 60.0 %, lag 0.045-0.049 s: ± 0.5 s has the best mean and Acc@0.3.
-Rejected: a quadratic fit (± 8 frames: jitter 3.14 cm, mean 0.159 m: it follows the jumps it
-should spread). The lag left (~0.045 s) is the live filter's own; a centred window neither
-adds nor removes it. The 1 cm jitter target is not met offline either: a standing person's
-shake is dominated by a few 15-80 cm steps (see :mod:`service.tracking.motion`), which a 1 s window
-spreads but cannot remove.
+Why ± 0.5 s and a straight line (figures: ``bench/results/tracking_filters.md``): on the stream
+benchmark's served tracks it lowered the standing jitter and the matched error and raised MOTA
+without adding lag (the lag left is the live filter's own), and a frame-count sweep of the same
+fit gave ± 0.5 s the best mean error and Acc@0.3. Rejected: a quadratic fit (it follows the
+jumps it should spread). A standing person's shake is dominated by a few large steps (see
+:mod:`service.tracking.motion`), which a window spreads but cannot remove.
 An RTS pass over the IMM's own states was not built: the tracker keeps no state history and its
 two-model mixture makes the backward pass model-specific; the window fit needs only the output.
 

@@ -32,13 +32,12 @@ Output policy (documented for API users):
 
 - a track is reported once it has been seen in every frame for ``confirm_s`` (0.3 s; time, not
   frames, so it means the same at any pipeline rate), so that a brief split association (one
-  person reported twice for a few frames) does not create a ghost id; with 0.1 s the benchmark
-  counted 11 instead of 3 id switches (indoor-4cam, 2 people) and 33 instead of 23 (indoor-2cam,
-  5 people), for ~1 % less coverage. A track only ever seen by *one* camera waits
-  ``confirm_single_s`` (1 s): a detector's false positive is a single view;
+  person reported twice for a few frames) does not create a ghost id (a shorter wait tripled
+  the id switches: ``bench/results/tracker_tuning.md``). A track only ever seen by *one*
+  camera waits ``confirm_single_s`` (1 s): a detector's false positive is a single view;
 - a track never seen by two cameras at once that spends more than ``ghost_s`` (0.5 s) where
   another camera should see it (``coverage``, e.g.
-  :func:`service.tracking.association.covering_cameras`) but reports nothing is not reported: a
+  :func:`service.tracking.view_geometry.covering_cameras`) but reports nothing is not reported: a
   person is seen by a second camera sooner or later, a false positive at a fixed place never is;
 - while a person is unseen (occlusion, detector miss) the track *coasts* on its prediction and is
   still reported for ``serve_coast_s`` (0.5 s in ``RECOMMENDED``), with ``coasting=True`` and a
@@ -49,110 +48,41 @@ Output policy (documented for API users):
   should *not* see it where it is (``coverage``): a box localized where the camera that
   reported it cannot see a person is a false box localized from its odd size and place;
 - ``confidence`` is a running detection rate (exponential average of seen / unseen frame sets
-  over ``rate_time_s`` seconds, so the same at any frame rate) times the coasting factor, in 0..1.
-
+  over ``rate_time_s`` seconds, so the same at any frame rate) times the coasting factor, in 0..1;
 - a track counts as seen by two cameras (``multi_view``: no longer subject to the single-view
   confirmation and ghost check) once two cameras have reported it together for ``multi_view_s``
-  in all, not at the first such frame: one mispaired box is enough to make a ghost a person.
-  Found in the one-person MQTT demo scene: a false positive persisting beside the person in
-  camera 0 was a tentative single-view track; in a frame where camera 0 missed the person,
-  association paired the false box with camera 1's real box, and that one two-view position
-  (0.45 m from the ghost, 0.53 m from the person's track) confirmed the ghost as a second id for
-  good. 0.1 s (3 frames at 30 fps) is enough there. Measured (stream bench, indoor-2cam,
-  3 people, nanodet, 2 seeds × 600 frames: MOTA / id switches; demo replay, nanodet: recall):
-  0 s 61.0 % / 20, 0.864; 0.1 s 60.6 % / 19, 0.857; 0.2 s 59.7 % / 16, 0.788 (the regression
-  gate's scene alone: 0.2 s 42.9 % against 36.8 % for 0 and 0.1 s, and 0.4 s 40.7 %). Longer
-  waits keep real people seen by one camera hidden longer, so 0.1 s.
+  in all, not at the first such frame: one mispaired box (a persisting false positive paired
+  with the other camera's real box in a frame where its own camera missed the person) is
+  enough to make a ghost a person for good. Longer waits keep real people seen by one camera
+  hidden longer.
 
-``RECOMMENDED`` settings (``Tracker(**RECOMMENDED)``, what the daemon's pipeline and
-:func:`service.offline.stream_eval.run_stream` use), measured with
-``bench/serving/stream_accuracy.py`` (indoor-2cam, 3 people, nanodet profile, 2 seeds × 600 frames,
-MOTA at 0.5 m / standing jitter): the former tracker (constant velocity, 2 m/s², isotropic 0.12 m,
-0.3 s confirmation) 32.6 % / 8.0 cm; + IMM and covariances 51.0 % / 7.0 cm; + 1 s single-view
-confirmation 56.1 % / 5.2 cm; + ghost check 58.8 %; + accel 1 m/s² 63.3 % / 4.7 cm (lag 0.04 →
-0.05 s); walk_s 10 s (was 4) 63.8 %; robust_chi2 9 (3 seeds × 900 frames) 65.7 % against 64.6 %,
-jitter 4.6 against 5.6 cm. Without the covariances the same defaults give 42.1 %. Rejected:
-accel 0.7 (61.6 %) and 1.5 m/s² (58.3 %); single-view confirmation 0.6 s (57.7 %); robust_chi2 4
-(62.1 %); covariances scaled ×2 (61.9 %) or ×0.5 (MOTA -10 on a quick model); letting tentative
-tracks survive 0.3 s of misses (MOTA 55.8 → 36.9 %, quick model: more twins); folding a second
-single-view measurement from another camera into a track already matched (no measurable effect:
-split associations were not the cause).
+Why ``RECOMMENDED`` differs from the constructor's defaults (the former tracker, which tests of
+single mechanisms rely on): each setting was kept only where the stream benchmark
+(``bench/serving/stream_accuracy.py``, its cause breakdown ``bench/serving/stream_breakdown.py``)
+or the real CMC room (``bench.real.cmc.evaluate``) measured it better. The figures, the rejected
+values and the order of the changes are in ``bench/results/tracker_tuning.md`` and
+``bench/results/real_cmc_chain_tuning.md``; the reasons, in short:
 
-Re-measured 2026-12-01 with the live wiring (``service.tracking.measurements``), the bench's model,
-indoor-2cam, 3 people, nanodet, seed 7 × 600 frames, MOTA / standing jitter: RECOMMENDED
-66.2 % / 3.58 cm. Rejected: covariances ×4 (``measurement_scale``; the floor prior's
-covariance is ~3× overconfident in std on these boxes) 56.9 % / 2.87 cm, ×9 65.3 % / 3.06 cm
-(lag 0.05 → 0.09 s); ``min_measurement_std_m`` 0.1: 63.0 % / 3.17 cm; ``stand_std_m`` 0.01:
-66.1 % / 3.60 cm, with ``stand_s`` 10: 67.0 % / 3.61 cm. No filter setting approaches the 1 cm
-jitter target: it is made of jumps when a second camera comes or goes (the lone view's range
-bias, ~10 % of the box height for 0.4 s at a time in the nanodet profile), not of noise.
-
-Issue-14 MOTA work, 2026-12-02 (``bench/serving/stream_breakdown.py`` attributes every FP, FN and id
-switch at 0.5 m to a cause; stream bench, its model, indoor-2cam, 3 people, nanodet, seeds
-7-10 × 600 frames unless said, MOTA / id switches / standing jitter; measured before the
-lone-view correction, ``service.tracking.view_bias``, was merged: with it the former settings give
-65.0 % / 18 / 5.86 cm and these 71.0 % / 25 / 4.26 cm). The former
-``RECOMMENDED``: 62.3 % / 34 / 5.89 cm; now 72.3 % / 25 / 3.48 cm (precision 80.5 → 89.3 %,
-recall 82.7 → 82.5 %). On seeds 7 8 (57.1 → 69.9 %) coasting tracks > 0.5 m off were the
-largest cause before, 10.8 FP points (382 of 739 FPs) and 5.2 FN points. Per change, in order:
-
-- ``serve_coast_s`` 0.5 s: seeds 7 8 57.1 → 62.6 % (seeds 7-10: 67.6 % / 35 / 3.76 cm). Coasting
-  walkers are mostly > 0.5 m off after ~0.5 s (diagnostic: prediction error > 0.5 m in 19 % of
-  coasting frames 1-3 frames after the last measurement, 34 % at 4-7, 58 % at 8-14, 90 %
-  beyond), and a served position that far off costs a FP *and* a FN where not serving it costs
-  the FN only. 0.2 s 61.7 %, 0.33 s 62.5 %, 0.8 s 61.2 %; rejected: serving while the predicted
-  position's largest std is below 0.15 / 0.25 / 0.35 / 0.5 m (58.4 / 59.9 / 61.0 / 59.8 %: a
-  single-view track's covariance is long along the line of sight from the start, so it hides
-  good tracks early);
-- ``doubt_outside``: 67.6 → 68.9 % (precision 86.6 → 87.9 %, recall unchanged); 39 % of the
-  ghost frames were single-view tracks where the coverage function says *no* camera sees them;
-- ``assign_cost="likelihood"`` with ``gate_m`` 1.5: 68.9 → 70.1 %, id switches 35 → 25 (jitter
-  3.76 → 3.95 cm). The gate alone at 1.5 m (Euclidean cost) gained 2.9 points on seeds 7 8 but
-  lost 4.5 on seeds 9 10 (tracks taking other people's boxes: duplicates 4 → 88 FP frames);
-  rejected: ``sqrt(d²)`` as the cost (68.4 %, jitter 4.79 cm), a Mahalanobis gate
-  (d² ≤ 9.21 or 13.8 beside the 1 m gate: 61.3 / 62.1 % on seeds 7 8 against 62.6 %), gate 2 m;
-- ``gate_growth_mps`` 0.5 (was 1.0) and ``robust_chi2`` 16 (was 9): 70.1 → 72.3 %, jitter
-  3.95 → 3.48 cm (growth 0.5 alone 71.3 %, 0.25 70.6 %, 0 70.5 %; robust_chi2 16 alone 70.7 %,
-  25 with growth 0.5 71.3 %).
-
-Re-tried with the new settings and not kept: ``confirm_single_s`` 0.6 / 0.8 s (68.7 / 69.4
-against 70.1 %), ``ghost_s`` 0.3 / 0.8 s (70.0 / 70.2 %), ``serve_coast_s`` 0.33 s (69.2 %),
-``max_missing_s`` 1.0 / 2.5 s (69.6 / 67.5 %); with the final settings (72.3 %):
-``confirm_s`` 0.15 s 71.8 %, ``multi_view_s`` 0.2 s 71.8 %, ``accel_std`` 0.7 70.7 %, the
-ghost doubt reset by any two-camera frame or decaying while no camera contradicts the track
-72.5 % each (ghost-suppressed real people are the other camera's plain detector misses, not
-occlusion: no cheap tell), confirming a single-view track after ``confirm_s`` once it has
-moved 0.3 / 0.5 / 0.8 m from where it was born (71.5 / 71.6 / 71.9 %: a false box's
-single-view range noise moves it as much as a walk). Other scenes, seeds 7 8, former → new
-``RECOMMENDED``: indoor-2cam with 1 person 56.2 → 69.6 %, with 5 people 49.2 → 57.7 % (there
-jitter 5.7 → 7.0 cm). What is left (``bench/results/stream_breakdown.md``): people no detector
-reports and no served track covers (5.9 FN points), the single-view confirmation delay (3.2),
-coasting and single-view range errors (a lone view's range bias lasts 0.4 s at a time), real
-people hidden by the ghost check while the other camera misses them (1.9).
-
-Keypoint models (2026-12-02, stream bench ``--observation keypoints``, nanodet profile with the
-measured MediaPipe keypoints, every pose-less box falling back to its template pose, seeds 7 8 ×
-600, MOTA over indoor-2cam 1 / 3 / 5 people, indoor-4cam, living-room), measured and not kept:
-a track fed once by a measurement with a pose trusted as if two cameras had seen it (no
-single-view wait, no ghost check): 77.5 / 71.9 / 58.0 / 79.9 / 81.9 % against 79.4 / 70.4 /
-57.6 / 82.6 / 83.3 %; the same and single-view tracks that never had a pose hidden: 80.0 /
-72.7 / 58.5 / 79.9 / 81.9 % (373.0 summed against 373.3): a wash. Caveat: that baseline
-is the template-pose fallback, which :mod:`models.mom.sampling` then rejected; the shipped
-keypoint models (no fallback) were not re-measured with these two tracker variants.
-
-The real room (issue 23; figures in ``bench/results/real_cmc_chain_tuning.md``, tuned on CMC2,
-10 people at 4 fps, through ``bench.real.cmc.evaluate``): four settings joined ``RECOMMENDED``.
-
+- a served coasting track stops at ``serve_coast_s``: a walker's prediction is mostly > 0.5 m off
+  after ~0.5 s, and a served position that far off costs a false positive *and* a miss where
+  not serving it costs the miss only (a covariance-based serving rule hid good single-view
+  tracks early, their covariance being long along the line of sight from the start);
+- the likelihood cost with a 1.5 m gate cut id switches; a wider Euclidean gate alone let tracks
+  take other people's boxes; ``gate_growth_mps`` 0.5 and ``robust_chi2`` 16 lowered jitter;
 - ``measurement_scale`` 9: the floor prior's covariance is ~3x overconfident in std (see
-  :mod:`service.tracking.measurements`); trusting it as given, tracks of people passing each other
-  swapped ids even with the true association (the association oracle: 41 id switches, 23 with the
-  scale; scale 4 and 25 were worse on the whole chain or on IDF1). On the simulated 30 fps
-  stream it costs ~2 cm of mean error and ~0.05 s of lag, not MOTA.
-- ``birth_clearance_m`` 0.8: a person whose boxes split into two clusters is not a second person;
-  no track is born that close to a confirmed or just-measured one (0.5 m gained less).
+  :mod:`service.tracking.measurements`); trusted as given, tracks of people passing each other
+  swapped ids even with the true association;
+- ``birth_clearance_m`` 0.8: a person whose boxes split into two clusters is not a second
+  person; no track is born that close to a confirmed or just-measured one;
 - ``merge_m`` 0.35 / ``merge_s`` 0.5: two tracks that stay that close for half a second are one
-  person fed by both halves of a split association; the younger is dropped. 0.8 m merged real
-  neighbours in the crowd (recall fell to 66 %).
+  person fed by both halves of a split association; the younger is dropped (0.8 m merged real
+  neighbours in a crowd).
+
+No filter setting reaches a 1 cm standing jitter: the jitter is made of jumps when a second
+camera comes or goes (a lone view's range bias, which :mod:`service.tracking.view_bias`
+corrects), not of noise. Tried and not kept (details in the results file): trusting a
+measurement with a pose as if two cameras had seen it, confirming a single-view track once it
+has moved, resetting the ghost doubt on any two-camera frame.
 
 ``meta`` (one dict per detection) is passed through: ``cameras`` is copied onto the track and the
 whole dict is kept as ``Track.meta``.
@@ -178,9 +108,9 @@ from service.tracking.image_continuity import ImageContinuity, ViewMemory
 from service.tracking.motion import ConstantVelocity, StandOrWalk
 
 _UNASSIGNED = 1e9
-# What the stream benchmark measured best (module docstring); the daemon's pipeline uses them
-# (with covariances and coverage from service.tracking.measurements). The constructor keeps the
-# former tracker's defaults, which tests of single mechanisms rely on.
+# What the stream benchmark measured best (bench/results/tracker_tuning.md); the daemon's
+# pipeline uses them (with covariances and coverage from service.tracking.measurements). The
+# constructor keeps the former tracker's defaults, which tests of single mechanisms rely on.
 RECOMMENDED: dict[str, Any] = {
     "motion": "imm",
     "accel_std": 1.0,
@@ -193,7 +123,7 @@ RECOMMENDED: dict[str, Any] = {
     "gate_growth_mps": 0.5,
     "assign_cost": "likelihood",
     "doubt_outside": True,
-    # the real CMC room, 10 people at 4 fps (bench/results/real_cmc.md; module docstring)
+    # the real CMC room, 10 people at 4 fps (bench/results/real_cmc_chain_tuning.md)
     "measurement_scale": 9.0,
     "birth_clearance_m": 0.8,
     "merge_m": 0.35,

@@ -14,7 +14,7 @@ lone-view position from the fused one. When only that camera sees the person, th
 subtracted before the tracker update.
 
 Estimate (per track and camera): the offsets are stored in the camera's line-of-sight frame
-(``along``, ``across``, :func:`service.tracking.measurements.line_of_sight`) at the fused position,
+(``along``, ``across``, :func:`service.tracking.view_geometry.line_of_sight`) at the fused position,
 so a range bias stays a range bias when the person walks round the camera (without a decoder: the
 floor frame). Samples are weighted by their frame time and decay with ``time_constant_s``; the
 estimate is ``S / (W + prior_s)``: a zero-offset prior worth ``prior_s`` seconds of samples, so a
@@ -25,43 +25,17 @@ detector's edge errors are correlated in time, so right after the second camera 
 lone view is still off by about its last measured offset; the estimate starts at the last
 sample and relaxes to ``S / (W + prior_s)`` with ``transient_s``.
 
-Measured (2026-12-02, 2 cores, loaded). What there is to gain, per frame (indoor-2cam, 3 people,
-nanodet profile, seed 7, 1,200 frames, the stream bench's model, rows seen by both cameras):
-each camera's lone view is off along its line of sight by 0.63 m RMS; per person the mean of
-that error is 0.0-0.56 m (height and the like: persistent) against a spread of 0.4-0.65 m
-around it that decorrelates in time like the profile's edges (lag-1 frame 0.87, 6 frames 0.5,
-15 frames 0.2). On the stream (run_stream, same scene, seeds 7-10 × 900 frames): the single-view
-positions the correction touches (84 %) are off by 0.395 m against 0.452 m uncorrected.
-Stream bench (indoor-2cam, 3 people, nanodet, seeds 7-14 × 900 frames, MOTA / id switches /
-matched mean / single-view mean / jitter cm): without 55.0 % / 109 / 0.163 / 0.183 / 5.15;
-``time_constant_s`` 3, ``prior_s`` 0.5 without the transient: 57.9 % / 96 / 0.163 / 0.182 /
-5.26; with ``transient_s`` 0.4 (kept): 55.7 % / 88 / 0.161 / 0.179 / 5.17, lag 0.043 →
-0.044 s. The tracker trusts a lone view little along its line of sight, so a better range
-moves the served single-view position by millimetres; the gain is mostly fewer id switches.
-Full bench (seeds 7-8 × 600 frames, MOTA without → with, bench/results/stream_accuracy.md):
-indoor-2cam 1 person 56.2 → 64.0 %, 3: 57.1 → 61.7 % (id switches 24 → 11), 5: 49.2 → 48.6 %;
-indoor-4cam 68.6 → 68.0 %; living-room 61.6 → 60.2 % (id switches 14 → 27). On seeds 9-11:
-living-room 57.3 → 56.4 % (26 → 25, matched mean 0.154 → 0.151 m), indoor-4cam 64.9 → 67.1 %.
-Rejected: time constant 1 s (55.4 % / 110 / 0.163 / 0.183 / 5.40) and 10 s (56.4 % / 103 /
-0.163 / 0.183 / 5.87); ``prior_s`` 0.1 (55.3 % / 96, jitter 5.41) and 2 (56.2 % / 105, 5.25);
-matching the lone views to tracks on their uncorrected positions (living-room 61.8 % / 16
-against 60.2 % / 27, but indoor-2cam 3 people 54.8 % against 61.7 %, 5 people 43.6 % against
-48.6 %, seeds 7-8 × 600); correcting only where one track alone is within the gate (living-room
-62.5 % / 13, indoor-2cam 3 people 57.7 % / 21, 5 people 47.6 %: the correction helps most where
-people are close, by telling their tracks apart); the along-sight component only (indoor-2cam
-1 / 3 / 5 people 64.0 / 62.0 / 48.9 %, living-room 60.1 %: no difference); a per-camera
-offset over all tracks (30 s) as the prior instead of zero (54.9 % / 102 / 0.161 / 0.181 /
-5.38; with the transient 54.0 % / 95 / 0.159 / 0.178 / 5.14); trusting a corrected lone view
-more (its covariance × 0.75: 55.9 % / 91 / 0.161 / 0.180 / 5.56).
-
-With the tracker's likelihood assignment and 0.5 s of served coasting (2026-12-02, MOTA
-without → with the correction, seeds 7-8 × 600): indoor-2cam 1 / 3 / 5 people 69.6 → 76.7,
-69.9 → 68.4, 57.7 → 53.4 %, indoor-4cam 75.9 → 74.0, living-room 72.2 → 73.5 %: a wash over
-the five scenes (345.3 against 346.0 summed), kept for the one-person scene and the fewer id
-switches. Measured and rejected then: guessing among the held tracks too (``Tracker.hidden``:
-3 / 5 people 69.1 / 53.6 %), and applying the offset after the tracker's own assignment (an
-``adjust`` hook in ``Tracker.update``, the lone view paired uncorrected: 1 / 3 / 5 people 76.8 /
-68.4 / 55.4 %).
+Why it is kept, in short (figures, seeds and every rejected variant:
+``bench/results/tracking_filters.md``): a lone view's range error has a persistent part per
+person and camera (height and the like) and a part that decorrelates within about half a
+second like the detector's edges, so only the first is learnable; the tracker already trusts a
+lone view little along its line of sight, so a better range moves the served position by
+millimetres and the gain is mostly fewer id switches. With the tracker's likelihood assignment
+and served coasting it is a wash over the five stream scenes, kept for the one-person scene
+and the fewer id switches. Rejected: other time constants and priors, matching lone views to
+tracks on their uncorrected positions, correcting only unambiguous tracks, the along-sight
+component alone, a per-camera prior, trusting a corrected lone view more, guessing among held
+tracks, and applying the offset after the tracker's own assignment.
 
 Which track a single-view position will feed is decided by the tracker's assignment, after the
 correction. The correction therefore guesses it: the previous frame's served tracks, predicted
@@ -76,27 +50,28 @@ Cost: one extra batched ``localize`` call per frame set (the multi-view associat
 alone) plus line-of-sight probes of the decoder: 1.6 ms per frame set on indoor-2cam with
 3 people (run_stream, 300 frames, 2 cores, loaded), beside the tracker's own time.
 
-:meth:`ViewBias.update` wraps one tracker update (correct, update, learn): the live pipeline
-(:mod:`service.pipeline.live`) and the offline runs (:func:`service.offline.stream_eval.run_stream`)
-call it the same way, so the bench scores what the daemon serves.
-
-Example::
+:class:`ViewBias` is one stage of the chain (:mod:`service.pipeline.chain`), which calls it
+round the tracker: :meth:`ViewBias.correct` before the update, :meth:`ViewBias.learn` after it.
+The live pipeline and the offline runs both run that chain, so the bench scores what the daemon
+serves. Example::
 
     bias = ViewBias()
-    tracks = bias.update(tracker, t, associations, runtime, meta, covariances, coverage)
+    positions = bias.correct(t, associations, positions, runtime)
+    tracks = tracker.update(t, positions, meta, covariances=covariances, coverage=coverage)
+    bias.learn(t, associations, runtime, tracks)
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from service.stages import Association, LocalizationModel, Track, TrackStage
-from service.tracking.measurements import line_of_sight
+from service.stages import Association, LocalizationModel, Track
+from service.tracking.view_geometry import line_of_sight
 
 _FAR = 1e9
 MAX_FRAME_WEIGHT_S = 0.2  # one sample never weighs more than this (a stalled pipeline)
@@ -114,7 +89,7 @@ class _Offset:
 
 class ViewBias:
     """Per track and camera offset of the lone-view position from the fused one (module
-    docstring); :meth:`update` wraps a tracker update with the correction and the learning."""
+    docstring): :meth:`correct` before the tracker update, :meth:`learn` after it."""
 
     def __init__(
         self,
@@ -136,25 +111,6 @@ class ViewBias:
         self._time: float | None = None
 
     # -- one frame ---------------------------------------------------------------------------
-
-    def update(
-        self,
-        tracker: TrackStage,
-        t: float,
-        associations: Sequence[Association],
-        runtime: LocalizationModel | None,
-        meta: list[dict[str, Any]],
-        covariances: Sequence[np.ndarray | None] | None = None,
-        coverage: Callable[[np.ndarray], np.ndarray] | None = None,
-    ) -> list[Track]:
-        """``tracker.update`` with single-view positions corrected by their track's offset,
-        then the offsets learned from the two-view associations (``meta[i]["association"]``
-        must be ``i``, so the served tracks link back to what fed them)."""
-        positions = np.array([np.asarray(a.world, float)[:2] for a in associations]).reshape(-1, 2)
-        positions = self.correct(t, associations, positions, runtime)
-        tracks = tracker.update(t, positions, meta, covariances=covariances, coverage=coverage)
-        self.learn(t, associations, runtime, tracks)
-        return tracks
 
     def correct(
         self,

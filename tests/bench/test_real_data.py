@@ -1,4 +1,4 @@
-"""The real-data benches' geometry, loaders and scores (bench.real_*, bench.real.shelf_data), on
+"""The real-data benches' geometry, loaders and scores (bench.real.*), on
 hand
 cases and synthetic files: no real data needed."""
 
@@ -177,7 +177,7 @@ def test_each_bench_skips_with_one_line_without_its_data(
 ) -> None:
     import importlib
 
-    module = importlib.import_module(f"bench.real_{name}")
+    module = importlib.import_module(f"bench.real.{name}")
     out = tmp_path / "result.md"
     assert module.main(["--data", str(tmp_path), "--out", str(out)]) == 0
     printed = capsys.readouterr().out.strip().splitlines()

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import itertools
+import signal
+import subprocess
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -27,6 +29,7 @@ class RunningServer:
     daemon: Daemon
     port: int
     token: str | None
+    app: Any = None  # the served ASGI app (its routes)
 
     @property
     def http(self) -> str:
@@ -126,7 +129,7 @@ def running_server(
         daemon.hub.add_publisher(publisher)
     background = serve_in_thread(daemon, port=port, static=static)
     try:
-        yield RunningServer(daemon, background.port, token)
+        yield RunningServer(daemon, background.port, token, background.server.config.app)
     finally:
         background.stop()
 
@@ -164,3 +167,13 @@ def wait_for(read: Any, done: Any, timeout: float, what: str, every: float = 0.1
             return value
         assert time.monotonic() < deadline, f"{what}: {value}"
         time.sleep(every)
+
+
+def interrupt(proc: subprocess.Popen) -> None:
+    """Ctrl-C, as a user stops a daemon (killed when it does not stop within 20 s)."""
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(timeout=20)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()

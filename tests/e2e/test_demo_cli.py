@@ -12,6 +12,8 @@ import time
 import httpx
 import pytest
 
+from tests.e2e.server import interrupt
+
 pytestmark = pytest.mark.timeout(120)
 
 
@@ -21,16 +23,22 @@ def free_port() -> int:
         return sock.getsockname()[1]
 
 
-def test_demo_command_prints_urls_and_serves():
-    port = free_port()
-    env = {k: v for k, v in os.environ.items() if not k.startswith("MOMLOC_")}
-    proc = subprocess.Popen(
+def demo_process(port: int, **env: str) -> subprocess.Popen:
+    """``momloc demo --port PORT`` as a user starts it: no MOMLOC_ variables but ``env``."""
+    clean = {k: v for k, v in os.environ.items() if not k.startswith("MOMLOC_")}
+    return subprocess.Popen(
         [sys.executable, "-m", "service.cli", "demo", "--port", str(port)],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
-        env=env,
+        env={**clean, **env},
     )
+
+
+def test_demo_command_prints_urls_and_serves():
+    port = free_port()
+    env = {k: v for k, v in os.environ.items() if not k.startswith("MOMLOC_")}
+    proc = demo_process(port)
     try:
         lines = [proc.stdout.readline() for _ in range(3)]
         assert f"live map:  http://127.0.0.1:{port}/" in lines[1], lines
@@ -55,10 +63,20 @@ def test_demo_command_prints_urls_and_serves():
         assert again.returncode == 2 and "cannot listen on 127.0.0.1" in again.stderr
         assert "Traceback" not in again.stderr
     finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+        interrupt(proc)
     assert proc.returncode in (0, 130, -signal.SIGINT)
+
+
+def test_demo_in_privacy_mode_from_the_environment():
+    """``MOMLOC_PRIVACY=positions_only momloc demo``: the banner, health and the snapshot say it."""
+    port = free_port()
+    proc = demo_process(port, MOMLOC_PRIVACY="positions_only")
+    try:
+        lines = [proc.stdout.readline() for _ in range(5)]
+        assert "privacy:   positions only, no camera image" in lines[4], lines
+        base = f"http://127.0.0.1:{port}"
+        assert httpx.get(base + "/v1/health", timeout=30).json()["privacy"] == "positions_only"
+        refused = httpx.get(base + "/v1/cameras/0/snapshot.jpg", timeout=30)
+        assert refused.status_code == 403 and "MOMLOC_PRIVACY" in refused.json()["detail"]
+    finally:
+        interrupt(proc)

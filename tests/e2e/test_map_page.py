@@ -102,3 +102,34 @@ def test_map_page_shows_moving_people(browser, tmp_path):
         )
         shot = tmp_path / "map.png"
         assert browser.save_screenshot(str(shot)) and shot.stat().st_size > 10_000
+
+
+def test_map_page_in_privacy_mode_draws_boxes_without_images(browser, monkeypatch, tmp_path):
+    """``MOMLOC_PRIVACY=positions_only``: the previews are the boxes on an empty background,
+    the page loads no image of a camera, and it says the mode."""
+    monkeypatch.setenv("MOMLOC_PRIVACY", "positions_only")
+    with running_server(token="map-token") as srv:
+        srv.wait_for_seq(10)
+        browser.get(f"{srv.http}/?token=map-token")
+        wait_until(lambda: people(browser), what="people on the map")
+        wait_until(
+            lambda: browser.execute_script(
+                "const c = [...document.querySelectorAll('#cameras canvas.preview')];"
+                "return c.length === 2 && c.every(e => e.dataset.boxes !== undefined)"
+                " && c.some(e => Number(e.dataset.boxes) > 0)"
+            ),
+            what="boxes drawn in both previews",
+        )
+        assert browser.execute_script("return document.querySelectorAll('img').length") == 0
+        fetched = browser.execute_script(
+            "return performance.getEntriesByType('resource').map(e => e.name)"
+        )
+        assert not [url for url in fetched if "snapshot.jpg" in url], fetched
+        assert any("/boxes" in url for url in fetched), fetched
+        assert browser.find_element("id", "privacy").is_displayed()
+        wait_until(
+            lambda: "positions only" in browser.find_element("css selector", "#health").text,
+            what="privacy in the health table",
+        )
+        shot = tmp_path / "map-privacy.png"
+        assert browser.save_screenshot(str(shot)) and shot.stat().st_size > 10_000

@@ -81,10 +81,18 @@ def test_positions_follow_ground_truth():
 def test_positions_endpoint_and_rate_limit(server):
     body = server.get("/v1/positions").json()
     assert body["v"] == 1 and body["seq"] >= 5
+    published_before = server.daemon.hub.published
+    started = time.monotonic()
     slow = asyncio.run(receive(server.ws + "/v1/stream?rate=5", 6))
+    elapsed = time.monotonic() - started
+    published = server.daemon.hub.published - published_before
+    # At most 5/s with a bucket of two: six messages span at least four intervals, whatever
+    # the machine's load (a slow machine only makes the span longer).
+    assert elapsed >= 0.95 * 4 / 5, elapsed
+    # The client gets the newest snapshot, not a queue: the seqs it skips are the ones the
+    # pipeline published meanwhile (about 30/s on an idle machine, fewer under load).
     gaps = np.diff([m["seq"] for m in slow])
-    # the pipeline publishes ~30/s; at 5/s the client sees only every ~6th snapshot
-    assert gaps.mean() >= 3, gaps
+    assert gaps.sum() >= 0.5 * (published - 2 * len(slow)), (gaps, published)
 
 
 def test_stalled_client_does_not_stop_others(server):

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import os
-import signal
 import socket
 import subprocess
 import sys
@@ -22,7 +21,7 @@ from models.data.dataset import MomDataset
 from service.api.server import serve_in_thread
 from service.daemon import build_daemon
 from service.settings import load_settings
-from tests.e2e.server import wait_for
+from tests.e2e.server import interrupt, wait_for
 
 pytestmark = pytest.mark.timeout(600)
 CAMERAS = "[{type: synthetic, index: 0}, {type: synthetic, index: 1}]"
@@ -91,11 +90,7 @@ def test_serve_without_a_model_starts_in_setup_mode(tmp_path: Path) -> None:
         assert "record floor marks at /setup" in httpx.get(base + "/").text  # the map links there
         assert httpx.get(base + "/v1/config").json()["setup_mode"] is True
     finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            proc.kill()
+        interrupt(proc)
 
 
 def setup_settings(tmp_path: Path, **synthetic: Any) -> Any:

@@ -11,9 +11,11 @@ from pathlib import Path
 
 import pytest
 
+from models.data.dataset import MomDataset
 from service.api.server import serve_in_thread
 from service.daemon import build_daemon
 from tests.e2e.test_map_page import browser, people, wait_until  # noqa: F401 (fixture)
+from tests.e2e.test_privacy import images_in
 from tests.e2e.test_setup_flow import setup_settings
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(600)]
@@ -34,6 +36,16 @@ def fill(driver, element_id: str, value: str) -> None:
     field = driver.find_element("id", element_id)
     field.clear()
     field.send_keys(value)
+
+
+def record_marks(driver, grid: str, seconds: int) -> None:
+    """Fill the form for a grid of marks in the 10 m room and press Start."""
+    fill(driver, "grid", grid)
+    fill(driver, "room", "10x10")
+    fill(driver, "seconds", str(seconds))
+    fill(driver, "move-seconds", "5")
+    fill(driver, "countdown-seconds", "1")
+    driver.find_element("id", "start").click()
 
 
 def test_first_run_in_the_browser(browser, tmp_path: Path) -> None:  # noqa: F811
@@ -69,12 +81,7 @@ def test_first_run_in_the_browser(browser, tmp_path: Path) -> None:  # noqa: F81
         driver.save_screenshot(str(shots / "02-setup-previews.png"))
 
         # record 2 x 2 marks
-        fill(driver, "grid", "2x2")
-        fill(driver, "room", "10x10")
-        fill(driver, "seconds", "4")
-        fill(driver, "move-seconds", "5")
-        fill(driver, "countdown-seconds", "1")
-        driver.find_element("id", "start").click()
+        record_marks(driver, "2x2", 4)
         wait_until(lambda: "go to mark" in text(driver, "instruction"), 20, "instruction")
         wait_until(
             lambda: driver.execute_script(
@@ -126,6 +133,49 @@ def test_first_run_in_the_browser(browser, tmp_path: Path) -> None:  # noqa: F81
         wait_until(lambda: not driver.find_element("id", "setup-banner").is_displayed(), 10, "x")
         driver.save_screenshot(str(shots / "07-map-positions.png"))
         assert all(shot.stat().st_size > 10_000 for shot in shots.iterdir())
+    finally:
+        server.stop()
+        daemon.training.cancel()
+
+
+def test_setup_page_in_privacy_mode_records_from_boxes(browser, tmp_path, monkeypatch):  # noqa: F811
+    """``MOMLOC_PRIVACY=positions_only``: the set-up page's previews are boxes on an empty
+    background (no image loaded), it still tells who each camera sees, and recording the marks
+    works (it records detections, never images: no image file or bytes in the data folder)."""
+    monkeypatch.setenv("MOMLOC_PRIVACY", "positions_only")
+    daemon = build_daemon(setup_settings(tmp_path))
+    server = serve_in_thread(daemon)
+    driver = browser
+    try:
+        driver.get(f"http://127.0.0.1:{server.port}/setup")
+        wait_until(
+            lambda: (
+                driver.execute_script(
+                    "return [...document.querySelectorAll('#previews canvas.preview')]"
+                    ".filter(c => Number(c.dataset.boxes) === 1).length"
+                )
+                == 2
+            ),
+            60,
+            "one box drawn in each preview",
+        )
+        wait_until(lambda: text(driver, "previews").count("sees 1 person") == 2, 30, "seen")
+        assert driver.execute_script("return document.querySelectorAll('img').length") == 0
+        driver.save_screenshot(str(tmp_path / "setup-privacy.png"))
+        record_marks(driver, "1x2", 3)
+        wait_until(lambda: driver.find_element("id", "train-panel").is_displayed(), 120, "recorded")
+        rows = driver.execute_script(
+            "return [...document.querySelectorAll('#quality tbody tr')].map(r => r.innerText)"
+        )
+        assert [r.split()[0] for r in rows] == ["A1", "A2"], rows
+        fetched = driver.execute_script(
+            "return performance.getEntriesByType('resource').map(e => e.name)"
+        )
+        assert not [url for url in fetched if "snapshot.jpg" in url], fetched
+        assert MomDataset.load(tmp_path / "data" / "setup.npz").n > 0  # detections recorded
+        files = [p for p in (tmp_path / "data").rglob("*") if p.is_file()]
+        assert {p.suffix for p in files} == {".npz", ".json"}, files  # datasets and marks
+        assert not [p for p in files if images_in(p.read_bytes())], files
     finally:
         server.stop()
         daemon.training.cancel()

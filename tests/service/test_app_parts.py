@@ -8,8 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
-from service.api.app import _parse_rate
 from service.api.metrics import metrics_text
+from service.api.routes.stream import _parse_rate
 from service.api.snapshot_image import id_colour, render_camera_jpeg
 from service.pipeline.hub import Hub
 from service.pipeline.listeners import CameraView

@@ -61,7 +61,29 @@ def test_the_detectors_input_growth_is_a_setting() -> None:
 
     assert stage().max_shrink == 3.0  # the kind's default
     assert stage(max_shrink=2).max_shrink == 2.0
-    with pytest.raises(MomlocError, match="detector 'ssdlite': bad option"):
-        stage(kind="ssdlite", max_shrink=2)
+    with pytest.raises(MomlocError, match=r"detector\.max_shrink: Extra inputs are not permitted"):
+        stage(kind="ssdlite", max_shrink=2)  # an option of another kind: the field is named
     with pytest.raises(MomlocError, match="max_shrink"):
         stage(max_shrink=0.5)
+
+
+def test_the_detectors_runtime_is_a_typed_setting() -> None:
+    """``detector.runtime`` picks NanoDet's inference runtime; auto: the first installed of the
+    measured preference."""
+    from models.detector import runtimes
+    from service.pipeline.build import build_detect_stage
+
+    def built(detection: dict[str, object], **detector: object) -> object:
+        settings = load_settings(
+            None, cameras=[{"type": "v4l2", "device": "0"}], detector=detector, detection=detection
+        )
+        return build_detect_stage(settings, None).detector.graph.runtime
+
+    assert built({"schedule": "every_frame"}, runtime="onnxruntime") == "onnxruntime"
+    preferred = runtimes.choose_runtime("auto", user_model=False)
+    assert built({"schedule": "auto"}) == preferred
+    assert built({"schedule": "every_frame"}, threads=1, runtime="auto") == preferred
+    with pytest.raises(MomlocError, match=r"detector\.runtime: Input should be 'auto'"):
+        built({"schedule": "every_frame"}, runtime="tensorrt")
+    with pytest.raises(MomlocError, match=r"detector\.runtime: Extra inputs"):
+        built({"schedule": "every_frame"}, kind="ssdlite", runtime="onnxruntime")

@@ -4,7 +4,7 @@
 association -> shipped demo model -> tracker, scored against the simulator's truth (people whose
 true box is at least half inside a camera's image; reported people matched one-to-one within
 1 m). Recorded on the shipped model (seed 7, 3 people, frames 30..599 for simulated boxes,
-30..329 for the drawn frames through NanoDet), see the README ("The daemon"): the bounds leave a
+30..329 for the drawn frames through NanoDet), see bench/results/demo_scene.md: the bounds leave a
 margin for retraining, not for a blinder detector or a worse drawing.
 
 Simulated boxes are scored under the former kind noise (``ideal``, pinned on purpose: it
@@ -48,7 +48,8 @@ def test_demo_scene_with_drawn_frames_through_the_shipped_detector():
     score = replay_demo(demo_settings(detections="rendered"), frames=330)
     s = score.summary()
     # recorded: mean 0.108 m, median 0.065 m, 95.8 % within 0.5 m, recall 1.0, precision 0.841
-    # (coasting tracks, see the README), 5 ids; frames 30..599: 0.089 m mean, precision 0.906
+    # (coasting tracks, see bench/results/demo_scene.md), 5 ids; frames 30..599: 0.089 m mean,
+    # precision 0.906
     assert s["median_m"] < 0.1 and s["mean_m"] < 0.14, s
     assert s["within_0.5m"] > 0.92 and s["recall"] > 0.95 and s["precision"] > 0.78, s
     assert s["ids"] <= 8, s

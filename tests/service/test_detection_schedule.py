@@ -21,7 +21,6 @@ from service.detection.schedule import (
     DetectionScheduler,
     ThreadRunner,
 )
-from service.detection.stage import DetectorStage
 from service.pipeline.hub import Hub
 from service.pipeline.live import Pipeline
 from tests.service.fake_frames import FPS, BoxWorld, Clock, FakeDetector
@@ -45,7 +44,7 @@ def _run(scheduler: DetectionScheduler, clock: Clock, world: BoxWorld, frames: i
     out = []
     for i in range(frames):
         clock.t = i / FPS
-        out.append(scheduler.step(world.frame_set(i)))
+        out.append(scheduler(world.frame_set(i)))
         for carrier in scheduler.carriers:  # this frame set, not an older one
             assert carrier.time == pytest.approx(i / FPS)
     return out
@@ -130,7 +129,7 @@ def test_flow_is_dropped_while_it_costs_more_than_its_budget(monkeypatch) -> Non
     monkeypatch.setattr(BoxCarrier, "advance", slow_flow)
     for i in range(60):
         clock.t = i / FPS
-        scheduler.step(world.frame_set(i))
+        scheduler(world.frame_set(i))
     stats = scheduler.stats()
     assert stats["flow_ms"] == pytest.approx(10.0)
     # measured on the first frame set, then only on every 30th one
@@ -220,15 +219,14 @@ def test_detector_error_reaches_the_pipeline_thread() -> None:
         FakeDetector(world), runner=DeferredRunner(failing, clock, cost=lambda j: 0.0), clock=clock
     )
     with pytest.raises(ValueError):
-        scheduler.step(world.frame_set(0))  # DeferredRunner runs at submit
+        scheduler(world.frame_set(0))  # DeferredRunner runs at submit
 
 
 def test_pipeline_runs_the_scheduled_stage() -> None:
     world = BoxWorld()
     scheduler, clock = _scheduler(world, cost=0.05)
-    stage = DetectorStage(scheduler.detector, scheduler)
     rig = SimpleNamespace(start=lambda: None, stop=lambda: None, states=lambda: [])
-    pipeline = Pipeline(rig, stage, Hub(), num_cameras=2, shift_threaded=False)
+    pipeline = Pipeline(rig, scheduler, Hub(), num_cameras=2, shift_threaded=False)
     for i in range(6):
         clock.t = i / FPS
         pipeline.process(world.frame_set(i))
@@ -255,7 +253,7 @@ def test_real_detector_on_rendered_frames_produces_boxes() -> None:
             SimpleNamespace(camera=k, image=scene.render(i, k), timestamp=i / FPS, seq=i)
             for k in range(2)
         ]
-        out = scheduler.step(SimpleNamespace(frames=frames, skew=0.0))
+        out = scheduler(SimpleNamespace(frames=frames, skew=0.0))
         truth = np.asarray(scene.observe(i).true_boxes)
         for k, det in enumerate(out):
             boxes = truth[:, k][np.all(np.isfinite(truth[:, k]), axis=1)]
@@ -273,11 +271,12 @@ def test_daemon_builds_the_scheduled_stage_from_settings() -> None:
 
     settings = demo_settings(detections="rendered")
     stage = build_detect_stage(settings, None)
-    assert stage.schedule is not None and stage.schedule.mode == "auto"
+    assert stage.mode == "auto" and stage.runner is not None
     inline = settings.model_copy(
         update={"detection": settings.detection.model_copy(update={"schedule": "every_frame"})}
     )
-    assert build_detect_stage(inline, None).schedule is None
+    every_frame = build_detect_stage(inline, None)
+    assert every_frame.mode == "every_frame" and every_frame.runner is None
     with pytest.raises(Exception, match="detection"):
         load_settings(None, cameras=[{"type": "synthetic", "index": 0}], detection={"often": 1})
 
@@ -347,6 +346,6 @@ def test_boxes_are_kept_as_the_detector_scored_them() -> None:
 
     world = BoxWorld()
     scheduler = DetectionScheduler(LowScores(world), mode="every_frame", clock=Clock())
-    out = scheduler.step(world.frame_set(0))
+    out = scheduler(world.frame_set(0))
     assert [len(d) for d in out] == [1, 1]
     assert out[0].scores.tolist() == pytest.approx([0.05])

@@ -20,10 +20,10 @@ from service.tracking.measurements import (
     SINGLE_VIEW_DEPTH_STD_M,
     coverage_function,
     default_covariance,
-    line_of_sight,
     measurement_covariances,
 )
 from service.tracking.tracker import RECOMMENDED, Tracker
+from service.tracking.view_geometry import line_of_sight
 from tests.service.mom_doubles import OracleRuntime, person_boxes, room_cameras
 
 CAMERAS = room_cameras(2)  # corners (-0.5, -0.5) and (6.5, -0.5), 2.4 m high

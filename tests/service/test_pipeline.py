@@ -17,7 +17,7 @@ from capture.rig import FrameSet
 from capture.worker import Frame
 from common.errors import MomlocError
 from models.detector.base import Detections
-from service.detection.stage import DetectorStage
+from service.detection.schedule import DetectionScheduler
 from service.pipeline.hub import Hub
 from service.pipeline.live import Pipeline
 from service.stages import Association
@@ -94,6 +94,7 @@ def make(rig=None, runtime=None, **kw) -> tuple[Pipeline, Hub]:
         tracker=Tracker(fps_hint=30.0),
         associate=fake_associate,
         load_runtime=kw.pop("load_runtime", lambda path: FakeRuntime()),
+        **kw,
     )
     return pipeline, hub
 
@@ -114,6 +115,18 @@ def test_process_publishes_tracked_people_with_capture_time():
     assert view.image is not None
     ((box, track_id),) = view.boxes
     assert track_id == person["id"] and box[0] == pytest.approx(120.0)
+
+
+def test_previews_without_images_keep_boxes_ids_and_size_but_no_frame():
+    """Privacy mode: the preview store holds no reference to any frame."""
+    pipeline, hub = make(preview_images=False)
+    for _ in range(10):
+        pipeline.process(pipeline.rig.frame_set())
+    (person,) = hub.latest().people
+    view = pipeline.view(0)
+    assert view.image is None and view.size == (640, 480)
+    ((box, track_id),) = view.boxes
+    assert track_id == person["id"] and box[0] == pytest.approx(110.0)
 
 
 def test_no_model_publishes_empty_snapshots():
@@ -203,7 +216,7 @@ def test_detector_stage_batches_and_leaves_scores_to_the_detector():
             ]
 
     det = Det()
-    stage = DetectorStage(det)
+    stage = DetectionScheduler(det, mode="every_frame")
     frame = SimpleNamespace(image=np.zeros((4, 4, 3), np.uint8))
     out = stage(SimpleNamespace(frames=[frame, None, frame]))
     assert det.batches == [2]
@@ -280,7 +293,7 @@ def test_detector_stage_keeps_each_boxs_keypoints():
             points = np.stack([np.full((17, 3), 1.0), np.full((17, 3), 2.0)]).astype(np.float32)
             return [Detections(boxes, np.array([0.2, 0.9], np.float32), points) for _ in frames]
 
-    stage = DetectorStage(Det())
+    stage = DetectionScheduler(Det(), mode="every_frame")
     frame = SimpleNamespace(image=np.zeros((4, 4, 3), np.uint8))
     (out,) = stage(SimpleNamespace(frames=[frame]))
     assert stage.keypoints
@@ -316,7 +329,7 @@ def test_scheduled_detection_carries_keypoints_between_detections():
     """With ``detection.schedule: auto`` the detector runs every few frame sets; the boxes
     carried in between keep their keypoints (moved with the box), so a keypoint model gets
     keypoints on every frame set, not only on the detected ones."""
-    from service.detection.schedule import DeferredRunner, DetectionScheduler
+    from service.detection.schedule import DeferredRunner
 
     class Walker:
         keypoints = True
@@ -332,10 +345,7 @@ def test_scheduled_detection_carries_keypoints_between_detections():
     runner = DeferredRunner(
         lambda job: detector.detect(job.images), lambda: clock.t, cost=lambda job: 0.1
     )
-    schedule = DetectionScheduler(
-        detector, runner=runner, clock=lambda: clock.t, wall=lambda: clock.t
-    )
-    stage = DetectorStage(detector, schedule)
+    stage = DetectionScheduler(detector, runner=runner, clock=lambda: clock.t, wall=lambda: clock.t)
     assert stage.keypoints
     image = np.zeros((480, 640, 3), np.uint8)
     outputs = []
@@ -346,4 +356,4 @@ def test_scheduled_detection_carries_keypoints_between_detections():
     later = [d for out in outputs[4:] for d in out]  # after the first detection arrived
     assert later and all(len(d) == 1 and d.keypoints.shape == (1, 17, 3) for d in later)
     assert all(np.isfinite(d.keypoints).all() for d in later)
-    assert schedule.jobs < 12  # most frame sets were carried, not detected
+    assert stage.jobs < 12  # most frame sets were carried, not detected

@@ -155,3 +155,31 @@ def test_allowed_origins_and_hosts_are_validated(tmp_path, monkeypatch):
     bad = "cameras: [{type: synthetic, index: 0}]\nallowed_origins: ['evil.example/x']\n"
     with pytest.raises(MomlocError, match=r"allowed_origins\.0: String should match pattern"):
         load_settings(write(tmp_path, bad))
+
+
+def test_privacy_from_yaml_and_environment(tmp_path, monkeypatch):
+    path = write(tmp_path, "cameras: [{type: v4l2, device: /dev/video0}]\n")
+    assert load_settings(path).privacy == "off"
+    monkeypatch.setenv("MOMLOC_PRIVACY", "positions_only")
+    assert load_settings(path).privacy == "positions_only"
+    monkeypatch.setenv("MOMLOC_PRIVACY", "blurred")
+    with pytest.raises(MomlocError, match=r"privacy: Input should be 'off' or 'positions_only'"):
+        load_settings(path)
+
+
+def test_record_refuses_in_privacy_mode_one_line_exit_2(tmp_path):
+    """No video is recorded, no folder made, no camera opened."""
+    path = write(
+        tmp_path, "cameras: [{type: v4l2, device: /dev/video0}]\nprivacy: positions_only\n"
+    )
+    out = tmp_path / "rec"
+    result = subprocess.run(
+        [sys.executable, "-m", "service.cli", "record", "--config", str(path), "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "privacy is positions_only" in lines[0], result.stderr
+    assert "MOMLOC_PRIVACY" in lines[0] and not out.exists()

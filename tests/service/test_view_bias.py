@@ -51,7 +51,10 @@ def person(truth: np.ndarray, cameras: list[int], runtime: BiasedViews) -> Assoc
 
 def step(bias: ViewBias, tracker: Tracker, t: float, people: list[Association], runtime):
     meta = [{"cameras": a.cameras, "association": i} for i, a in enumerate(people)]
-    return bias.update(tracker, t, people, runtime, meta)
+    positions = np.array([a.world[:2] for a in people], float).reshape(-1, 2)
+    tracks = tracker.update(t, bias.correct(t, people, positions, runtime), meta)
+    bias.learn(t, people, runtime, tracks)
+    return tracks
 
 
 def test_lone_view_positions_localize_each_box_alone():

@@ -1,4 +1,5 @@
-// Live map: one WebSocket for positions, REST for config/health, snapshot.jpg for previews.
+// Live map: one WebSocket for positions, REST for config/health, previews.js for the cameras
+// (snapshot.jpg, or boxes on an empty background under privacy: positions_only).
 // window.momloc exposes the page state (people, seq, frames drawn) for tests and debugging.
 "use strict";
 
@@ -6,7 +7,7 @@ const params = new URLSearchParams(location.search);
 const token = params.get("token");
 const TRAIL_S = 4.0;
 const state = { people: {}, seq: 0, t: 0, draws: 0, connected: false, floor: null, fitted: null, moved: [],
-  zones: [], occupancy: {}, toCanvas: null };
+  zones: [], occupancy: {}, toCanvas: null, privacy: null };
 window.momloc = state;
 
 function withToken(path) {
@@ -14,10 +15,7 @@ function withToken(path) {
   return path + (path.includes("?") ? "&" : "?") + "token=" + encodeURIComponent(token);
 }
 
-// Same colour per id as the camera previews (OpenCV hue = id * 47 mod 180, in degrees x2).
-function idColour(id, alpha = 1) {
-  return `hsla(${((id * 47) % 180) * 2}, 85%, 60%, ${alpha})`;
-}
+const idColour = window.momlocPreviews.idColour; // the camera previews' colours
 
 const trails = new Map(); // id -> [{t, x, y}]
 
@@ -198,7 +196,8 @@ async function refreshHealth() {
       row("model", h.model.loaded ? (h.model.compatible ? "loaded" : h.model.problem) : (h.model.message || "not loaded"), h.model.loaded && h.model.compatible),
       ...(h.model.verification ? [row("checked", h.model.verification.text, true)] : []),
       row("pipeline", `${p.fps.toFixed(1)} fps, p50 ${p.latency_ms.p50 ?? "–"} ms`, p.running && !p.error),
-      row("dropped frames", String(p.frames_dropped)), row("clients", String(h.clients))];
+      row("dropped frames", String(p.frames_dropped)), row("clients", String(h.clients)),
+      row("privacy", h.privacy === "positions_only" ? "positions only: no camera images" : h.privacy)];
     for (const c of h.cameras) {
       const moved = Boolean(c.alignment && c.alignment.moved);
       rows.push(row(`cam ${c.index} ${c.name}`, (c.connected ? `${(c.fps ?? 0).toFixed(1)} fps, age ${((c.last_frame_age ?? 0) * 1000).toFixed(0)} ms` : (c.error || "disconnected")) + (moved ? " · MOVED" : ""), c.connected && !moved));
@@ -234,16 +233,7 @@ function showMoved(cameras) {
   }
 }
 
-function refreshPreviews() {
-  for (const img of document.querySelectorAll("#cameras img")) {
-    if (img.dataset.loading === "1") continue; // skip a tick rather than queue requests
-    img.dataset.loading = "1";
-    const next = new Image();
-    next.onload = () => { img.src = next.src; img.dataset.loading = "0"; };
-    next.onerror = () => { img.dataset.loading = "0"; };
-    next.src = withToken(`/v1/cameras/${img.dataset.k}/snapshot.jpg?width=320&quality=70&n=${Date.now()}`);
-  }
-}
+const refreshPreviews = () => window.momlocPreviews.refresh("#cameras .preview", withToken);
 
 async function init() {
   document.getElementById("setup-link").href = withToken("/setup");
@@ -251,13 +241,15 @@ async function init() {
     const cfg = await getJSON("/v1/config");
     state.floor = cfg.floor;
     state.zones = cfg.zones || [];
+    state.privacy = cfg.privacy;
+    document.getElementById("privacy").hidden = cfg.privacy !== "positions_only";
     document.getElementById("zones-panel").hidden = state.zones.length === 0;
     document.getElementById("cameras").replaceChildren(...cfg.cameras.map((c) => {
       const fig = document.createElement("figure"); fig.dataset.k = c.index;
-      const img = document.createElement("img"); img.dataset.k = c.index; img.alt = c.name;
+      const preview = window.momlocPreviews.create(c.index, c.name, cfg.privacy);
       const cap = document.createElement("figcaption"); cap.dataset.label = `camera ${c.index} · ${c.name}`;
       cap.textContent = cap.dataset.label;
-      fig.append(img, cap);
+      fig.append(preview, cap);
       return fig;
     }));
   } catch (e) { setLink(false, "unauthorized or offline"); }

@@ -1,4 +1,4 @@
-// Set-up page: see (previews with boxes, who each camera sees, floor plan), record (per-mark
+// Set-up page: see (previews with boxes, previews.js; who each camera sees, floor plan), record (per-mark
 // quality, record again), train (background process, live epochs), check (error per mark).
 // window.momlocSetup exposes the last status for tests and debugging.
 "use strict";
@@ -7,7 +7,7 @@ const token = params.get("token");
 const headers = { "Content-Type": "application/json" };
 if (token) headers.Authorization = "Bearer " + token;
 const $ = (id) => document.getElementById(id);
-const view = { status: null, floor: null, cameras: [], people: [], setupMode: true };
+const view = { status: null, floor: null, cameras: [], people: [], setupMode: true, privacy: null };
 window.momlocSetup = view;
 const withToken = (path) => (token ? path + (path.includes("?") ? "&" : "?") + "token=" + encodeURIComponent(token) : path);
 $("map-link").href = withToken("/");
@@ -78,9 +78,9 @@ $("quality").addEventListener("click", (event) => {
 function buildPreviews(cameras) {
   $("previews").replaceChildren(...cameras.map((c) => {
     const fig = document.createElement("figure"); fig.dataset.k = c.index;
-    const img = document.createElement("img"); img.dataset.k = c.index; img.alt = `camera ${c.index} (${c.name})`;
+    const preview = window.momlocPreviews.create(c.index, `camera ${c.index} (${c.name})`, view.privacy);
     const cap = document.createElement("figcaption"); cap.textContent = `camera ${c.index} · ${c.name}`;
-    fig.append(img, cap);
+    fig.append(preview, cap);
     return fig;
   }));
 }
@@ -95,16 +95,7 @@ function seeing(counts) {
   }
 }
 
-function refreshPreviews() {
-  for (const img of document.querySelectorAll("#previews img")) {
-    if (img.dataset.loading === "1") continue; // skip a tick rather than queue requests
-    img.dataset.loading = "1";
-    const next = new Image();
-    next.onload = () => { img.src = next.src; img.dataset.loading = "0"; };
-    next.onerror = () => { img.dataset.loading = "0"; };
-    next.src = withToken(`/v1/cameras/${img.dataset.k}/snapshot.jpg?width=320&quality=70&n=${Date.now()}`);
-  }
-}
+const refreshPreviews = () => window.momlocPreviews.refresh("#previews .preview", withToken);
 
 // -- the floor plan, to scale: the room (settings, synthetic scene or grid), else the marks --
 function planExtent(marks) {
@@ -252,6 +243,7 @@ async function init() {
     view.floor = cfg.floor;
     view.cameras = cfg.cameras;
     view.setupMode = cfg.setup_mode;
+    view.privacy = cfg.privacy;
     buildPreviews(cfg.cameras);
   } catch (err) { $("error").textContent = err.message; }
   poll();

@@ -19,7 +19,9 @@ from fastapi.responses import JSONResponse
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from common.errors import MomlocError
+from service.api.auth import TokenCheck
 from service.api.errors import error_responses
+from service.api.state import Daemon
 from service.setup.marks import MAX_MARKS, MarkIn, grid_marks, marks_from_entries
 from service.setup.session import SAFE_RECORDING_NAME, SetupSession
 from service.setup.steps import SetupConflict
@@ -125,14 +127,41 @@ class VerifyRequest(BaseModel):
 VERIFY_DEFAULT_MARKS = 4
 
 
-def create_setup_router(
-    session: SetupSession,
-    training: TrainingJob,
-    verifier: Verifier,
-    cameras_now: Callable[[], list[int]],
-) -> APIRouter:
-    """``cameras_now()``: how many people each camera's detector sees in the newest frames."""
-    router = APIRouter(prefix="/v1/setup", tags=["setup"])
+def setup_router(daemon: Daemon, token: TokenCheck) -> APIRouter:
+    """The set-up routes; none when the daemon was built without the set-up flow's three parts
+    (``service.daemon`` wires them; tests of other routes leave them out)."""
+    router = APIRouter(
+        prefix="/v1/setup",
+        tags=["setup"],
+        dependencies=token.secured,
+        responses=error_responses(401, 403),
+    )
+    session, training, verifier = daemon.setup, daemon.training, daemon.verifier
+    if session is None or training is None or verifier is None:
+        return router
+
+    def cameras_now() -> list[int]:
+        """How many people each camera's detector sees in the newest frames."""
+        return [len(daemon.pipeline.view(k).boxes) for k in range(len(daemon.camera_names))]
+
+    def status() -> dict[str, Any]:
+        return {
+            **session.status(),
+            "cameras_now": cameras_now(),
+            "training": training.status(),
+            "verify": verifier.status(),
+        }
+
+    _collection_routes(router, session, status)
+    _training_routes(router, session, training)
+    _check_routes(router, session, verifier)
+    return router
+
+
+def _collection_routes(
+    router: APIRouter, session: SetupSession, status: Callable[[], dict[str, Any]]
+) -> None:
+    """Record at floor marks: start, status (of every step), record one mark again, stop."""
 
     @router.post(
         "/start",
@@ -158,14 +187,7 @@ def create_setup_router(
         except MomlocError as error:
             raise refused(error) from None
 
-    @router.get("/status", summary="Collection, training and check; what each camera sees")
-    def status() -> dict[str, Any]:
-        return {
-            **session.status(),
-            "cameras_now": cameras_now(),
-            "training": training.status(),
-            "verify": verifier.status(),
-        }
+    router.get("/status", summary="Collection, training and check; what each camera sees")(status)
 
     @router.post(
         "/record-again",
@@ -177,6 +199,18 @@ def create_setup_router(
             return session.record_again(request.mark)
         except MomlocError as error:
             raise refused(error) from None
+
+    @router.post(
+        "/stop",
+        summary="Stop the collection, keeping what was recorded",
+        responses=error_responses(400, 413, 415, 422),
+    )
+    def stop(body: Annotated[StopRequest, Body()]) -> dict[str, Any]:
+        return session.stop()
+
+
+def _training_routes(router: APIRouter, session: SetupSession, training: TrainingJob) -> None:
+    """Train a model on a recording in a child process, or cancel it."""
 
     @router.post(
         "/train",
@@ -205,6 +239,10 @@ def create_setup_router(
     def cancel_training(body: Annotated[StopRequest, Body()]) -> dict[str, Any]:
         return training.cancel()
 
+
+def _check_routes(router: APIRouter, session: SetupSession, verifier: Verifier) -> None:
+    """The check step: live error at a few marks."""
+
     @router.post(
         "/verify",
         summary="Check the served model: stand on marks, see the error at each",
@@ -225,16 +263,6 @@ def create_setup_router(
     )
     def stop_verify(body: Annotated[StopRequest, Body()]) -> dict[str, Any]:
         return verifier.stop()
-
-    @router.post(
-        "/stop",
-        summary="Stop the collection, keeping what was recorded",
-        responses=error_responses(400, 413, 415, 422),
-    )
-    def stop(body: Annotated[StopRequest, Body()]) -> dict[str, Any]:
-        return session.stop()
-
-    return router
 
 
 def refused(error: MomlocError) -> HTTPException:
