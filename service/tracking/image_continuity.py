@@ -16,8 +16,9 @@ at 4 and 30 fps: a person walking across the line of sight at 1 m/s moves about 
 per second (the shift and the box height both scale with 1 / range, their ratio is the lateral
 step over the body height). The expected error of the prediction is ``std_h`` (box jitter) plus
 ``growth_hps`` per second since the camera last saw the track (an unmodelled turn or speed
-change: with the image velocity predicted, less than the 0.6 h/s of a walk itself); a camera's term is capped at ``cap`` (a box cut or widened by an occluder should not
-veto a match on its own).
+change: with the image velocity predicted, less than the 0.6 h/s of a walk itself); a
+camera's term is capped at ``cap`` (a box cut or widened by an occluder should not veto a
+match on its own).
 
 Rejected options are in ``bench/results/real_cmc_chain_tuning.md``.
 """
