@@ -16,8 +16,9 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Protocol
 
-from capture.worker import CameraState, CameraWorker, Frame
+from capture.worker import CameraState, Frame
 
 
 @dataclass(frozen=True)
@@ -39,11 +40,23 @@ class FrameSet:
         return [k for k, f in enumerate(self.frames) if f is not None]
 
 
+class Worker(Protocol):
+    """What the rig needs of one camera's :class:`~capture.worker.CameraWorker`."""
+
+    camera: int
+
+    def start(self) -> None: ...
+    def stop(self) -> None: ...
+    def latest(self) -> Frame | None: ...
+    def wait_for_frame(self, after_seq: int = -1, timeout: float | None = None) -> Frame | None: ...
+    def state(self) -> CameraState: ...
+
+
 class CameraRig:
-    """A set of :class:`CameraWorker` (camera index = position in ``workers``)."""
+    """A set of :class:`~capture.worker.CameraWorker` (camera index = position in ``workers``)."""
 
     def __init__(
-        self, workers: Sequence[CameraWorker], max_skew: float = 0.05, max_age: float = 1.0
+        self, workers: Sequence[Worker], max_skew: float = 0.05, max_age: float = 1.0
     ) -> None:
         self.workers = list(workers)
         for index, worker in enumerate(self.workers):

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from common.errors import MomlocError
 from service.api.state import NO_MODEL, Daemon
@@ -21,17 +21,23 @@ from service.settings import POSITIONS_ONLY, Settings
 from service.setup.session import SetupSession
 from service.setup.training import TrainingJob, model_path
 from service.setup.verify import Verifier
+from service.stages import LocalizationModel
+
+if TYPE_CHECKING:  # built only for the demo's synthetic cameras (service.pipeline.build)
+    from models.simulate.scene import Scene
 
 log = logging.getLogger("momloc")
 
 
-def floor_extent(settings: Settings, runtime: Any, player: Any) -> dict[str, float] | None:
+def floor_extent(
+    settings: Settings, runtime: LocalizationModel | None, player: Scene | None
+) -> dict[str, float] | None:
     """Map extent: settings, else the synthetic room, else the model's training area."""
     if settings.floor is not None:
         return settings.floor.model_dump()
     if player is not None:
         return player.floor_extent()
-    bounds = getattr(runtime, "world_bounds", None)  # None: a model from before it was stored
+    bounds = None if runtime is None else runtime.world_bounds  # None: a model from before
     if bounds is not None:
         (xmin, ymin), (xmax, ymax) = bounds
         if xmax > xmin and ymax > ymin:  # marks on one line span no area to draw
@@ -115,7 +121,7 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
     if player is not None:  # synthetic.follow_setup: the simulated person obeys /setup
         from models.simulate.following import FollowingWalker
 
-        walker = getattr(player, "walkers", None)
+        walker = player.walkers
         if isinstance(walker, FollowingWalker):
             walker.target = lambda: session.target() or verifier.target()
     from service.outputs.wiring import build_outputs

@@ -37,23 +37,56 @@ from models.detector.base import Detections
 from service.snapshot import Snapshot
 
 __all__ = [
+    "AreaAware",
     "AssociateStage",
     "Association",
     "DetectStage",
     "Detections",
+    "FloorViewing",
     "FrameListener",
     "FrameResult",
     "FrameSet",
     "LocalizationModel",
+    "Origin",
+    "Reprojecting",
     "Snapshot",
     "Track",
     "TrackStage",
+    "Unscheduled",
+    "WithCovariance",
+    "WorldBounds",
 ]
+
+
+@dataclass(frozen=True)
+class Origin:
+    """Where one position handed to the tracker came from (:meth:`TrackStage.update`); the
+    track it feeds keeps the fields (:class:`Track`).
+
+    ``cameras``: the cameras that saw it; ``frame``: the snapshot ``seq`` of its frame set;
+    ``association``: its index in that frame set's associations (the lone-view correction and
+    :meth:`FrameResult.track_ids` find it there); ``cost``: the association's reprojection cost;
+    ``inside``: in the model's set-up area (``service.pipeline.chain``); ``boxes``: the
+    association's boxes [K, 4] (NaN where camera k does not see it), for the tracker's image
+    continuity (``service.tracking.image_continuity``).
+    """
+
+    cameras: tuple[int, ...] = ()
+    frame: int | None = None
+    association: int | None = None
+    cost: float | None = None
+    inside: bool = True
+    boxes: np.ndarray | None = field(default=None, compare=False)
 
 
 @dataclass
 class Track:
-    """One person as reported to clients (positions in metres, velocities in m/s)."""
+    """One person as reported to clients (positions in metres, velocities in m/s).
+
+    ``cameras`` are the cameras measuring it now (none while coasting); ``frame``,
+    ``association``, ``cost`` and ``inside`` come from the :class:`Origin` of the position
+    that last fed it.
+    """
 
     id: int
     x: float
@@ -64,7 +97,10 @@ class Track:
     cameras: list[int] = field(default_factory=list)
     coasting: bool = False
     age_s: float = 0.0
-    meta: dict[str, Any] = field(default_factory=dict)
+    frame: int | None = None
+    association: int | None = None
+    cost: float | None = None
+    inside: bool = True
 
 
 @dataclass
@@ -85,21 +121,65 @@ class Association:
     )
 
 
-class LocalizationModel(Protocol):
-    """What association and the pipeline need from ``models.mom.runtime.MomRuntime``.
+class Reprojecting(Protocol):
+    """The decoder: floor positions [N, 2] -> each camera's pixel [N, K, 2] of the body's mean
+    point, with the cameras' image sizes [K, 2] (coverage, lines of sight)."""
+
+    @property
+    def image_sizes(self) -> np.ndarray: ...
+
+    def reproject(self, world: np.ndarray) -> np.ndarray: ...
+
+
+class WithCovariance(Protocol):
+    """Covariance [B, 2, 2] (m²) of each tuple's floor position; NaN rows where the model
+    cannot tell (then the tracker's per-view default applies)."""
+
+    def covariance(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray: ...
+
+
+class FloorViewing(Protocol):
+    """Each camera's own floor estimate [B, K, 2] of a tuple's boxes and its information
+    [B, K, 2, 2] (association's floor test), or None for a model without floor geometry."""
+
+    def floor_views(
+        self, boxes: np.ndarray, keypoints: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray] | None: ...
+
+
+class AreaAware(Protocol):
+    """[B] bool: positions [B, 2] of tuples [B, K, 4] inside the area the model was set up on
+    (all True for a model without one)."""
+
+    def inside(self, boxes: np.ndarray, world: np.ndarray) -> np.ndarray: ...
+
+
+WorldBounds = tuple[tuple[float, float], tuple[float, float]]
+"""((xmin, ymin), (xmax, ymax)) metres: the floor the training positions cover."""
+
+
+class LocalizationModel(Reprojecting, WithCovariance, FloorViewing, AreaAware, Protocol):
+    """What the chain and the pipeline need from ``models.mom.runtime.MomRuntime``.
 
     ``observation`` is ``"bbox"`` or ``"keypoints"`` (``model.json``); keypoint models need
     ``keypoints`` [B, K, J, 3] beside the boxes in every call.
+
+    The capabilities are small Protocols of their own, so a function asks for just the one it
+    uses (``covering_cameras`` a :class:`Reprojecting`, the set-up area gate an
+    :class:`AreaAware`) and a test double for it implements only that. A model has all of
+    them: what a model file lacks (no fitted floor prior, no set-up area, no stored bounds) is
+    settled when it is loaded and answered by the capability itself (None, NaN, all inside),
+    so no caller probes for a method.
     """
 
     @property
     def num_cameras(self) -> int: ...
 
     @property
-    def image_sizes(self) -> np.ndarray: ...
+    def observation(self) -> str: ...
 
     @property
-    def observation(self) -> str: ...
+    def world_bounds(self) -> WorldBounds | None: ...
 
     def localize(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray: ...
 
@@ -111,13 +191,30 @@ class LocalizationModel(Protocol):
 class DetectStage(Protocol):
     """Frame set -> one :class:`Detections` per camera (empty for a camera without a frame).
 
-    ``keypoints``: whether the detections carry COCO-17 keypoints (required by keypoint models).
+    ``keypoints``: whether the detections carry COCO-17 keypoints (required by keypoint models);
+    ``stats``: the detection schedule's counters for ``/v1/health`` (None without one);
+    ``close``: stops a worker thread the stage runs, if any.
     """
 
     @property
     def keypoints(self) -> bool: ...
 
-    def __call__(self, frame_set: FrameSet) -> list[Detections]: ...
+    def __call__(self, frame_set: FrameSet) -> Sequence[Detections]: ...
+
+    def stats(self) -> dict[str, Any] | None: ...
+
+    def close(self) -> None: ...
+
+
+class Unscheduled:
+    """The part of :class:`DetectStage` a stage without a detection schedule shares (the
+    simulator's boxes, recorded detections): no counters to report, no thread to stop."""
+
+    def stats(self) -> None:
+        return None
+
+    def close(self) -> None:
+        return None
 
 
 class AssociateStage(Protocol):
@@ -140,7 +237,7 @@ class TrackStage(Protocol):
         self,
         t: float,
         positions: np.ndarray,
-        meta: list[dict[str, Any]] | None = None,
+        origins: Sequence[Origin] | None = None,
         covariances: Sequence[np.ndarray | None] | np.ndarray | None = None,
         coverage: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> list[Track]: ...
@@ -171,10 +268,9 @@ class FrameResult:
         """``(camera, detection index) -> track id`` for the detections tracked in this set."""
         ids: dict[tuple[int, int], int] = {}
         for track in self.tracks:
-            meta = track.meta or {}
-            if meta.get("frame") != self.snapshot.seq:
+            if track.frame != self.snapshot.seq or track.association is None:
                 continue  # a coasting track: not measured in this frame set
-            association = self.associations[meta["association"]]
+            association = self.associations[track.association]
             for camera, index in enumerate(association.detection_index):
                 if index is not None:
                     ids[(camera, int(index))] = int(track.id)

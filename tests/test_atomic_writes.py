@@ -16,7 +16,7 @@ from service.setup.marks import FloorMark
 from tests.service.setup.test_collector import BOX, SIZES, ListFeed
 
 ROOT = Path(__file__).resolve().parents[1]
-WRITER = ROOT / "models" / "atomic.py"
+WRITER = ROOT / "common" / "atomic.py"
 # what only the atomic writer may call: a rename over a target, a temporary file beside it
 RESERVED = {("os", "replace"), ("os", "rename"), ("tempfile", "mkstemp")}
 RESERVED_NAMES = {"NamedTemporaryFile", "mkstemp"}
@@ -36,9 +36,11 @@ def reserved_calls(path: Path) -> list[str]:
     return found
 
 
-def test_only_models_atomic_renames_or_makes_temporary_files() -> None:
+def test_only_common_atomic_renames_or_makes_temporary_files() -> None:
     files = [
-        p for pkg in ("capture", "models", "service", "tools") for p in (ROOT / pkg).rglob("*.py")
+        p
+        for pkg in ("capture", "common", "models", "service", "tools")
+        for p in (ROOT / pkg).rglob("*.py")
     ]
     copies = [hit for path in files if path != WRITER for hit in reserved_calls(path)]
     assert not copies, "atomic-write copies (use common.atomic):\n" + "\n".join(copies)

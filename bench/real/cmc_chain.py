@@ -273,8 +273,7 @@ class TrueAssociation:
                     index[row[person]][k] = j
         world = np.asarray(runtime.localize(boxes), np.float64)
         errors = np.asarray(runtime.reprojection_error(boxes, world))
-        covariance = getattr(runtime, "covariance", None)
-        cov = None if covariance is None else np.asarray(covariance(boxes), np.float64)
+        cov = np.asarray(runtime.covariance(boxes), np.float64)
         return [
             Association(
                 boxes=boxes[p],
@@ -283,7 +282,7 @@ class TrueAssociation:
                 cost=0.0,
                 detection_index=index[p],
                 errors=errors[p],
-                covariance=None if cov is None else cov[p],
+                covariance=cov[p],
             )
             for p in range(len(people))
         ]

@@ -38,6 +38,7 @@ from scipy.optimize import linear_sum_assignment
 
 from models.mom.runtime import MomRuntime
 from models.simulate import Scene, get_config
+from service.stages import Origin
 from service.tracking.association import DEFAULT_MAX_ERROR_PX, DEFAULT_MAX_VIEW_GAP_M, associate
 from service.tracking.tracker import Tracker
 
@@ -149,8 +150,8 @@ def run_scene(
                 errors, missed = match_errors(runtime.localize(boxes[seen]), obs.world[seen])
                 err_true.extend(errors)
                 n["misses_true"] += missed
-            meta = [{"cameras": a.cameras, "cost": a.cost} for a in result]
-            tracks = tracker.update(i / scene.fps, pred, meta)
+            origins = [Origin(cameras=tuple(a.cameras), cost=a.cost) for a in result]
+            tracks = tracker.update(i / scene.fps, pred, origins)
             n["person_frames"] += int(seen.sum())
             if not tracks or not seen.any():
                 continue

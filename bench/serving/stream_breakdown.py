@@ -102,16 +102,14 @@ class Breakdown:
         xy = obs.world[want, :2]
         views = np.isfinite(obs.boxes).all(axis=2).sum(axis=1)[want]
         truth = {int(o): p for o, p in zip(ids, xy, strict=True)}
-        by_key = {(a.cost, tuple(a.cameras)): a for a in associations}
         labels = {id(a): box_labels(a, obs) for a in associations}
 
         def measured(
             track: Track,
         ) -> Association | None:  # this frame's association of a track, or None (coasting)
-            if track.coasting:
+            if track.coasting or track.frame != i or track.association is None:
                 return None
-            key = (float(track.meta.get("cost", np.nan)), tuple(track.meta.get("cameras", [])))
-            return by_key.get(key)
+            return associations[track.association]
 
         for tr in tracks:
             a = measured(tr)

@@ -32,6 +32,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -73,6 +74,15 @@ class PersonDetector(ABC):
     def describe(self) -> str:
         """One line for logs and ``/v1/health``: type, model file, input geometry."""
         return self.kind
+
+
+@runtime_checkable
+class Resizable(Protocol):
+    """An optional detector capability: a network that takes any input size (NanoDet) gives
+    the same detector at another size (``models.detector.windows.WindowRefiner``). Checked
+    once, when the daemon builds its detection stage."""
+
+    def resized(self, input_size: tuple[int, int]) -> PersonDetector: ...
 
 
 class DetectorSettingsBase(BaseModel):

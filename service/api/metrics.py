@@ -85,7 +85,7 @@ class _DaemonCollector(Collector):
         yield connected
         yield fps
         yield age
-        yield from output_metrics(d)  # zones and MQTT (service.outputs.wiring)
+        yield from output_metrics(d.outputs)  # zones and MQTT (service.outputs.wiring)
 
 
 def metrics_text(daemon: Any) -> tuple[bytes, str]:

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from service.camera_health.reprojection import CameraMoved
+from service.outputs.wiring import Outputs
 from service.pipeline.hub import Hub
 from service.pipeline.live import Pipeline
 from service.pipeline.model_watch import ModelWatcher
@@ -43,7 +44,7 @@ class Daemon:
     bind_host: str = "127.0.0.1"  # with the two lists below: see service.api.request_guard
     allowed_hosts: list[str] = field(default_factory=list)
     allowed_origins: list[str] = field(default_factory=list)
-    outputs: Any = None  # service.outputs.wiring.Outputs: zones, MQTT
+    outputs: Outputs | None = None  # zones and the configured publishers
     training: TrainingJob | None = None  # the /setup page's Train button
     verifier: Verifier | None = None  # the /setup page's check step
     privacy: Privacy = "off"  # positions_only: no camera image leaves the process

@@ -6,7 +6,10 @@ import argparse
 import logging
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # command modules import what they run inside the command (fast --help)
+    from service.settings import Settings
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -32,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
     return serve_settings(settings, banner=f"{len(settings.cameras)} camera(s)")
 
 
-def serve_settings(settings: Any, banner: str) -> int:
+def serve_settings(settings: Settings, banner: str) -> int:
     """Build the daemon, print where to find it, serve until Ctrl-C."""
     from service.api.server import run_server
     from service.daemon import build_daemon

@@ -18,6 +18,7 @@ from capture.rig import FrameSet
 from models.detector.base import Detections
 from models.simulate import Scene, make_scene
 from service.settings import SyntheticSettings
+from service.stages import Unscheduled
 
 
 def scene_for(synthetic: SyntheticSettings) -> Scene:
@@ -39,7 +40,7 @@ def scene_for(synthetic: SyntheticSettings) -> Scene:
     return scene
 
 
-class SimulatedDetections:
+class SimulatedDetections(Unscheduled):
     """Detection stage: the simulator's noisy boxes and keypoints for each frame's scene index,
     followed by the profile's false positives for that camera (a real detector reports them
     too; they carry NaN keypoints, as a pose estimator finding no body in a box).

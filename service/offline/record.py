@@ -26,7 +26,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
@@ -36,6 +36,11 @@ from capture.worker import Frame
 from common.errors import MomlocError
 from service.settings import POSITIONS_ONLY, Settings, SyntheticCamera
 from service.stop_signals import deferred
+
+if TYPE_CHECKING:  # the simulator is imported where a scene is drawn
+    from models.simulate.observation import FrameObservation
+    from models.simulate.scene import Scene
+    from service.pipeline.live import Rig
 
 NO_FRAMES_S = 10.0  # no camera delivered anything this long: the rig is dead, stop with an error
 PROGRESS_EVERY_S = 0.5
@@ -97,7 +102,7 @@ def record_live(
             frame_set = rig.frame_set(after=previous, timeout=0.1)
             seqs = _frame_seqs(frame_set)
             now = clock()
-            if seqs is None or seqs == last_seqs:
+            if frame_set is None or seqs is None or seqs == last_seqs:
                 if now - last_frame > NO_FRAMES_S:
                     raise MomlocError(_silence(rig, NO_FRAMES_S))
                 time.sleep(0.002)
@@ -128,18 +133,18 @@ def record_live(
 def _nominal_fps(settings: Settings) -> float:
     if any(isinstance(c, SyntheticCamera) for c in settings.cameras):
         return float(settings.synthetic.fps)
-    rates = [getattr(c, "fps", None) for c in settings.cameras]
+    rates = [c.fps for c in settings.cameras if not isinstance(c, SyntheticCamera)]
     return float(max((r for r in rates if r), default=30.0))
 
 
-def _silence(rig: Any, seconds: float) -> str:
-    errors = [s.error for s in rig.states() if getattr(s, "error", None)]
+def _silence(rig: Rig, seconds: float) -> str:
+    errors = [s.error for s in rig.states() if s.error]
     why = f" ({errors[0]})" if errors else ""
     return f"no camera delivered a frame for {seconds:g} s{why}"
 
 
 def record_scene(
-    scene: Any, frames: int, out: str | Path, *, progress: bool = True
+    scene: Scene, frames: int, out: str | Path, *, progress: bool = True
 ) -> RecordSummary:
     """Draw scene frames 0..frames-1 of every camera into a recording (see the module docstring)."""
     from tqdm import tqdm
@@ -152,9 +157,8 @@ def record_scene(
         for i in tqdm(range(frames), desc="drawing", unit="frame", disable=not progress):
             t = i / scene.fps
             images = [scene.render(i, k) for k in range(scene.num_cameras)]
-            writer.add(
-                FrameSet([Frame(k, image, t, i) for k, image in enumerate(images)], skew=0.0)
-            )
+            frames_now: list[Frame | None] = [Frame(k, im, t, i) for k, im in enumerate(images)]
+            writer.add(FrameSet(frames_now, skew=0.0))
             truth.add(scene.observe(i))
     finally:
         writer.close()
@@ -178,7 +182,7 @@ class _InViewTruth:
     elsewhere.
     """
 
-    def __init__(self, image_sizes: Any) -> None:
+    def __init__(self, image_sizes: np.ndarray) -> None:
         self.sizes = np.asarray(image_sizes, np.float64)
         self.rows: dict[str, list[np.ndarray]] = {
             "world": [],
@@ -187,7 +191,7 @@ class _InViewTruth:
             "track": [],
         }
 
-    def add(self, obs: Any) -> None:
+    def add(self, obs: FrameObservation) -> None:
         from service.offline.stream_eval import MIN_VISIBLE_FRACTION, in_view
 
         boxes = np.asarray(obs.true_boxes, np.float64)

@@ -35,6 +35,7 @@ from models.detector.base import Detections
 from models.simulate import FrameObservation, Scene, SceneConfig, get_config
 from service.detection.box_carrier import BoxCarrier
 from service.pipeline.chain import Chain, OutsideArea
+from service.stages import Association, Track
 from service.tracking.association import (
     DEFAULT_MAX_ERROR_PX,
     DEFAULT_MAX_VIEW_GAP_M,
@@ -126,7 +127,7 @@ def run_stream(
     use_covariance: bool = True,
     view_bias: ViewBias | bool = True,
     outside_area: OutsideArea = "drop",
-    on_frame: Callable[[int, list, list], None] | None = None,
+    on_frame: Callable[[int, list[Association], list[Track]], None] | None = None,
     detect_every: int = 1,
     detect_delay: int = 0,
 ) -> dict[float, dict]:

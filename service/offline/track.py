@@ -27,13 +27,13 @@ from __future__ import annotations
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from capture.recording import Recording
 from capture.rig import FrameSet
-from capture.worker import Frame
+from capture.worker import CameraState, Frame
 from common.errors import MomlocError
 from models.data.dataset import MomDataset
 from models.data.detections_replay import DetectionsReplay, is_replay
@@ -42,7 +42,11 @@ from service.pipeline.hub import Hub
 from service.pipeline.live import Pipeline
 from service.settings import Settings
 from service.snapshot import Snapshot
+from service.stages import DetectStage, LocalizationModel, Unscheduled
 from service.tracking.smoother import FixedLagSmoother
+
+if TYPE_CHECKING:  # imported where used (scoring reads the simulator's truth tables)
+    from service.offline.track_output import TruthScore
 
 
 @dataclass
@@ -52,7 +56,7 @@ class Feed:
     frame_sets: Iterator[tuple[int, FrameSet]]
     total: int
     image_sizes: list[tuple[int, int]]
-    detect: Any
+    detect: DetectStage
     origin: str
 
     @property
@@ -70,7 +74,7 @@ def recording_feed(recording: Recording, settings: Settings) -> Feed:
     return Feed(sets, len(recording), sizes, detect, str(recording.folder))
 
 
-class DatasetDetections:
+class DatasetDetections(Unscheduled):
     """Detection stage answering each frame set with a dataset's boxes (and, if it has them,
     keypoints) of that frame index, as a detector would: one ``Detections`` per camera."""
 
@@ -108,7 +112,7 @@ class DatasetDetections:
         return out
 
 
-class ReplayDetections:
+class ReplayDetections(Unscheduled):
     """Detection stage answering each frame set with a replay's boxes of that frame index."""
 
     keypoints = False
@@ -164,14 +168,14 @@ class _NoRig:
 
     def stop(self) -> None: ...
 
-    def frame_set(self, after: Any = None, timeout: float = 0.0) -> None:
+    def frame_set(self, after: FrameSet | None = None, timeout: float = 0.0) -> None:
         return None
 
-    def states(self) -> list[Any]:
+    def states(self) -> list[CameraState]:
         return []
 
 
-def check_model(runtime: Any, feed: Feed, model_dir: Path) -> None:
+def check_model(runtime: LocalizationModel, feed: Feed, model_dir: Path) -> None:
     """Refuse a model that cannot localise these cameras (one line, before any work)."""
     if int(runtime.num_cameras) != feed.num_cameras:
         raise MomlocError(
@@ -188,7 +192,9 @@ def check_model(runtime: Any, feed: Feed, model_dir: Path) -> None:
             )
 
 
-def offline_pipeline(settings: Settings, runtime: Any, feed: Feed, model_dir: Path) -> Pipeline:
+def offline_pipeline(
+    settings: Settings, runtime: LocalizationModel, feed: Feed, model_dir: Path
+) -> Pipeline:
     """The daemon's pipeline for ``feed`` (mirrors ``service.daemon.build_daemon``)."""
     from service.pipeline.build import build_tracker
 
@@ -232,7 +238,7 @@ def run_track(
     out: Path,
     *,
     as_csv: bool = False,
-    score: Any = None,
+    score: TruthScore | None = None,
     progress: bool = True,
     smooth_s: float = 0.0,
 ) -> TrackSummary:

@@ -1,11 +1,8 @@
-"""The publisher contract: how outputs (zones, MQTT, ...) receive snapshots without slowing them.
+"""How outputs (zones, MQTT, OSC) receive snapshots without slowing them.
 
-:class:`service.pipeline.hub.Hub` calls ``offer(snapshot)`` for every snapshot, on the pipeline
-thread, right after it makes it the newest. ``offer`` must return at once: it may do a few
-microseconds of bounded work (the zone tracker's point-in-polygon tests) or store the snapshot in a
-latest-value slot for a thread of its own (the MQTT publisher), but it never waits on a socket, a
-lock held by I/O or an unbounded queue. An exception in ``offer`` is logged by the hub and the
-pipeline goes on.
+The contract, :class:`Publisher` (``name``, ``offer`` that never blocks, ``stats``), is defined in
+:mod:`service.snapshot` beside the value it takes, so the pipeline's hub types its publishers
+without importing an output; it is re-exported here for the outputs.
 
 Publishers that send over the network (MQTT, OSC) share :class:`ThreadedPublisher`: ``offer``
 stores the snapshot in a :class:`LatestSlot` and wakes a sender thread of the publisher's own;
@@ -23,25 +20,12 @@ import threading
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Protocol, runtime_checkable
+from typing import Any
 
 from common.worker_thread import WorkerThread
-from service.snapshot import Snapshot
+from service.snapshot import Publisher, Snapshot
 
-
-@runtime_checkable
-class Publisher(Protocol):
-    """An output fed by the hub."""
-
-    name: str
-
-    def offer(self, snapshot: Snapshot) -> None:
-        """Take ``snapshot`` (pipeline thread; never blocks)."""
-        ...
-
-    def stats(self) -> dict[str, Any]:
-        """Counters for ``/v1/health`` and ``/metrics``."""
-        ...
+__all__ = ["LatestSlot", "OutputContext", "Publisher", "ThreadedPublisher"]
 
 
 class LatestSlot:

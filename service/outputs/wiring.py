@@ -103,11 +103,10 @@ def build_outputs(settings: Any, daemon: Any) -> Outputs:
     return outputs
 
 
-def output_metrics(daemon: Any) -> list[Any]:
+def output_metrics(outputs: Outputs | None) -> list[Any]:
     """Prometheus families: people per zone, events, MQTT link state and counters."""
     from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily
 
-    outputs = getattr(daemon, "outputs", None)
     if outputs is None:
         return []
     people = GaugeMetricFamily("momloc_zone_people", "People inside the zone", labels=["zone"])

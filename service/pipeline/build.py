@@ -8,16 +8,23 @@ Shared by the live daemon (``service.daemon``), offline ``momloc track``
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
 from common.errors import MomlocError
+from models.detector.base import PersonDetector, Resizable
 from models.detector.windows import WindowRefiner
 from service.detection.schedule import DetectionScheduler
+from service.pipeline.live import Rig
 from service.settings import FileCamera, Settings, SyntheticCamera, V4l2Camera
+from service.stages import DetectStage
 from service.tracking.tracker import RECOMMENDED, Tracker
 
+if TYPE_CHECKING:  # imported inside the functions that open them, as capture and the simulator are
+    from capture.sources import FrameSource
+    from models.simulate.scene import Scene
 
-def camera_name(camera: Any) -> str:
+
+def camera_name(camera: V4l2Camera | FileCamera | SyntheticCamera) -> str:
     if camera.name:
         return camera.name
     if isinstance(camera, V4l2Camera):
@@ -27,7 +34,7 @@ def camera_name(camera: Any) -> str:
     return f"synthetic-{camera.index}"
 
 
-def build_rig(settings: Settings) -> tuple[Any, Any]:
+def build_rig(settings: Settings) -> tuple[Rig, Scene | None]:
     """The camera rig for ``settings.cameras`` and, for synthetic cameras, the scene it shows."""
     kinds = {type(c) for c in settings.cameras}
     if SyntheticCamera in kinds:
@@ -56,11 +63,15 @@ def build_rig(settings: Settings) -> tuple[Any, Any]:
     from capture.rig import CameraRig
     from capture.worker import CameraWorker
 
-    workers = [CameraWorker(_open_source(c), camera=k) for k, c in enumerate(settings.cameras)]
+    workers = [
+        CameraWorker(_open_source(c), camera=k)
+        for k, c in enumerate(settings.cameras)
+        if not isinstance(c, SyntheticCamera)  # all of them: synthetic ones were handled above
+    ]
     return CameraRig(workers, max_skew=settings.tracking.max_skew_s), None
 
 
-def _open_source(camera: Any) -> Any:
+def _open_source(camera: V4l2Camera | FileCamera) -> FrameSource:
     from capture.replay import open_file_source
     from capture.sources import V4L2Source
 
@@ -70,7 +81,7 @@ def _open_source(camera: Any) -> Any:
     return open_file_source(camera.path, camera=camera.camera, fps=camera.fps, loop=camera.loop)
 
 
-def build_detect_stage(settings: Settings, player: Any) -> Any:
+def build_detect_stage(settings: Settings, player: Scene | None) -> DetectStage:
     """The detector stage, or the simulator's boxes when the demo asks for them."""
     if player is not None and settings.synthetic.detections == "simulated":
         from service.detection.simulated import SimulatedDetections
@@ -103,17 +114,19 @@ def build_detect_stage(settings: Settings, player: Any) -> Any:
     )
 
 
-def _window_refiner(detector: Any, windows: int, below_px: float) -> WindowRefiner | None:
-    """The second look at small people (``detection.windows``), for detectors of any input size."""
+def _window_refiner(
+    detector: PersonDetector, windows: int, below_px: float
+) -> WindowRefiner | None:
+    """The second look at small people (``detection.windows``), for detectors of any input size
+    (checked here, once, when the detector is built)."""
     if windows == 0:
         return None
-    resized = getattr(detector, "resized", None)
-    if resized is None:
+    if not isinstance(detector, Resizable):
         raise MomlocError(
             f"detection.windows: detector {detector.kind!r} has a fixed input size; windows need "
             "one of any size (kind: nanodet)"
         )
-    return WindowRefiner(resized((96, 160)), max_height=below_px, max_windows=windows)
+    return WindowRefiner(detector.resized((96, 160)), max_height=below_px, max_windows=windows)
 
 
 def build_tracker(settings: Settings) -> Tracker:

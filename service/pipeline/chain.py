@@ -26,15 +26,17 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from typing import Literal, Protocol, runtime_checkable
+from typing import Literal
 
 import numpy as np
 
 from models.detector.base import Detections
 from service.stages import (
+    AreaAware,
     AssociateStage,
     Association,
     LocalizationModel,
+    Origin,
     Track,
     TrackStage,
 )
@@ -45,13 +47,6 @@ from service.tracking.view_bias import ViewBias
 
 OutsideArea = Literal["drop", "flag"]
 OUTSIDE_AREA_POLICIES: tuple[OutsideArea, ...] = ("drop", "flag")
-
-
-@runtime_checkable
-class AreaAwareModel(Protocol):
-    """A model that knows where it was set up (``MomRuntime.inside``)."""
-
-    def inside(self, boxes: np.ndarray, world: np.ndarray) -> np.ndarray: ...
 
 
 class Chain:
@@ -92,7 +87,7 @@ class Chain:
         seq: int = 0,
     ) -> tuple[list[Association], list[Track]]:
         """The associations fed to the tracker (those it serves, in the order of each track's
-        ``meta["association"]``) and the tracks after time ``t``. Without a model: no people,
+        ``association``) and the tracks after time ``t``. Without a model: no people,
         the tracker still ages its tracks."""
         started = time.perf_counter()
         associations: list[Association] = []
@@ -100,15 +95,15 @@ class Chain:
             found = self.associate(detections, runtime, max_error_px=self.max_error_px)
             associations = gate_to_area(found, runtime, self.outside_area)
         associated = time.perf_counter()
-        meta = [
-            {
-                "cameras": [int(c) for c in a.cameras],
-                "frame": seq,
-                "association": i,
-                "cost": a.cost,
-                "inside": a.inside,
-                "boxes": a.boxes,
-            }
+        origins = [
+            Origin(
+                cameras=tuple(int(c) for c in a.cameras),
+                frame=seq,
+                association=i,
+                cost=a.cost,
+                inside=a.inside,
+                boxes=a.boxes,
+            )
             for i, a in enumerate(associations)
         ]
         covariances = (
@@ -118,7 +113,9 @@ class Chain:
         positions = np.array([np.asarray(a.world, float)[:2] for a in associations]).reshape(-1, 2)
         if self.view_bias is not None:  # single views minus their track's lone-view offset
             positions = self.view_bias.correct(t, associations, positions, runtime)
-        tracks = self.tracker.update(t, positions, meta, covariances=covariances, coverage=coverage)
+        tracks = self.tracker.update(
+            t, positions, origins, covariances=covariances, coverage=coverage
+        )
         if self.view_bias is not None:  # learn the offsets from what fed each track
             self.view_bias.learn(t, associations, runtime, tracks)
         self.timings_ms = {
@@ -129,11 +126,11 @@ class Chain:
 
 
 def gate_to_area(
-    associations: list[Association], runtime: LocalizationModel, outside_area: OutsideArea
+    associations: list[Association], runtime: AreaAware, outside_area: OutsideArea
 ) -> list[Association]:
     """Mark each association inside or outside the model's set-up area; drop the outside ones
     unless they are to be served flagged (``outside_area="flag"``)."""
-    if not associations or not isinstance(runtime, AreaAwareModel):
+    if not associations:
         return associations
     boxes = np.stack([a.boxes for a in associations])
     world = np.stack([np.asarray(a.world, float)[:2] for a in associations])
@@ -147,4 +144,4 @@ def gate_to_area(
 
 def served_inside(track: Track) -> bool:
     """Whether a served track is inside the set-up area (the association that last fed it)."""
-    return bool(track.meta.get("inside", True))
+    return track.inside

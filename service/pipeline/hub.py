@@ -15,9 +15,8 @@ import asyncio
 import contextlib
 import logging
 import threading
-from typing import Any
 
-from service.snapshot import EMPTY, Snapshot
+from service.snapshot import EMPTY, Publisher, Snapshot
 
 log = logging.getLogger("momloc.hub")
 
@@ -62,7 +61,7 @@ class Hub:
         self._latest = EMPTY
         self._subscribers: set[Subscription] = set()
         self._loop: asyncio.AbstractEventLoop | None = None
-        self._publishers: tuple[Any, ...] = ()  # service.outputs.publisher.Publisher (zones, MQTT)
+        self._publishers: tuple[Publisher, ...] = ()  # zones, MQTT, OSC (service.outputs)
         self.published = 0
         self.sent = 0  # messages handed to clients
         self.sent_behind = 0  # ... of which a newer-by-2+ snapshot already existed
@@ -81,17 +80,17 @@ class Hub:
             try:
                 publisher.offer(snapshot)
             except Exception:  # an output's bug must not stop the pipeline
-                log.exception("publisher %s failed", getattr(publisher, "name", publisher))
+                log.exception("publisher %s failed", publisher.name)
         loop = self._loop
         if loop is not None and not loop.is_closed():
             with contextlib.suppress(RuntimeError):  # loop closed since the check
                 loop.call_soon_threadsafe(self._fan_out, snapshot)
 
-    def add_publisher(self, publisher: Any) -> None:
+    def add_publisher(self, publisher: Publisher) -> None:
         """Hand every snapshot to ``publisher.offer`` (pipeline thread; it must not block)."""
         self._publishers = (*self._publishers, publisher)
 
-    def remove_publisher(self, publisher: Any) -> None:
+    def remove_publisher(self, publisher: Publisher) -> None:
         self._publishers = tuple(p for p in self._publishers if p is not publisher)
 
     def _fan_out(self, snapshot: Snapshot) -> None:

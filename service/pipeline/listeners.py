@@ -61,7 +61,7 @@ class CameraWatch:
             return
         boxes = np.stack([np.asarray(a.boxes, np.float32) for a in multi])
         world = np.stack([np.asarray(a.world, np.float64)[:2] for a in multi])
-        if str(getattr(runtime, "observation", "bbox")) == "keypoints":
+        if runtime.observation == "keypoints":
             keypoints = np.stack([np.asarray(a.keypoints, np.float32) for a in multi])
             errors = runtime.reprojection_error(boxes, world, keypoints)
         else:

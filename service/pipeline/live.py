@@ -53,7 +53,7 @@ from service.pipeline.chain import Chain, OutsideArea, served_inside
 from service.pipeline.failure_log import FailureLog
 from service.pipeline.hub import Hub
 from service.pipeline.listeners import CameraView, CameraWatch, DetectionTap, Previews, Throughput
-from service.snapshot import Snapshot
+from service.snapshot import Person, Snapshot
 from service.stages import (
     AssociateStage,
     DetectStage,
@@ -88,7 +88,7 @@ def fusable(frame_set: FrameSet) -> tuple[FrameSet, list[bool]]:
     """The skew rule (module docstring): the frame set without its stale frames, and per camera
     whether its frame takes part."""
     frames = list(frame_set.frames)
-    stale = list(getattr(frame_set, "stale", None) or [False] * len(frames))
+    stale = list(frame_set.stale or [False] * len(frames))
     fused = [f is not None and not s for f, s in zip(frames, stale, strict=True)]
     if all(f is None or keep for f, keep in zip(frames, fused, strict=True)):
         return frame_set, fused
@@ -178,9 +178,7 @@ class Pipeline:
     def stop(self) -> None:
         self._worker.stop()
         self.camera_watch.close()
-        close = getattr(self.detect, "close", None)
-        if close is not None:
-            close()  # the detection scheduler's worker thread, if any
+        self.detect.close()  # the detection scheduler's worker thread, if any
         self.rig.stop()
 
     @property
@@ -280,8 +278,7 @@ class Pipeline:
         """Why ``runtime`` cannot serve these cameras and this detector, or None when it can."""
         if int(runtime.num_cameras) != self.num_cameras:
             return f"model expects {runtime.num_cameras} cameras, {self.num_cameras} are configured"
-        observation = str(getattr(runtime, "observation", "bbox"))
-        if observation == "keypoints" and not getattr(self.detect, "keypoints", False):
+        if runtime.observation == "keypoints" and not self.detect.keypoints:
             return (
                 "model reads keypoints (trained with --observation keypoints) but the detector "
                 "gives boxes only (set detector.keypoints: true, needs momloc[keypoints])"
@@ -341,7 +338,7 @@ class Pipeline:
             "path": str(self.model_dir) if self.model_dir else None,
             "num_cameras": int(runtime.num_cameras),
             "image_sizes": np.asarray(runtime.image_sizes).astype(int).tolist(),
-            "observation": str(getattr(runtime, "observation", "bbox")),
+            "observation": runtime.observation,
             "compatible": problem is None,
             "problem": problem,
         }
@@ -353,11 +350,10 @@ class Pipeline:
 
     def stats(self) -> dict[str, Any]:
         """Frame rate over the last ~4 s, latency percentiles, stage timings, counters."""
-        stats_fn = getattr(self.detect, "stats", None)
         return {
             "running": self.running,
             **self.throughput.stats(),
-            "detection": None if stats_fn is None else stats_fn(),
+            "detection": self.detect.stats(),
             "seq": self._seq,
             "frames_processed": self.frames_processed,
             "frames_dropped": self.frames_dropped,
@@ -368,8 +364,8 @@ class Pipeline:
         }
 
 
-def _person(track: Track) -> dict[str, Any]:
-    person = {
+def _person(track: Track) -> Person:
+    person: Person = {
         "id": int(track.id),
         "x": round(float(track.x), 4),
         "y": round(float(track.y), 4),

@@ -14,7 +14,7 @@ from __future__ import annotations
 import logging
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 from common.errors import MomlocError
 from common.worker_thread import WorkerThread
@@ -39,10 +39,18 @@ def signature(model_dir: Path | None) -> Signature:
     return tuple(out)
 
 
+class Reloading(Protocol):
+    """What the watcher needs of :class:`~service.pipeline.live.Pipeline`."""
+
+    model_dir: Path | None
+
+    def reload_model(self, model_dir: Path | None) -> dict[str, Any]: ...
+
+
 class ModelWatcher:
     """Polls the pipeline's model directory and reloads it when its files change."""
 
-    def __init__(self, pipeline: Any, interval_s: float = 2.0) -> None:
+    def __init__(self, pipeline: Reloading, interval_s: float = 2.0) -> None:
         self.pipeline = pipeline
         self.interval_s = interval_s
         self.last_reload: dict[str, Any] | None = None

@@ -12,13 +12,15 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
 
+from service.snapshot import Person
 
-def nearest_error(people: Iterable[Mapping[str, Any]], x: float, y: float) -> float | None:
+
+def nearest_error(people: Iterable[Person], x: float, y: float) -> float | None:
     """Distance from (x, y) to the nearest served person, None when nobody is served."""
     distances = [math.dist((p["x"], p["y"]), (x, y)) for p in people]
     return min(distances) if distances else None

@@ -10,15 +10,17 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterator
-from typing import Any
 
 import numpy as np
 
+from capture.worker import Frame
 from common.errors import MomlocError
 from models.simulate import get_config
 from models.simulate.scene import Scene
 from models.simulate.scripted import Segment, scripted_scene
+from service.pipeline.live import Rig
 from service.setup.collector import FeedFrame, Step
+from service.stages import DetectStage, FrameSet
 
 
 class SyntheticFeed:
@@ -67,13 +69,12 @@ class LiveFeed:
     frame set in that time is detected once (a slow detector skips frames, it never queues them).
     """
 
-    def __init__(self, rig: Any, detect: Any, first_frame_timeout_s: float = 10.0) -> None:
+    def __init__(self, rig: Rig, detect: DetectStage, first_frame_timeout_s: float = 10.0) -> None:
         self.rig, self.detect = rig, detect
         rig.start()
-        first = self._first_frame_set(first_frame_timeout_s)
-        self.image_sizes = np.array(
-            [[f.image.shape[1], f.image.shape[0]] for f in first.frames], np.int32
-        )
+        first = self._first_frame_set(first_frame_timeout_s)  # every camera's frame has an image
+        images = [f.image for f in first.frames if f is not None and f.image is not None]
+        self.image_sizes = np.array([[i.shape[1], i.shape[0]] for i in images], np.int32)
 
     @classmethod
     def from_config(cls, path: str) -> LiveFeed:
@@ -84,7 +85,7 @@ class LiveFeed:
         rig, player = build_rig(settings)
         return cls(rig, build_detect_stage(settings, player))
 
-    def _first_frame_set(self, timeout_s: float) -> Any:
+    def _first_frame_set(self, timeout_s: float) -> FrameSet:
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
             frame_set = self.rig.frame_set()
@@ -109,7 +110,7 @@ class LiveFeed:
         while time.monotonic() < end:
             frame_set = self.rig.frame_set()
             stamp = None if frame_set is None else frame_set.timestamp
-            if stamp is None or stamp == last:
+            if frame_set is None or stamp is None or stamp == last:
                 time.sleep(0.005)
                 continue
             last = stamp
@@ -121,5 +122,5 @@ class LiveFeed:
         self.rig.stop()
 
 
-def _has_image(frame: Any) -> bool:
+def _has_image(frame: Frame | None) -> bool:
     return frame is not None and frame.image is not None

@@ -14,7 +14,7 @@ import logging
 import re
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -35,6 +35,8 @@ from service.setup.collector import (
 from service.setup.marks import FloorMark
 from service.setup.quality import MarkQuality
 from service.setup.steps import SetupConflict, SetupSteps
+
+DetectionListener = Callable[[float, list[np.ndarray]], None]  # (capture time, boxes per camera)
 
 log = logging.getLogger("momloc.setup")
 # Matched with fullmatch: ``$`` with ``match`` also accepts a trailing newline ("zz.npz\n").
@@ -103,14 +105,14 @@ class SetupSession:
     def __init__(
         self,
         data_dir: Path,
-        image_sizes: Any,
-        attach: Any,
-        detach: Any,
+        image_sizes: Callable[[], list[tuple[int, int]] | None],
+        attach: Callable[[DetectionListener], None],
+        detach: Callable[[DetectionListener], None],
         steps: SetupSteps | None = None,
     ) -> None:
         self.data_dir = Path(data_dir)
         self.steps = SetupSteps() if steps is None else steps
-        self._image_sizes = image_sizes  # callable: the cameras' current [K, 2] sizes
+        self._image_sizes = image_sizes  # the cameras' current sizes, None before all delivered
         self._attach, self._detach = attach, detach  # register/unregister a tap on the pipeline
         self._lock = threading.Lock()
         self._thread: threading.Thread | None = None

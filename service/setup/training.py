@@ -85,7 +85,7 @@ class TrainingJob:
     def __init__(
         self,
         data_dir: Callable[[], Path],
-        on_model: Callable[[Path], Any],
+        on_model: Callable[[Path], dict[str, Any]],
         steps: SetupSteps | None = None,
     ) -> None:
         self._data_dir = data_dir
@@ -189,7 +189,7 @@ class TrainingJob:
 
     def _follow(
         self, process: subprocess.Popen[str], staging: Path, final: Path, keep_as: str | None
-    ) -> Any:
+    ) -> dict[str, Any] | None:
         """Follow one stage to its end; the loaded model's info, or None after a failure."""
         errors: deque[str] = deque(maxlen=40)
         reader = threading.Thread(target=_drain, args=(process.stderr, errors), daemon=True)

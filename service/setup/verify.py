@@ -26,6 +26,7 @@ from service.setup.check_score import mark_error, nearest_error, summarise
 from service.setup.check_store import store_check, stored_check
 from service.setup.marks import FloorMark
 from service.setup.steps import SetupSteps
+from service.snapshot import Snapshot
 
 POLL_S = 0.1
 
@@ -39,7 +40,7 @@ class Verifier:
 
     def __init__(
         self,
-        latest: Callable[[], Any],
+        latest: Callable[[], Snapshot],
         model_dir: Callable[[], Path | None],
         data_dir: Path,
         steps: SetupSteps | None = None,

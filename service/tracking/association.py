@@ -54,8 +54,8 @@ the cameras' lines of sight meet, which the 2 m view gap cannot tell in a crowd.
 room (10 people, ``bench/results/real_cmc_chain_tuning.md``) it cut mixed clusters and lifted
 per-frame MODA; a tighter χ² refused true merges (more duplicates), a looser one let mixes through.
 
-A model with a ``covariance(boxes)`` method (``MomRuntime``: the floor prior's GLS covariance)
-also gives each association the covariance of its position, which the tracker takes as that
+The model's ``covariance(boxes)`` (``MomRuntime``: the floor prior's GLS covariance; NaN without
+one) also gives each association the covariance of its position, which the tracker takes as that
 measurement's noise (long along a lone camera's line of sight).
 """
 
@@ -63,14 +63,18 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from common.errors import MomlocError
 from models.detector.base import Detections
-from service.stages import Association, LocalizationModel
+from service.stages import (
+    Association,
+    FloorViewing,
+    LocalizationModel,
+    WithCovariance,
+)
 
 DEFAULT_MAX_ERROR_PX = (
     100.0  # normalised px (half the reference height): see bench/serving/association.py
@@ -99,26 +103,14 @@ class _Gate:
         return ok if chi2 is None else ok & ~(chi2 > self.max_floor_chi2)
 
 
-@runtime_checkable
-class FloorViewModel(Protocol):
-    """A model with per-camera floor geometry (``MomRuntime.floor_views``): each camera's own
-    floor estimate of a box and its information matrix, or None without floor geometry."""
-
-    def floor_views(
-        self, boxes: np.ndarray, keypoints: np.ndarray | None = None
-    ) -> tuple[np.ndarray, np.ndarray] | None: ...
-
-
 class _FloorFit:
     """Each detection's floor position and information from its own camera's floor map, and
     clusters fused in information form: merging clusters P and Q costs the Mahalanobis
     distance of their fused positions, ``d^T (Λ_P^-1 + Λ_Q^-1)^-1 d`` (the rise in the fused
     χ²), which is small only where the cameras' lines of sight meet."""
 
-    def __init__(self, detections: _Views, runtime: LocalizationModel) -> None:
+    def __init__(self, detections: _Views, runtime: FloorViewing) -> None:
         self.ok = False
-        if not isinstance(runtime, FloorViewModel):
-            return
         rows = [{k: j} for k in range(len(detections)) for j in range(len(detections[k]))]
         if not rows:
             return
@@ -174,7 +166,7 @@ def associate(
             f"association: got detections for {len(detections_per_camera)} cameras, "
             f"the model was trained for {num_cameras}"
         )
-    detections = _Views.of(detections_per_camera, _observation(runtime) == "keypoints")
+    detections = _Views.of(detections_per_camera, runtime.observation == "keypoints")
     seen_cameras = [k for k in range(num_cameras) if len(detections[k])]
     gate = _Gate(max_error_px, max_view_gap_m, max_floor_chi2)
     floor = _FloorFit(detections, runtime)
@@ -201,7 +193,7 @@ def associate(
                 cost=float(cost[i]),
                 detection_index=list(cluster),
                 errors=errors[i],
-                covariance=None if covariance is None else covariance[i],
+                covariance=covariance[i],
                 keypoints=None if tuples.keypoints is None else tuples.keypoints[i],
             )
         )
@@ -333,20 +325,10 @@ def _single_view_positions(detections: _Views, runtime: LocalizationModel) -> li
     return out
 
 
-def _covariance(tuples: _Tuples, runtime: LocalizationModel) -> np.ndarray | None:
-    """The model's covariance [B, 2, 2] of each tuple's position, if it has one (optional:
-    ``MomRuntime.covariance``); rows it cannot tell are NaN."""
-    method = getattr(runtime, "covariance", None)
-    if method is None:
-        return None
-    if tuples.keypoints is None:
-        return np.asarray(method(tuples.boxes), dtype=np.float64)
-    return np.asarray(method(tuples.boxes, tuples.keypoints), dtype=np.float64)
-
-
-def _observation(runtime: LocalizationModel) -> str:
-    """``"bbox"`` or ``"keypoints"``; doubles and older runtimes without the field read boxes."""
-    return str(getattr(runtime, "observation", "bbox"))
+def _covariance(tuples: _Tuples, runtime: WithCovariance) -> np.ndarray:
+    """The model's covariance [B, 2, 2] of each tuple's position (``MomRuntime.covariance``);
+    rows it cannot tell are NaN."""
+    return np.asarray(runtime.covariance(tuples.boxes, tuples.keypoints), dtype=np.float64)
 
 
 @dataclass(frozen=True)

@@ -14,8 +14,8 @@ Covariance policy, per association:
    One camera: ``SINGLE_VIEW_DEPTH_STD_M`` along that camera's line of sight on the floor and
    ``SINGLE_VIEW_ACROSS_STD_M`` across it; the line of sight comes from the model's decoder
    (``reproject``): moving along it leaves the person's horizontal pixel position unchanged, so
-   it is the floor direction orthogonal to the gradient of that pixel coordinate. A model
-   without a decoder gets ``None`` (the tracker's isotropic ``measurement_std_m``).
+   it is the floor direction orthogonal to the gradient of that pixel coordinate. Where that
+   direction is degenerate: ``None`` (the tracker's isotropic ``measurement_std_m``).
 
 Why along / across: a lone box fixes the bearing well (its horizontal position) and the range
 badly (box size and bottom edge). Measured with the shipped demo model's encoder on the nanodet
@@ -37,10 +37,10 @@ arriving is averaged with it instead of correcting it (``tests/service/test_meas
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Any
 
 import numpy as np
 
+from service.stages import Association, Reprojecting
 from service.tracking.view_geometry import covering_cameras, line_of_sight
 
 SINGLE_VIEW_DEPTH_STD_M = 0.6
@@ -48,11 +48,13 @@ SINGLE_VIEW_ACROSS_STD_M = 0.09
 MULTI_VIEW_STD_M = 0.12
 
 
-def measurement_covariances(associations: Sequence[Any], runtime: Any) -> list[np.ndarray | None]:
+def measurement_covariances(
+    associations: Sequence[Association], runtime: Reprojecting | None
+) -> list[np.ndarray | None]:
     """Per association its position's covariance [2, 2] (m²), or ``None`` when unknown."""
     out: list[np.ndarray | None] = []
     for a in associations:
-        own = getattr(a, "covariance", None)
+        own = a.covariance
         if own is not None and np.isfinite(own).all():
             out.append(np.asarray(own, dtype=np.float64))
         else:
@@ -61,12 +63,12 @@ def measurement_covariances(associations: Sequence[Any], runtime: Any) -> list[n
 
 
 def default_covariance(
-    runtime: Any, cameras: Sequence[int], world: np.ndarray
+    runtime: Reprojecting | None, cameras: Sequence[int], world: np.ndarray
 ) -> np.ndarray | None:
     """The per-view-class default (module docstring) for a person seen by ``cameras``."""
     if len(cameras) >= 2:
         return np.eye(2) * MULTI_VIEW_STD_M**2
-    if len(cameras) != 1 or getattr(runtime, "reproject", None) is None:
+    if len(cameras) != 1 or runtime is None:
         return None
     along = line_of_sight(runtime, int(cameras[0]), world)
     if along is None:
@@ -78,12 +80,12 @@ def default_covariance(
 
 
 def coverage_function(
-    runtime: Any, delivered: Sequence[bool]
+    runtime: Reprojecting | None, delivered: Sequence[bool]
 ) -> Callable[[np.ndarray], np.ndarray] | None:
     """``floor positions [N, 2] -> [N, K] bool``: cameras that should see a person there and
     delivered a frame this time (a camera without a frame cannot be expected to report), from
-    :func:`service.tracking.view_geometry.covering_cameras`; None for a model without a decoder."""
-    if runtime is None or getattr(runtime, "reproject", None) is None:
+    :func:`service.tracking.view_geometry.covering_cameras`; None without a model."""
+    if runtime is None:
         return None
     mask = np.asarray(delivered, dtype=bool)[None]
     return lambda world: covering_cameras(runtime, world) & mask

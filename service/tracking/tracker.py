@@ -84,13 +84,13 @@ corrects), not of noise. Tried and not kept (details in the results file): trust
 measurement with a pose as if two cameras had seen it, confirming a single-view track once it
 has moved, resetting the ghost doubt on any two-camera frame.
 
-``meta`` (one dict per detection) is passed through: ``cameras`` is copied onto the track and the
-whole dict is kept as ``Track.meta``.
+``origins`` (one :class:`~service.stages.Origin` per position) are passed through: the track a
+position feeds takes its cameras, and its frame, association, cost and set-up area flag.
 
 Example::
 
     tracker = Tracker(fps_hint=30)
-    tracks = tracker.update(t, positions, [{"cameras": [0, 1]}] * len(positions),
+    tracks = tracker.update(t, positions, [Origin(cameras=(0, 1))] * len(positions),
                             covariances=[a.covariance for a in associations])
 """
 
@@ -103,7 +103,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from service.stages import Track
+from service.stages import Origin, Track
 from service.tracking.image_continuity import ImageContinuity, ViewMemory
 from service.tracking.motion import ConstantVelocity, StandOrWalk
 
@@ -151,7 +151,7 @@ class _State:
     doubted_s: float = 0.0  # time single-view while another camera should have seen it
     shadowed_s: float = 0.0  # time spent within merge_m of an older track
     cameras: list[int] = field(default_factory=list)
-    meta: dict[str, Any] = field(default_factory=dict)
+    origin: Origin = field(default_factory=Origin)  # of the position that last fed it
     views: ViewMemory = field(default_factory=ViewMemory)  # last box per camera
 
 
@@ -247,7 +247,7 @@ class Tracker:
         self,
         t: float,
         positions: np.ndarray,
-        meta: list[dict] | None = None,
+        origins: Sequence[Origin] | None = None,
         covariances: Sequence[np.ndarray | None] | np.ndarray | None = None,
         coverage: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> list[Track]:
@@ -257,18 +257,18 @@ class Tracker:
         uncertainty of each measurement; ``None`` (or a non-finite one) means the isotropic
         ``measurement_std_m``. ``coverage`` (optional): floor positions [N, 2] → [N, K] bool,
         which cameras should see a person standing there (used with ``ghost_s``).
-        ``meta[i]["boxes"]`` (optional, [K, 4] px, NaN where camera k does not see the person):
+        ``origins[i].boxes`` (optional, [K, 4] px, NaN where camera k does not see the person):
         the association's boxes, for the image continuity cost (``image_std_h`` > 0,
         :mod:`service.tracking.image_continuity`).
         """
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
         keep = np.all(np.isfinite(positions), axis=1)
-        meta = list(meta) if meta is not None else [{} for _ in range(len(positions))]
-        if len(meta) != len(positions):
-            raise ValueError(f"meta has {len(meta)} entries for {len(positions)} positions")
+        given = list(origins) if origins is not None else [Origin()] * len(positions)
+        if len(given) != len(positions):
+            raise ValueError(f"{len(given)} origins for {len(positions)} positions")
         noise = self._noise(covariances, len(positions))
         positions, noise = positions[keep], noise[keep]
-        meta = [m for m, k in zip(meta, keep, strict=True) if k]
+        kept = [o for o, k in zip(given, keep, strict=True) if k]
 
         dt = 1.0 / self.fps_hint if self._time is None else float(t) - self._time
         if dt < 0:  # out-of-order frame set: treat as simultaneous rather than rewinding
@@ -278,16 +278,16 @@ class Tracker:
         for track in self._tracks:
             self._predict(track, dt)
 
-        boxes = [m.get("boxes") for m in meta]
+        boxes = [o.boxes for o in kept]
         rows, cols = self._assign(positions, noise, self._time, boxes)
         matched_tracks = set(rows.tolist())
         for r, c in zip(rows, cols, strict=True):
-            self._correct(self._tracks[r], positions[c], noise[c], meta[c], self._time)
+            self._correct(self._tracks[r], positions[c], noise[c], kept[c], self._time)
         for i, track in enumerate(self._tracks):
             if i not in matched_tracks:
                 track.rate *= 1.0 - self._rate_weight(dt)
         for c in self._births(positions, set(cols.tolist())):
-            self._tracks.append(self._spawn(positions[c], noise[c], meta[c], self._time))
+            self._tracks.append(self._spawn(positions[c], noise[c], kept[c], self._time))
         if coverage is not None and self.ghost_s > 0:
             self._doubt(coverage, dt)
         if self.merge_s > 0 and self.merge_m > 0:
@@ -344,7 +344,10 @@ class Tracker:
             cameras=list(tr.cameras) if missing == 0 else [],
             coasting=missing > 0,
             age_s=float(now - tr.born),
-            meta=dict(tr.meta),
+            frame=tr.origin.frame,
+            association=tr.origin.association,
+            cost=tr.origin.cost,
+            inside=tr.origin.inside,
         )
 
     # -- filters -------------------------------------------------------------------------------
@@ -373,17 +376,19 @@ class Tracker:
     def _predict(self, track: _State, dt: float) -> None:
         track.motion.predict(dt)
 
-    def _correct(self, track: _State, z: np.ndarray, r: np.ndarray, meta: dict, t: float) -> None:
+    def _correct(
+        self, track: _State, z: np.ndarray, r: np.ndarray, origin: Origin, t: float
+    ) -> None:
         track.motion.correct(z, self._robust(track, z, r))
         track.last_seen = t
         track.hits += 1
         weight = self._rate_weight(self._frame_dt)
         track.rate = track.rate * (1.0 - weight) + weight
-        track.cameras = [int(k) for k in meta.get("cameras", [])]
-        track.views.remember(meta.get("boxes"), t)
+        track.cameras = [int(k) for k in origin.cameras]
+        track.views.remember(origin.boxes, t)
         self._count_views(track, self._frame_dt)
         self._confirm(track, t)
-        track.meta = dict(meta)
+        track.origin = origin
 
     def _births(self, positions: np.ndarray, assigned: set[int]) -> list[int]:
         """The unassigned positions that start tracks: none closer than ``birth_clearance_m``
@@ -463,7 +468,7 @@ class Tracker:
         should see it: a detector's false positive, not reported."""
         return not track.multi_view and track.doubted_s > self.ghost_s > 0
 
-    def _spawn(self, z: np.ndarray, r: np.ndarray, meta: dict, t: float) -> _State:
+    def _spawn(self, z: np.ndarray, r: np.ndarray, origin: Origin, t: float) -> _State:
         # Unknown velocity: a walking person is within ~2 m/s, so start with that spread.
         motion = MOTION_MODELS[self.motion](
             z, r, float(np.sqrt(self.accel_var)), **self._motion_options
@@ -473,10 +478,10 @@ class Tracker:
             motion=motion,
             born=t,
             last_seen=t,
-            cameras=[int(k) for k in meta.get("cameras", [])],
-            meta=dict(meta),
+            cameras=[int(k) for k in origin.cameras],
+            origin=origin,
         )
-        state.views.remember(meta.get("boxes"), t)
+        state.views.remember(origin.boxes, t)
         # credited for one frame interval, as measured (the hint before a second update)
         self._count_views(state, self._frame_dt if self._frame_dt > 0 else 1.0 / self.fps_hint)
         self._confirm(state, t)

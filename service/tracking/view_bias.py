@@ -15,15 +15,15 @@ subtracted before the tracker update.
 
 Estimate (per track and camera): the offsets are stored in the camera's line-of-sight frame
 (``along``, ``across``, :func:`service.tracking.view_geometry.line_of_sight`) at the fused position,
-so a range bias stays a range bias when the person walks round the camera (without a decoder: the
-floor frame). Samples are weighted by their frame time and decay with ``time_constant_s``; the
-estimate is ``S / (W + prior_s)``: a zero-offset prior worth ``prior_s`` seconds of samples, so a
-track seen by two cameras for a few frames gets a shrunk offset, and an offset not refreshed
-fades towards zero as its weight decays (an old offset is less trustworthy: posture changes,
-and the range bias of a height error grows with distance). On top, the *transient* part: the
-detector's edge errors are correlated in time, so right after the second camera leaves, the
-lone view is still off by about its last measured offset; the estimate starts at the last
-sample and relaxes to ``S / (W + prior_s)`` with ``transient_s``.
+so a range bias stays a range bias when the person walks round the camera (where the line of sight
+is degenerate: the floor frame). Samples are weighted by their frame time and decay with
+``time_constant_s``; the estimate is ``S / (W + prior_s)``: a zero-offset prior worth ``prior_s``
+seconds of samples, so a track seen by two cameras for a few frames gets a shrunk offset, and an
+offset not refreshed fades towards zero as its weight decays (an old offset is less trustworthy:
+posture changes, and the range bias of a height error grows with distance). On top, the *transient*
+part: the detector's edge errors are correlated in time, so right after the second camera leaves,
+the lone view is still off by about its last measured offset; the estimate starts at the last sample
+and relaxes to ``S / (W + prior_s)`` with ``transient_s``.
 
 Why it is kept, in short (figures, seeds and every rejected variant:
 ``bench/results/tracking_filters.md``): a lone view's range error has a persistent part per
@@ -42,9 +42,10 @@ correction. The correction therefore guesses it: the previous frame's served tra
 to now with their velocity, are matched one to one to this frame's positions (Hungarian on the
 distance, a single-view position corrected by each candidate track's offset, within
 ``gate_m``); the tracker sees the corrected positions, so the guess and its assignment agree
-except in ties. After the update, the tracks' ``meta["association"]`` (the index of the
-association that fed them, which the caller puts in ``meta``) says which track each two-view
-association fed, and its lone-view offsets are learned for that track.
+except in ties. After the update, the tracks' ``association`` (the index of the association
+that fed them, which the caller puts in each position's :class:`~service.stages.Origin`) says
+which track each two-view association fed, and its lone-view offsets are learned for that
+track.
 
 Cost: one extra batched ``localize`` call per frame set (the multi-view associations' boxes
 alone) plus line-of-sight probes of the decoder: 1.6 ms per frame set on indoor-2cam with
@@ -57,7 +58,7 @@ serves. Example::
 
     bias = ViewBias()
     positions = bias.correct(t, associations, positions, runtime)
-    tracks = tracker.update(t, positions, meta, covariances=covariances, coverage=coverage)
+    tracks = tracker.update(t, positions, origins, covariances=covariances, coverage=coverage)
     bias.learn(t, associations, runtime, tracks)
 """
 
@@ -65,7 +66,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -158,13 +158,12 @@ class ViewBias:
         frame_s = float(np.clip(frame_s, 0.0, MAX_FRAME_WEIGHT_S))
         fed = []
         for tr in tracks:
-            meta = getattr(tr, "meta", None) or {}
-            index = meta.get("association") if not getattr(tr, "coasting", False) else None
-            if index is not None and 0 <= int(index) < len(associations):
-                a = associations[int(index)]
+            index = None if tr.coasting else tr.association
+            if index is not None and 0 <= index < len(associations):
+                a = associations[index]
                 if len(a.cameras) >= 2:
                     fed.append((tr.id, a))
-        if fed and runtime is not None and getattr(runtime, "localize", None) is not None:
+        if fed and runtime is not None:
             lone = lone_view_positions([a for _, a in fed], runtime)
             for (track_id, a), views in zip(fed, lone, strict=True):
                 fused = np.asarray(a.world, dtype=np.float64)[:2]
@@ -202,7 +201,14 @@ class ViewBias:
         _fold(self._offsets, (int(track_id), int(camera)), t, sample, w, self.time_constant_s)
 
 
-def _fold(table: dict, key: Any, t: float, sample: np.ndarray, w: float, tau: float) -> None:
+def _fold(
+    table: dict[tuple[int, int], _Offset],
+    key: tuple[int, int],
+    t: float,
+    sample: np.ndarray,
+    w: float,
+    tau: float,
+) -> None:
     o = table.get(key)
     if o is None:
         table[key] = _Offset(sample * w, w, t, sample)
@@ -220,7 +226,7 @@ def lone_view_positions(
     """Per association, ``{camera: floor position [2]}`` of each of its boxes localized alone
     (the other views masked), one batched model call; NaN where the model cannot."""
     rows, keys = [], []
-    with_keypoints = str(getattr(runtime, "observation", "bbox")) == "keypoints"
+    with_keypoints = runtime.observation == "keypoints"
     for i, a in enumerate(associations):
         for k in a.cameras:
             rows.append((i, int(k)))
@@ -247,8 +253,8 @@ def lone_view_positions(
 
 def _sight_frame(runtime: LocalizationModel | None, camera: int, world: np.ndarray) -> np.ndarray:
     """Rows: the unit floor vectors along and across camera ``camera``'s line of sight at
-    ``world`` (the identity without a decoder or where it is degenerate)."""
-    if runtime is None or getattr(runtime, "reproject", None) is None:
+    ``world`` (the identity without a model or where it is degenerate)."""
+    if runtime is None:
         return np.eye(2)
     along = line_of_sight(runtime, camera, world)
     if along is None:

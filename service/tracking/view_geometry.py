@@ -9,25 +9,14 @@ association, which sits before them in the chain.
 
 from __future__ import annotations
 
-from typing import Any, Protocol, runtime_checkable
-
 import numpy as np
+
+from service.stages import Reprojecting
 
 _STEP_M = 0.05  # finite-difference step of the line-of-sight direction
 
 
-@runtime_checkable
-class ReprojectingModel(Protocol):
-    """A model whose decoder maps floor positions back into the cameras (``MomRuntime``)."""
-
-    image_sizes: np.ndarray  # [K, 2] width, height
-
-    def reproject(self, world: np.ndarray) -> np.ndarray: ...
-
-
-def covering_cameras(
-    runtime: ReprojectingModel, world: np.ndarray, margin: float = 0.05
-) -> np.ndarray:
+def covering_cameras(runtime: Reprojecting, world: np.ndarray, margin: float = 0.05) -> np.ndarray:
     """[N, K] bool: camera k should see a person at floor position ``world`` [N, 2], i.e. the
     decoder puts their body's mean point inside its image, ``margin`` (fraction of the image
     size) away from the border. For the tracker's ghost check (``Tracker(ghost_s=...)``)."""
@@ -37,7 +26,7 @@ def covering_cameras(
     return np.all(inside, axis=-1)
 
 
-def line_of_sight(runtime: Any, camera: int, world: np.ndarray) -> np.ndarray | None:
+def line_of_sight(runtime: Reprojecting, camera: int, world: np.ndarray) -> np.ndarray | None:
     """Unit floor direction at ``world`` [2] along which camera ``camera``'s horizontal pixel
     of the person does not change (its line of sight), from the decoder; None if degenerate."""
     world = np.asarray(world, dtype=np.float64).reshape(2)

@@ -57,7 +57,8 @@ def test_recall_by_height_bins_and_bin_edges() -> None:
 
 def test_score_threshold_drops_detections_before_matching() -> None:
     truth = Truth.of([[0, 0, 20, 100]])
-    frames = [(truth, np.array([[0, 0, 20, 100]]), np.array([0.35])), (Truth.of([]), [], [])]
+    nothing = (Truth.of([]), np.zeros((0, 4)), np.zeros(0))
+    frames = [(truth, np.array([[0, 0, 20, 100]]), np.array([0.35])), nothing]
     assert evaluate(frames, 0.3, 0.5).recall()[0] == 1.0
     high = evaluate(frames, 0.4, 0.5)
     assert high.recall()[0] == 0.0 and high.frames == 2 and np.isnan(high.precision)
@@ -76,7 +77,8 @@ def test_precision_and_false_positives_per_frame() -> None:
 
 def test_edge_error_sign_and_fully_visible_people_only() -> None:
     truth = Truth.of(
-        [[0, 100, 20, 200], [50, 100, 70, 200], [100, 100, 120, 200]], occluded=[0, 0, 1]
+        [[0, 100, 20, 200], [50, 100, 70, 200], [100, 100, 120, 200]],
+        occluded=[False, False, True],
     )
     dets = np.array(
         [

@@ -12,14 +12,14 @@ from bench.real.cmc_chain import Ground, TrueAssociation
 from bench.real.cmc_data import Truth
 from models.data.detections_replay import DetectionsReplay
 from models.detector.base import Detections
+from tests.service.mom_doubles import ModelDouble
 
 
-class CentreRuntime:
+class CentreRuntime(ModelDouble):
     """A stand-in model: the floor point is the mean box centre over the seen cameras / 100."""
 
     num_cameras = 2
     image_sizes = np.array([[640, 480], [640, 480]])
-    observation = "bbox"
 
     def localize(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
         centres = 0.5 * (boxes[..., :2] + boxes[..., 2:])

@@ -26,10 +26,11 @@ def camera(position=(0.0, -6.0, 3.0)) -> Calibration:
 
 
 def test_rodrigues_matches_a_quarter_turn_and_stays_a_rotation() -> None:
-    assert np.allclose(rodrigues([0, 0, np.pi / 2]), [[0, -1, 0], [1, 0, 0], [0, 0, 1]])
-    r = rodrigues([1.76, 0.47, -0.33])
+    quarter = rodrigues(np.array([0, 0, np.pi / 2]))
+    assert np.allclose(quarter, [[0, -1, 0], [1, 0, 0], [0, 0, 1]])
+    r = rodrigues(np.array([1.76, 0.47, -0.33]))
     assert np.allclose(r @ r.T, np.eye(3)) and np.isclose(np.linalg.det(r), 1.0)
-    assert np.allclose(rodrigues([0, 0, 0]), np.eye(3))
+    assert np.allclose(rodrigues(np.zeros(3)), np.eye(3))
 
 
 def test_opencv_values_reads_matrices_and_plain_text(tmp_path: Path) -> None:

@@ -3,22 +3,33 @@ frames."""
 
 from __future__ import annotations
 
-from types import SimpleNamespace
-
 import numpy as np
 
 from bench.serving.stream_breakdown import FALSE, box_labels, measurement_cause
+from models.simulate.observation import FrameObservation
+from service.stages import Association
+
+
+def _observation(boxes: np.ndarray, track: np.ndarray) -> FrameObservation:
+    """A frame with these detected boxes [P, K, 4] of people ``track`` (the rest empty)."""
+    none = np.zeros(0)
+    return FrameObservation(0, track, none, none, boxes, none, none, none, none, none, none, none)
+
+
+def _seen(cameras: list[int], boxes: np.ndarray) -> Association:
+    index: list[int | None] = [0 if k in cameras else None for k in range(len(boxes))]
+    return Association(boxes, cameras, np.zeros(2), 0.0, index)
 
 
 def test_boxes_are_labelled_by_person_or_false():
     person = np.array([[10, 20, 50, 120], [200, 30, 240, 130]], dtype=np.float32)  # camera 0, 1
     other = np.array([[60, 20, 90, 100], [np.nan] * 4], dtype=np.float32)
-    obs = SimpleNamespace(boxes=np.stack([person, other]), track=np.array([4, 7]))
-    fused = SimpleNamespace(cameras=[0, 1], boxes=person)
+    obs = _observation(np.stack([person, other]), np.array([4, 7]))
+    fused = _seen([0, 1], person)
     assert box_labels(fused, obs) == [4, 4]
-    wrong = SimpleNamespace(cameras=[0, 1], boxes=np.stack([other[0], person[1]]))
+    wrong = _seen([0, 1], np.stack([other[0], person[1]]))
     assert box_labels(wrong, obs) == [7, 4]
-    ghost = SimpleNamespace(cameras=[1], boxes=np.array([[np.nan] * 4, [1, 2, 3, 4]], np.float32))
+    ghost = _seen([1], np.array([[np.nan] * 4, [1, 2, 3, 4]], np.float32))
     assert box_labels(ghost, obs) == [FALSE]
 
 

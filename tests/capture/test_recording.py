@@ -54,7 +54,9 @@ def test_frame_sets_come_back_as_recorded(tmp_path):
     assert stamps == [[100.0, 100.01], [100.1, 100.01], [100.2, None]]
     assert sets[1][1].skew == pytest.approx(0.09) and sets[1][1].stale == [False, True]
     # the right pixels: the bright block sits where it was drawn
-    left = sets[1][1].frames[0].image
+    first = sets[1][1].frames[0]
+    assert first is not None and first.image is not None
+    left = first.image
     assert left.shape == (48, 64, 3) and left[16, 14, 0] > 150 and left[16, 4, 0] < 100
     manifest = json.loads((tmp_path / "rec" / "manifest.json").read_text())
     assert manifest["format"] == "momloc-recording" and manifest["version"] == 1

@@ -102,6 +102,7 @@ def test_list_devices_numeric_order_links_and_fallback(tmp_path):
     # Real ioctls on a regular file fail (ENOTTY): the device is probed with OpenCV instead.
     fallback = v4l2.list_devices(str(tmp_path), ioctl=_refuse)[0]
     assert fallback.probe == "opencv" and not fallback.capture
+    assert fallback.error is not None
     assert "ioctl failed" in fallback.error and "cannot open" in fallback.error
 
 

@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from capture import CameraWorker, VideoFileSource
+from capture import CameraWorker, Frame, VideoFileSource
 from tests.capture.fakes import FaultySource, ManualClock, frame_number, wait_until, write_mjpg
 
 
@@ -28,16 +28,17 @@ def workers():
 
 def test_mjpg_file_frames_flow_through_the_worker(tmp_path, workers):
     worker = workers(VideoFileSource(write_mjpg(tmp_path / "cam.avi"), fps=100.0))
-    seen = []
+    seen: list[Frame] = []
     frame = None
     while len(seen) < 20:
         frame = worker.wait_for_frame(frame.seq if frame else -1, timeout=10.0)
         assert frame is not None, "no frame within 10 s"
         seen.append(frame)
-    assert all(f.image.shape == (480, 640, 3) for f in seen)
+    images = [f.image for f in seen if f.image is not None]
+    assert len(images) == len(seen) and all(i.shape == (480, 640, 3) for i in images)
     assert all(b.seq > a.seq and b.timestamp >= a.timestamp for a, b in itertools.pairwise(seen))
     # Decoded content follows the file (frames may be skipped, never reordered within a loop).
-    numbers = [frame_number(f.image) for f in seen]
+    numbers = [frame_number(image) for image in images]
     assert all(0 <= n < 12 for n in numbers)
     state = worker.state()
     assert state.connected and state.error is None and state.fps > 0 and state.frames >= 20

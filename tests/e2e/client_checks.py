@@ -14,10 +14,13 @@ import time
 from typing import Any
 
 import pytest
+from pydantic import TypeAdapter
 
-from service.snapshot import Snapshot
+from service.snapshot import Snapshot, SnapshotBody
 from tests.e2e.server import RunningServer
 from tests.e2e.toolchains import LineProcess
+
+WIRE = TypeAdapter(SnapshotBody)  # the wire format's types (``service.snapshot``), strictly
 
 
 class Tap:
@@ -60,7 +63,7 @@ def check_states_match(
     # (the hub sets its latest snapshot before it offers it to publishers, so a GET can see a
     # seq a moment before the tap does: wait for the tap rather than race it)
     for _ in range(5):
-        body = srv.get("/v1/positions").json()
+        body = WIRE.validate_python(srv.get("/v1/positions").json())
         deadline = time.monotonic() + 5.0
         while body["seq"] not in tap.by_seq and time.monotonic() < deadline:
             time.sleep(0.01)

@@ -6,7 +6,7 @@ import itertools
 import signal
 import subprocess
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,10 +18,17 @@ import numpy as np
 from capture.rig import FrameSet
 from capture.synthetic import SyntheticRig
 from capture.worker import Frame
+from models.simulate.scene import Scene
 from service.api.server import serve_in_thread
 from service.api.state import Daemon
 from service.daemon import build_daemon
 from service.demo import demo_settings
+from service.outputs.wiring import Outputs
+from service.pipeline.hub import Hub
+from service.pipeline.live import Rig
+from service.setup.session import SetupSession
+from service.setup.training import TrainingJob
+from service.snapshot import SnapshotBody
 
 
 @dataclass
@@ -38,6 +45,24 @@ class RunningServer:
     @property
     def ws(self) -> str:
         return f"ws://127.0.0.1:{self.port}"
+
+    @property
+    def setup(self) -> SetupSession:
+        """The daemon's set-up session (``build_daemon`` always makes one)."""
+        assert self.daemon.setup is not None
+        return self.daemon.setup
+
+    @property
+    def outputs(self) -> Outputs:
+        """The daemon's outputs (``build_daemon`` always builds them)."""
+        assert self.daemon.outputs is not None
+        return self.daemon.outputs
+
+    @property
+    def training(self) -> TrainingJob:
+        """The daemon's training job (``build_daemon`` always makes one)."""
+        assert self.daemon.training is not None
+        return self.daemon.training
 
     def headers(self) -> dict[str, str]:
         return {"Authorization": f"Bearer {self.token}"} if self.token else {}
@@ -66,7 +91,8 @@ class LockstepRig(SyntheticRig):
     very same timestamps, on a fast or a slow machine; the server, stream and clients stay real.
     """
 
-    def __init__(self, rig: SyntheticRig, hub: Any) -> None:
+    def __init__(self, rig: Rig, hub: Hub) -> None:
+        assert isinstance(rig, SyntheticRig)  # the demo's
         super().__init__(rig.scene, rig.cameras, fps=rig.fps, render_every=rig.render_every)
         self.hub = hub
 
@@ -76,7 +102,9 @@ class LockstepRig(SyntheticRig):
         timestamp = self.tick_time(index)  # scene time: the tracker's clock follows the scene
         self.stamp(index, timestamp)
         self._produced = [*self._produced[-59:], time.time()]
-        frames = [Frame(k, image, timestamp, index) for k, image in enumerate(images)]
+        frames: list[Frame | None] = [
+            Frame(k, image, timestamp, index) for k, image in enumerate(images)
+        ]
         return FrameSet(frames=frames, skew=0.0)
 
     def _run(self) -> None:
@@ -134,13 +162,13 @@ def running_server(
         background.stop()
 
 
-def match_to_truth(
-    rig: SyntheticRig, messages: list[dict[str, Any]]
-) -> tuple[np.ndarray, int, int]:
+def match_to_truth(rig: Rig, messages: Sequence[SnapshotBody]) -> tuple[np.ndarray, int, int]:
     """Served people vs the scene's truth (everyone some camera's detector reports), matched one
-    to one per message: the matched errors [m], people reported, people visible."""
+    to one per message: the matched errors [m], people reported, people visible. ``rig``: the
+    demo's synthetic rig, showing a simulated scene."""
     from scipy.optimize import linear_sum_assignment
 
+    assert isinstance(rig, SyntheticRig) and isinstance(rig.scene, Scene)
     errors: list[float] = []
     reported = visible = 0
     for message in messages:

@@ -23,7 +23,7 @@ def _bumped_scene(monkeypatch: pytest.MonkeyPatch, camera: int) -> None:
     references taken 0.5 s apart (default 1 s) so they are complete well before the bump."""
     original = service.detection.simulated.make_scene
 
-    def make_scene(preset, **kw):  # type: ignore[no-untyped-def]
+    def make_scene(preset, **kw):
         fps = kw.get("fps") or 30.0
         bump = Perturbation(camera=camera, start_frame=int(BUMP_S * fps), dx=20.0)
         return original(preset, **kw, perturbations=[bump])
@@ -36,7 +36,7 @@ def _bumped_scene(monkeypatch: pytest.MonkeyPatch, camera: int) -> None:
     )
 
 
-def _references_ready_before_bump(srv) -> None:  # type: ignore[no-untyped-def]
+def _references_ready_before_bump(srv) -> None:
     """Wait for both cameras' image references. A machine so starved that they were only taken
     after the bump has, rightly, the bumped view as reference and nothing to flag: skip then.
     The deadline is a liveness bound for a loaded machine (a 30 s one failed under load)."""
@@ -51,7 +51,7 @@ def _references_ready_before_bump(srv) -> None:  # type: ignore[no-untyped-def]
         pytest.skip(f"image references ready only {scene_s:.1f} s in, after the bump at {BUMP_S} s")
 
 
-def _wait_moved(srv, timeout: float = 120.0) -> dict:  # type: ignore[no-untyped-def]
+def _wait_moved(srv, timeout: float = 120.0) -> dict:
     deadline = time.time() + timeout
     health = srv.get("/v1/health").json()
     while not any(c["alignment"]["moved"] for c in health["cameras"]):

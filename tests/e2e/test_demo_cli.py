@@ -40,6 +40,7 @@ def test_demo_command_prints_urls_and_serves():
     env = {k: v for k, v in os.environ.items() if not k.startswith("MOMLOC_")}
     proc = demo_process(port)
     try:
+        assert proc.stdout is not None
         lines = [proc.stdout.readline() for _ in range(3)]
         assert f"live map:  http://127.0.0.1:{port}/" in lines[1], lines
         assert f"stream:    ws://127.0.0.1:{port}/v1/stream" in lines[2], lines
@@ -72,6 +73,7 @@ def test_demo_in_privacy_mode_from_the_environment():
     port = free_port()
     proc = demo_process(port, MOMLOC_PRIVACY="positions_only")
     try:
+        assert proc.stdout is not None
         lines = [proc.stdout.readline() for _ in range(5)]
         assert "privacy:   positions only, no camera image" in lines[4], lines
         base = f"http://127.0.0.1:{port}"

@@ -34,7 +34,7 @@ SEED = 25
 @pytest.fixture(scope="module")
 def daemon(tmp_path_factory):
     with running_server(people=1) as srv:
-        srv.daemon.setup.data_dir = tmp_path_factory.mktemp("setup")
+        srv.setup.data_dir = tmp_path_factory.mktemp("setup")
         srv.wait_for_seq(3)
         # Until each camera has delivered a drawn frame its snapshot is 503 "not delivered yet"
         # (true, and documented); test the daemon in its steady state.

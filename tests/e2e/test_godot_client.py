@@ -129,6 +129,7 @@ class ScriptedStream:
         self._thread = threading.Thread(target=self._loop.run_forever, daemon=True)
 
     async def _handler(self, ws: ServerConnection) -> None:
+        assert ws.request is not None
         self.authorization.append(ws.request.headers.get("Authorization"))
         for message in self.messages:
             await ws.send(message)

@@ -8,6 +8,7 @@ import json
 import logging
 import shutil
 import time
+from typing import Any
 
 import httpx
 import pytest
@@ -42,6 +43,7 @@ async def handshake(url: str, **kw) -> int | str:
             try:
                 await asyncio.wait_for(ws.recv(), 10)
             except websockets.exceptions.ConnectionClosed as closed:
+                assert closed.rcvd is not None
                 return closed.rcvd.code
             return "open"
     except websockets.exceptions.InvalidStatus as refused:
@@ -146,7 +148,12 @@ def test_model_json_with_a_wrong_type_is_409_naming_the_key(server, tmp_path):
 
 def test_too_many_grid_marks_are_refused_at_once(server, monkeypatch):
     made: list[object] = []  # the refusal comes before a single mark is made (it took ~95 s)
-    monkeypatch.setattr(marks_module, "FloorMark", lambda *a: made.append(a) or FloorMark(*a))
+
+    def counted(*a: Any) -> FloorMark:
+        made.append(a)
+        return FloorMark(*a)
+
+    monkeypatch.setattr(marks_module, "FloorMark", counted)
     response = post(server, "/v1/setup/start", json.dumps({"grid": "1x20000", "room": "4x4"}))
     assert response.status_code == 422 and "at most 400" in response.json()["detail"]
     assert made == []
@@ -175,12 +182,12 @@ def test_malformed_room_is_422(server, room):
     ],
 )
 def test_bad_marks_are_422_naming_the_mark(server, tmp_path, marks, named):
-    server.daemon.setup.data_dir = tmp_path
+    server.setup.data_dir = tmp_path
     response = post(server, "/v1/setup/start", f'{{"marks": {marks}, "seconds": 1}}')
     assert response.status_code == 422, response.text
     body = response.json()
     assert named in body["detail"], body
-    assert server.daemon.setup.status()["state"] != "running"
+    assert server.setup.status()["state"] != "running"
 
 
 # -- 8: bad ?rate= ------------------------------------------------------------------------------

@@ -55,7 +55,7 @@ def test_a_full_disk_during_recording_is_reported_with_the_rows_on_disk(
     monkeypatch.setattr(models.data.dataset, "atomic_write", disk)
     caplog.set_level(logging.INFO)
     with running_server(people=1) as server:
-        server.daemon.setup.data_dir = tmp_path
+        server.setup.data_dir = tmp_path
         pipeline = server.daemon.pipeline
         wait_for(lambda: pipeline.image_sizes, lambda s: None not in s, 120, "camera frames")
         start = {

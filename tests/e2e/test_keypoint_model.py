@@ -20,6 +20,7 @@ from websockets.asyncio.client import connect
 
 from service.cli import main
 from service.demo import DEMO_PRESET
+from tests.e2e.client_checks import WIRE
 from tests.e2e.server import match_to_truth, running_server
 
 pytestmark = pytest.mark.timeout(300)
@@ -51,7 +52,8 @@ def test_keypoint_model_streams_positions_from_the_scenes_keypoints(keypoint_mod
         assert health["model"]["observation"] == "keypoints", health["model"]
         assert health["model"]["compatible"], health["model"]
         rig = server.daemon.pipeline.rig
-        messages = asyncio.run(receive(server.ws + "/v1/stream", 200))[30:]  # tracks confirmed
+        streamed = asyncio.run(receive(server.ws + "/v1/stream", 200))[30:]  # tracks confirmed
+        messages = [WIRE.validate_python(m) for m in streamed]
         assert server.get("/v1/health").json()["pipeline"]["error"] is None
     errors_m, reported, visible = match_to_truth(rig, messages)
     assert visible > 0 and reported >= 0.8 * visible, (reported, visible)

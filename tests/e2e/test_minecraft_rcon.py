@@ -133,7 +133,9 @@ def test_bridge_sends_the_daemons_positions_to_a_real_rcon_server():
             assert pid in summoned and published_at(tap, pid, x, y, z, yaw), text
             moves += 1
         else:
-            pid = int(re.fullmatch(r"kill @e\[tag=momloc_(\d+)\]", text).group(1))
+            killed = re.fullmatch(r"kill @e\[tag=momloc_(\d+)\]", text)
+            assert killed is not None, text
+            pid = int(killed.group(1))
             assert pid in summoned, text  # an id that left the stream
             summoned.remove(pid)
     assert len(summoned) >= 2 and moves >= 20

@@ -7,6 +7,7 @@ be shared. Timing checks are generous waits or ratios measured within the same r
 from __future__ import annotations
 
 import asyncio
+import functools
 import itertools
 import json
 import os
@@ -185,7 +186,7 @@ def test_availability_goes_offline_when_killed_and_after_a_clean_stop(mosquitto)
             proc = _daemon_process(mosquitto.port, room)
             try:
                 sub.wait_for(
-                    lambda s, b=before: [m for m in s.on(topic)[b:] if m.text == "online"],
+                    functools.partial(_texts_since, topic=topic, start=before, text="online"),
                     timeout=90,
                     what=f"online ({how})",
                 )
@@ -201,7 +202,7 @@ def test_availability_goes_offline_when_killed_and_after_a_clean_stop(mosquitto)
                     proc.kill()
                     proc.wait()
             sub.wait_for(
-                lambda s, b=before: [m.text for m in s.on(topic)[b:]][-1:] == ["offline"],
+                functools.partial(_last_is, topic=topic, start=before, text="offline"),
                 timeout=60,
                 what=f"offline after {how}",
             )
@@ -238,7 +239,9 @@ def test_broker_restart_is_survived_without_restarting_the_daemon():
             try:
                 sub.wait_for(lambda s: s.on(f"momloc/{room}/positions"), what="positions again")
                 for topic in ("availability", "zones/room"):
-                    sub.wait_for(lambda s, t=topic: s.on(f"momloc/{room}/{t}"), what=topic)
+                    sub.wait_for(
+                        functools.partial(Subscriber.on, topic=f"momloc/{room}/{topic}"), what=topic
+                    )
                 assert sub.on(f"momloc/{room}/availability")[-1].text == "online"
             finally:
                 sub.close()
@@ -259,7 +262,9 @@ def test_a_broker_that_never_reads_does_not_slow_the_pipeline(mosquitto):
             sub.close()
 
             # the daemon's side of the link buffers little too (Linux would take megabytes)
-            link = server.daemon.outputs.mqtt._client.socket()
+            publisher = server.outputs.mqtt
+            assert publisher is not None
+            link = publisher._client.socket()
             link.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 4096)
             proxy.stall()
 
@@ -361,3 +366,13 @@ def test_home_assistant_discovery_announces_the_room_and_removes_it_on_request(m
             gone.close()
     finally:
         sub.close()
+
+
+def _texts_since(sub: Subscriber, *, topic: str, start: int, text: str) -> list[str]:
+    """The messages ``text`` on ``topic`` after the first ``start`` ones."""
+    return [m.text for m in sub.on(topic)[start:] if m.text == text]
+
+
+def _last_is(sub: Subscriber, *, topic: str, start: int, text: str) -> bool:
+    """Whether the last message on ``topic`` after the first ``start`` ones is ``text``."""
+    return [m.text for m in sub.on(topic)[start:]][-1:] == [text]

@@ -83,7 +83,7 @@ def test_osc_bundles_carry_the_published_people_and_zones_at_the_rate(monkeypatc
     tap = Tap()
     try:
         with running_server() as srv:
-            osc = srv.daemon.outputs.publishers["osc"]
+            osc = srv.outputs.publishers["osc"]
             srv.daemon.hub.add_publisher(tap)
             with receiver.lock:  # from here on every bundle's snapshot is in the tap
                 start = len(receiver.bundles) + 1

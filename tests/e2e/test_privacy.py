@@ -181,7 +181,7 @@ def harvest(privacy: str, broker: Any, monkeypatch: Any, tmp_path: Path) -> dict
                 )
             calls, sockets = requests_of(srv)
             for method, path in calls:
-                body = {} if method in ("POST", "PUT", "PATCH") else None
+                body: dict[str, str] | None = {} if method in ("POST", "PUT", "PATCH") else None
                 bodies[(method, path)] = httpx.request(
                     method, srv.http + path, headers=srv.headers(), json=body, timeout=30
                 )
@@ -192,7 +192,7 @@ def harvest(privacy: str, broker: Any, monkeypatch: Any, tmp_path: Path) -> dict
                 60,
                 "MQTT positions",
             )
-            datagrams = []
+            datagrams: list[bytes] = []
             with contextlib.suppress(TimeoutError):
                 while len(datagrams) < 20:
                     datagrams.append(osc.recv(65536))

@@ -16,7 +16,7 @@ ONE_MARK = [{"name": "A", "x": 1.0, "y": 1.0}]
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
     with running_server() as srv:
-        srv.daemon.setup.data_dir = tmp_path_factory.mktemp("setup")
+        srv.setup.data_dir = tmp_path_factory.mktemp("setup")
         srv.wait_for_seq(3)
         yield srv
 
@@ -32,8 +32,8 @@ def test_a_recording_name_that_is_not_a_plain_file_name_is_422(server, name):
     train = post(server, "/v1/setup/train", {"recording": name})
     assert train.status_code == 422, train.text
     assert train.json()["detail"].startswith("body.recording"), train.text
-    assert list(server.daemon.setup.data_dir.iterdir()) == []  # no file, newline or not
-    assert server.daemon.setup.status()["state"] == "idle"
+    assert list(server.setup.data_dir.iterdir()) == []  # no file, newline or not
+    assert server.setup.status()["state"] == "idle"
 
 
 def test_a_chunked_body_over_1_mib_is_413(server):
@@ -81,8 +81,8 @@ def test_a_number_or_flag_of_another_type_is_422_naming_the_field(server, path, 
     response = post(server, path, body)
     assert response.status_code == 422, response.text
     assert response.json()["detail"].startswith(f"body.{field}:"), response.json()
-    assert server.daemon.setup.status()["state"] == "idle"  # nothing started
-    assert server.daemon.training.status()["state"] == "idle"
+    assert server.setup.status()["state"] == "idle"  # nothing started
+    assert server.training.status()["state"] == "idle"
 
 
 def test_every_post_declares_its_json_body_required_and_honours_it(server):

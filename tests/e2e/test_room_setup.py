@@ -21,6 +21,7 @@ import websockets
 from scipy.optimize import linear_sum_assignment
 
 from models.data.dataset import MomDataset
+from models.mom.runtime import MomRuntime
 from service.demo import DEMO_SEED
 from service.settings import DEMO_MODEL_DIR
 from tests.e2e.server import running_server
@@ -72,6 +73,7 @@ def test_collect_train_hot_reload_stream(tmp_path: Path) -> None:
     install_model(DEMO_MODEL_DIR, live)
     with running_server(model_dir=live) as server:
         server.wait_for_seq(5)
+        assert server.daemon.watcher is not None
         server.daemon.watcher.interval_s = 0.2
         before = server.daemon.pipeline.runtime
 
@@ -90,7 +92,8 @@ def test_collect_train_hot_reload_stream(tmp_path: Path) -> None:
         assert after[0]["seq"] > first[-1]["seq"]
         health = server.get("/v1/health").json()
         assert health["model_reload"]["ok"] and health["model"]["path"] == str(live)
-        assert server.daemon.pipeline.runtime.policy == "prior"
+        runtime = server.daemon.pipeline.runtime
+        assert isinstance(runtime, MomRuntime) and runtime.policy == "prior"
         errors = matched_errors(after[30:], server.daemon.pipeline.rig)
         # What a user gets with the measured default detector profile (nanodet), 6 s per mark:
         # median 0.58-0.62 m, 27-45 % within 0.5 m, in three runs on 2026-12-02 (which frames
@@ -103,7 +106,7 @@ def test_collect_train_hot_reload_stream(tmp_path: Path) -> None:
 
 def test_setup_page_collects_from_the_running_daemon(tmp_path: Path) -> None:
     with running_server(people=1) as server:
-        server.daemon.setup.data_dir = tmp_path
+        server.setup.data_dir = tmp_path
         server.wait_for_seq(5)
         deadline = time.time() + 20
         while None in server.daemon.pipeline.image_sizes:  # previews carry the frame size

@@ -26,7 +26,7 @@ def write_clips(tmp_path) -> list:
     paths = []
     for k in range(2):
         path = tmp_path / f"cam{k}.avi"
-        writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 15, (640, 480))
+        writer = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*"MJPG"), 15, (640, 480))
         for i in range(FRAMES):
             writer.write(scene.render(i, k))
         writer.release()

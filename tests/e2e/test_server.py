@@ -15,8 +15,10 @@ import pytest
 import websockets
 from websockets.asyncio.client import connect
 
+from capture.synthetic import SyntheticRig
+from models.simulate.scene import Scene
 from service.settings import DEMO_MODEL_DIR
-from tests.e2e.client_checks import Tap
+from tests.e2e.client_checks import WIRE, Tap
 from tests.e2e.server import match_to_truth, running_server
 
 pytestmark = pytest.mark.timeout(180)
@@ -42,6 +44,7 @@ def test_stream_seq_increases_and_matches_snapshot_schema(server):
     times = [m["t"] for m in messages]
     assert all(b > a for a, b in itertools.pairwise(times))
     for m in messages:
+        WIRE.validate_python(m)  # the types of service.snapshot, no other field
         assert m["v"] == 1 and set(m) == {"v", "seq", "t", "people"}
         for p in m["people"]:
             assert set(p) == {"id", "x", "y", "vx", "vy", "confidence", "cameras"}
@@ -131,6 +134,7 @@ async def closed_code(url: str, **kw) -> int:
     async with connect(url, **kw) as ws:
         with pytest.raises(websockets.exceptions.ConnectionClosed) as info:
             await asyncio.wait_for(ws.recv(), 10)
+        assert info.value.rcvd is not None
         return info.value.rcvd.code
 
 
@@ -149,7 +153,7 @@ def test_camera_snapshot_and_metrics(server):
         pytest.skip("simulator renders no frames in this build")
     assert response.headers["content-type"] == "image/jpeg"
     image = cv2.imdecode(np.frombuffer(response.content, np.uint8), cv2.IMREAD_COLOR)
-    assert image.shape == (240, 320, 3)
+    assert image is not None and image.shape == (240, 320, 3)
     metrics = server.get("/metrics").text
     for name in ("momloc_pipeline_fps", "momloc_camera_connected", "momloc_stream_clients"):
         assert name in metrics
@@ -199,6 +203,24 @@ def test_openapi_docs(server):
     assert "description" in schema["properties"]["port"]
 
 
+def test_openapi_declares_the_snapshot_and_its_person(server):
+    """``/docs`` shows the wire format: ``/v1/positions`` answers a ``SnapshotBody`` whose
+    people are ``Person`` objects with every field of ``service.snapshot.Person``."""
+    spec = server.get("/openapi.json").json()
+    answer = spec["paths"]["/v1/positions"]["get"]["responses"]["200"]["content"]
+    assert answer["application/json"]["schema"] == {"$ref": "#/components/schemas/SnapshotBody"}
+    schemas = spec["components"]["schemas"]
+    body = schemas["SnapshotBody"]
+    assert set(body["properties"]) == {"v", "seq", "t", "people"}
+    assert body["properties"]["people"]["items"] == {"$ref": "#/components/schemas/Person"}
+    person = schemas["Person"]
+    fields = {"id", "x", "y", "vx", "vy", "confidence", "cameras"}
+    assert set(person["properties"]) == fields | {"outside"}
+    assert set(person["required"]) == fields
+    assert person["additionalProperties"] is False
+    assert all(person["properties"][name].get("description") for name in person["properties"])
+
+
 def test_token_auth():
     with running_server(token="s3cret") as srv:
         srv.wait_for_seq(2)
@@ -230,6 +252,8 @@ def test_rendered_frames_through_the_real_detector():
     with running_server(detections="rendered", lockstep=True) as srv:
         srv.wait_for_seq(20, timeout=120)
         rig = srv.daemon.pipeline.rig
+        assert isinstance(rig, SyntheticRig) and isinstance(rig.scene, Scene)
+        scene = rig.scene
         messages = asyncio.run(receive(srv.ws + "/v1/stream", 40, open_timeout=30))
         # Tracks coasting after a miss are still reported, with a confidence that falls towards 0
         # (the API's documented way to tell them apart); they drift, so the check is on people
@@ -237,7 +261,7 @@ def test_rendered_frames_through_the_real_detector():
         # model trained on its boxes): all reported 83.5 % within 1 m, confidence >= 0.5 99.2 %.
         errors = []
         for m in messages:
-            truth = rig.scene.observe(rig.index_at(m["t"])).world[:, :2]
+            truth = scene.observe(rig.index_at(m["t"])).world[:, :2]
             for p in m["people"]:
                 if p["confidence"] >= 0.5:
                     errors.append(np.linalg.norm(truth - [p["x"], p["y"]], axis=1).min())

@@ -56,6 +56,7 @@ def test_serve_without_a_model_starts_in_setup_mode(tmp_path: Path) -> None:
     )
     base = f"http://127.0.0.1:{port}"
     try:
+        assert proc.stdout is not None
         lines = [proc.stdout.readline() for _ in range(3)]
         assert "model none (set-up mode)" in lines[0], lines
         assert f"set up:    {base}/setup" in lines[1] and "no model yet" in lines[1], lines
@@ -113,6 +114,7 @@ def post(base: str, path: str, body: Any = None, status: int = 200) -> dict[str,
 def test_first_run_to_live_positions_through_the_api(tmp_path: Path) -> None:
     settings = setup_settings(tmp_path)
     daemon = build_daemon(settings)
+    assert daemon.training is not None  # build_daemon always makes one
     server = serve_in_thread(daemon)
     base = f"http://127.0.0.1:{server.port}"
     get = lambda path: httpx.get(base + path, timeout=30).json()  # noqa: E731
@@ -259,6 +261,7 @@ def served_at_checked_marks(marks: list[dict], model_dir: Path, synthetic: Any) 
 
 def test_training_failure_and_cancel_through_the_api(tmp_path: Path) -> None:
     daemon = build_daemon(setup_settings(tmp_path))
+    assert daemon.training is not None  # build_daemon always makes one
     server = serve_in_thread(daemon)
     base = f"http://127.0.0.1:{server.port}"
     get = lambda path: httpx.get(base + path, timeout=30).json()  # noqa: E731

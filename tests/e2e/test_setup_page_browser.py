@@ -52,6 +52,7 @@ def test_first_run_in_the_browser(browser, tmp_path: Path) -> None:  # noqa: F81
     shots = tmp_path / "screenshots"
     shots.mkdir()
     daemon = build_daemon(setup_settings(tmp_path))
+    assert daemon.training is not None  # build_daemon always makes one
     server = serve_in_thread(daemon)
     base = f"http://127.0.0.1:{server.port}"
     driver = browser
@@ -144,6 +145,7 @@ def test_setup_page_in_privacy_mode_records_from_boxes(browser, tmp_path, monkey
     works (it records detections, never images: no image file or bytes in the data folder)."""
     monkeypatch.setenv("MOMLOC_PRIVACY", "positions_only")
     daemon = build_daemon(setup_settings(tmp_path))
+    assert daemon.training is not None  # build_daemon always makes one
     server = serve_in_thread(daemon)
     driver = browser
     try:

@@ -45,7 +45,7 @@ def refused(response: httpx.Response, *words: str) -> None:
 def test_a_step_that_conflicts_with_the_running_one_gets_409_with_the_reason(tmp_path):
     simulate("indoor-2cam", 60, seed=5).dataset.save(tmp_path / "rec.npz")
     with running_server() as server:
-        server.daemon.setup.data_dir = tmp_path
+        server.setup.data_dir = tmp_path
         ready(server)
         try:
             # collecting: neither training nor a check may start, nor a second collection
@@ -87,7 +87,7 @@ def test_a_step_that_conflicts_with_the_running_one_gets_409_with_the_reason(tmp
             assert post(server, "/v1/setup/start", again).status_code == 200
             assert post(server, "/v1/setup/stop", {}).json()["state"] == "stopped"
         finally:
-            server.daemon.training.cancel()
+            server.training.cancel()
 
 
 def rows_trained_on(model_dir: Path) -> int:
@@ -101,7 +101,7 @@ def test_training_learns_from_the_recording_as_it_was_when_it_started(tmp_path, 
     rows = simulate("indoor-2cam", 120, seed=5).dataset
     rows.save(recording)
     with running_server() as server:
-        server.daemon.setup.data_dir = tmp_path
+        server.setup.data_dir = tmp_path
         server.wait_for_seq(3)
         try:
             body = {"recording": "rec.npz", "epochs": 5, "first_model": True}
@@ -114,7 +114,7 @@ def test_training_learns_from_the_recording_as_it_was_when_it_started(tmp_path, 
             )
             assert done["state"] == "done", done
         finally:
-            server.daemon.training.cancel()
+            server.training.cancel()
     assert rows_trained_on(tmp_path / "model.first") == rows.n  # the first stage
     assert rows_trained_on(tmp_path / "model") == rows.n  # the final stage: the same rows
     assert not (tmp_path / "model.recording").exists()  # the copy is gone with the run

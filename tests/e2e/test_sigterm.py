@@ -49,7 +49,7 @@ def _start_demo(tmp_path: Path) -> tuple[subprocess.Popen, str]:
             pass
         if time.time() > deadline or proc.poll() is not None:
             proc.kill()
-            raise AssertionError(f"demo did not start: {proc.stderr.read()}")
+            raise AssertionError(f"demo did not start: {proc.communicate()[1]}")
         time.sleep(0.2)
 
 

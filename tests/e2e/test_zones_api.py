@@ -26,6 +26,7 @@ def test_zone_routes_need_the_token_and_serve_the_demo_zones():
             async with websockets.connect(srv.ws + "/v1/events?token=wrong") as ws:
                 with pytest.raises(websockets.ConnectionClosed) as closed:
                     await ws.recv()
+                assert closed.value.rcvd is not None
                 return closed.value.rcvd.code
 
         assert asyncio.run(closed_code()) == 4401

@@ -41,6 +41,7 @@ def test_prints_positions_and_reconnects() -> None:
             if connections == 1:  # first connection: one snapshot, then the "daemon restarts"
                 await ws.send(snapshot(1))
                 return
+            assert ws.request is not None
             assert ws.request.headers.get("Authorization") == "Bearer s3cret"
             for seq in (2, 3):
                 await ws.send(snapshot(seq))

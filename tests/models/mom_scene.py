@@ -45,7 +45,7 @@ def make_dataset(
     rig = np.random.default_rng(rig_seed)
     rng = np.random.default_rng(seed)
     w, h = size
-    projections = []
+    matrices = []
     for k in range(cameras):
         angle = 2 * np.pi * k / cameras + rig.uniform(-0.3, 0.3)
         position = [
@@ -53,8 +53,8 @@ def make_dataset(
             room / 2 + room * 0.55 * np.sin(angle),
             rig.uniform(1.8, 2.6),
         ]
-        projections.append(look_at_camera(position, [room / 2, room / 2, 0.6], w, h, 90))
-    projections = np.stack(projections)
+        matrices.append(look_at_camera(position, [room / 2, room / 2, 0.6], w, h, 90))
+    projections = np.stack(matrices)
 
     tracks = max(1, n // 100)
     track = np.repeat(np.arange(tracks), int(np.ceil(n / tracks)))[:n]
@@ -86,7 +86,7 @@ def make_dataset(
         kp_pix, _ = _project(matrix, kp_world)
         kp_pix += rng.normal(0, noise_px, kp_pix.shape)
         kps[inside, k] = np.concatenate([kp_pix, np.ones((n, 17, 1))], axis=2)[inside]
-    seen = np.isfinite(boxes).all(axis=2).any(axis=1)
+    seen = np.any(np.all(np.isfinite(boxes), axis=2), axis=1)
     data = MomDataset(
         world=world[seen].astype(np.float32),
         boxes=boxes[seen],

@@ -122,7 +122,7 @@ def test_cli_prints_one_line_for_malformed_file(tmp_path: Path) -> None:
     arrays = _arrays()
     del arrays["track"]
     path = tmp_path / "m.npz"
-    np.savez(path, **arrays)
+    np.savez(path, **arrays)  # type: ignore[arg-type]  # numpy's stub: a keyword named allow_pickle
     result = subprocess.run(
         [sys.executable, "-m", "service.cli", "eval", "no-such-model", str(path)],
         capture_output=True,

@@ -22,7 +22,7 @@ def test_detect_prints_boxes_and_writes_annotated_copies(tmp_path, capsys):
     out = capsys.readouterr().out
     assert f"{person}: 1 person (640x480)" in out and f"{empty}: 0 people" in out
     annotated = cv2.imread(str(tmp_path / "snapshot.detections.jpg"))
-    assert annotated.shape == frame.shape
+    assert annotated is not None and annotated.shape == frame.shape
     assert np.abs(annotated.astype(int) - frame).max() > 100  # the box was drawn
     assert (tmp_path / "empty.detections.jpg").is_file()
 

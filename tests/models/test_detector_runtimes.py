@@ -15,7 +15,7 @@ import pytest
 
 from common.errors import MomlocError
 from models.detector import create_detector, runtimes
-from models.detector.nanodet import DEFAULT_MODEL, NCNN_FILES, WEIGHTS_DIR
+from models.detector.nanodet import DEFAULT_MODEL, NCNN_FILES, WEIGHTS_DIR, NanoDetDetector
 from models.detector.preprocessing import box_iou
 from models.detector.validation import person_frame
 
@@ -43,7 +43,7 @@ def reference_batch() -> tuple[np.ndarray, np.ndarray]:
 
 @pytest.mark.parametrize("runtime", RUNTIMES)
 def test_every_runtime_reproduces_the_tensorflow_graph(runtime):
-    detector = create_detector("nanodet", runtime=runtime, threads=1)
+    detector = _nanodet(runtime=runtime, threads=1)
     assert detector.graph.runtime == runtime and runtime in detector.describe()
     batch, expected = reference_batch()
     ours = detector.graph.run(batch)
@@ -65,8 +65,8 @@ def test_every_runtime_finds_the_same_people_at_two_sizes(runtime):
         person_frame("camera", 300, anchor=(0.2, 0.5))[0],
         person_frame("camera", 200, anchor=(0.8, 0.6))[0],
     ]
-    reference = create_detector("nanodet", runtime="onnxruntime", threads=1)
-    ours = create_detector("nanodet", runtime=runtime, threads=1)
+    reference = _nanodet(runtime="onnxruntime", threads=1)
+    ours = _nanodet(runtime=runtime, threads=1)
     for size in ((320, 256), (416, 320)):
         for want, got in zip(
             reference.resized(size).detect(frames), ours.resized(size).detect(frames), strict=True
@@ -90,7 +90,7 @@ def test_auto_takes_the_first_installed_and_says_when_it_falls_back(monkeypatch,
     with caplog.at_level(logging.INFO, logger=runtimes.__name__):
         assert runtimes.choose_runtime("auto", user_model=False) == "onnxruntime"
     assert f"{runtimes.PREFERRED[0]} is not installed, using onnxruntime" in caplog.text
-    detector = create_detector("nanodet", threads=1)
+    detector = _nanodet(threads=1)
     assert detector.graph.runtime == "onnxruntime"
 
 
@@ -103,5 +103,12 @@ def test_a_runtime_that_cannot_serve_fails_with_one_line(monkeypatch, tmp_path):
         create_detector("nanodet", runtime="openvino")
     with pytest.raises(MomlocError, match="unknown"):
         runtimes.choose_runtime("tensorrt", user_model=False)  # type: ignore[arg-type]
-    user = create_detector("nanodet", model_path=DEFAULT_MODEL, runtime="onnxruntime")
+    user = _nanodet(model_path=DEFAULT_MODEL, runtime="onnxruntime")
     assert user.graph.runtime == "onnxruntime"
+
+
+def _nanodet(**options: object) -> NanoDetDetector:
+    """The registry's NanoDet (``create_detector``), as its own type."""
+    detector = create_detector("nanodet", **options)
+    assert isinstance(detector, NanoDetDetector)
+    return detector

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from models.detector import Detections, create_detector
+from models.detector.base import PersonDetector
 from models.detector.preprocessing import box_iou
 from models.detector.validation import background, person_frame
 from models.detector.windows import WindowRefiner, plan_windows
@@ -71,7 +72,7 @@ def test_the_number_of_windows_is_bounded_smallest_first(detector):
     refiner = WindowRefiner(detector.resized((96, 160)), max_windows=2)
     seen: list[int] = []
 
-    class Counting:
+    class Counting(PersonDetector):
         input_size = (96, 160)
 
         def detect(self, crops):

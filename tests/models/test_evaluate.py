@@ -43,11 +43,11 @@ def _dataset(n: int = 40) -> MomDataset:
     t = np.arange(n)
     world = np.stack([1 + 0.05 * t, 2 + 0.5 * np.sin(t / 5)], axis=1)
     foot = np.concatenate([world, np.zeros((n, 1))], axis=1)
-    boxes = []
+    views = []
     for p in CAMERAS:
         uv = baseline.project(p, foot)
-        boxes.append(np.concatenate([uv - [15.0, 150.0], uv + np.array([15.0, 0.0])], axis=1))
-    boxes = np.stack(boxes, axis=1)
+        views.append(np.concatenate([uv - [15.0, 150.0], uv + np.array([15.0, 0.0])], axis=1))
+    boxes = np.stack(views, axis=1)
     boxes[5] = np.nan  # nobody sees row 5
     return MomDataset(
         world=world,

@@ -248,7 +248,8 @@ def test_ankle_keypoints_give_their_own_floor_map():
     unsure, std = prior.predict(_boxes(probe), _ankles(probe, confidence=0.2))
     assert np.isnan(unsure).all() and np.isinf(std).all()  # low-confidence ankles are unseen
     everything = FloorPrior.fit_arrays(world, boxes, size, keypoints=_ankles(world), points="all")
-    assert everything.cameras[0].points == ("foot", "centre", "ankle")
+    first = everything.cameras[0]
+    assert first is not None and first.points == ("foot", "centre", "ankle")
     xy, _ = everything.predict(_boxes(probe))  # served without keypoints: boxes only
     np.testing.assert_allclose(xy, probe, atol=0.02)
 

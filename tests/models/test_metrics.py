@@ -63,7 +63,9 @@ def test_accuracy_thresholds_are_strict_percentages() -> None:
     assert m["acc@0.3"] == pytest.approx(40.0)  # 0.1, 0.25
     assert m["acc@0.4"] == pytest.approx(60.0)
     assert m["acc@0.5"] == pytest.approx(80.0)
-    exact = localization_metrics(np.array([[0.3, 0.0]]), np.zeros((1, 2)), [0], [0])
+    exact = localization_metrics(
+        np.array([[0.3, 0.0]]), np.zeros((1, 2)), np.zeros(1, int), np.zeros(1, int)
+    )
     assert exact["acc@0.3"] == 0.0  # "less than", not "at most"
     assert exact["acc@0.4"] == 100.0
 
@@ -109,15 +111,17 @@ def test_rpe_does_not_pair_rows_of_different_tracks() -> None:
 
 def test_three_dimensional_truth_uses_floor_coordinates() -> None:
     truth = np.array([[1.0, 2.0, 0.9]])
-    m = localization_metrics(np.array([[1.0, 2.1]]), truth, [0], [0])
+    m = localization_metrics(np.array([[1.0, 2.1]]), truth, np.zeros(1, int), np.zeros(1, int))
     assert m["mean"] == pytest.approx(0.1)
 
 
 def test_bad_input_raises_one_line_error() -> None:
     with pytest.raises(MomlocError, match="NaN"):
-        localization_metrics(np.array([[np.nan, 0]]), np.zeros((1, 2)), [0], [0])
+        localization_metrics(
+            np.array([[np.nan, 0]]), np.zeros((1, 2)), np.zeros(1, int), np.zeros(1, int)
+        )
     with pytest.raises(MomlocError, match="does not match"):
-        localization_metrics(np.zeros((2, 2)), np.zeros((3, 2)), [0, 1], [0, 0])
+        localization_metrics(np.zeros((2, 2)), np.zeros((3, 2)), np.array([0, 1]), np.array([0, 0]))
 
 
 def test_table_lists_every_metric() -> None:

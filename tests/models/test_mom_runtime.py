@@ -69,6 +69,7 @@ def test_keypoint_model_round_trip():
     out, data, _ = trained_model("keypoints")
     runtime = MomRuntime.load(out)
     assert runtime.observation == "keypoints"
+    assert data.keypoints is not None
     world = runtime.localize(data.boxes[:100], data.keypoints[:100])
     assert np.median(np.linalg.norm(world - data.world[:100], axis=1)) < 0.3
     with pytest.raises(MomlocError, match="keypoints"):
@@ -159,6 +160,7 @@ def test_world_bounds_are_the_training_positions_extent_and_absent_in_older_mode
     }
     assert meta["world_bounds"] == pytest.approx(expected)
     runtime = MomRuntime.load(out)
+    assert runtime.world_bounds is not None
     (xmin, ymin), (xmax, ymax) = runtime.world_bounds
     assert [xmin, ymin, xmax, ymax] == pytest.approx(
         [expected["xmin"], expected["ymin"], expected["xmax"], expected["ymax"]]

@@ -10,6 +10,8 @@ import pytest
 from common.errors import MomlocError
 from common.onnx_session import open_session, session_options
 from models.detector import create_detector
+from models.detector.nanodet import NanoDetDetector
+from models.detector.runtimes import OnnxRuntimeGraph
 from models.mom.runtime import MomRuntime
 from service.settings import DEMO_MODEL_DIR
 
@@ -31,6 +33,7 @@ def test_encoder_and_detector_sessions_share_the_settings() -> None:
     runtime = MomRuntime.load(DEMO_MODEL_DIR, threads=1)
     _assert_project_settings(runtime._session.get_session_options(), 1)
     detector = create_detector("nanodet", threads=2, runtime="onnxruntime")
+    assert isinstance(detector, NanoDetDetector) and isinstance(detector.graph, OnnxRuntimeGraph)
     _assert_project_settings(detector.graph.session.get_session_options(), 2)
 
 

@@ -98,6 +98,7 @@ def test_dense_data_weighs_the_prior_on_validation_rows(tmp_path: Path) -> None:
     test = simulate("indoor-2cam", frames=300, seed=5).dataset
     served = runtime.localize(test.boxes)
     encoder = runtime.encode(test.boxes)
+    assert runtime.floor_prior is not None and runtime.setup_area is not None
     prior, _ = runtime.floor_prior.predict(test.boxes)
     weights = row_weights(test.boxes, runtime.prior_weights)
     # rows the geometry puts beyond the set-up area take the geometry (models.mom.setup_area)

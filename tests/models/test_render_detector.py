@@ -17,6 +17,7 @@ import pytest
 from models.detector import create_detector
 from models.simulate import PRESETS, Scene
 from models.simulate.detector_view import camera_truth, match
+from models.simulate.render import Renderer
 
 PRESET_NAMES = ("indoor-2cam", "indoor-4cam", "living-room", "office-3cam")
 FRAMES = range(0, 1200, 60)
@@ -67,6 +68,12 @@ def test_empty_rooms_hold_nothing_person_like(detector) -> None:
     for name in (*PRESET_NAMES, "single-cam"):
         scene = Scene(PRESETS[name], seed=0)
         scene.render(0, 0)
-        backgrounds = [scene._renderer.background(camera) for camera in scene.cameras]
+        backgrounds = [_renderer(scene).background(camera) for camera in scene.cameras]
         for k, detections in enumerate(detector.detect(backgrounds)):
             assert len(detections) == 0, (name, k, detections.boxes, detections.scores)
+
+
+def _renderer(scene: Scene) -> Renderer:
+    """The scene's renderer (made by its first ``render``)."""
+    assert scene._renderer is not None
+    return scene._renderer

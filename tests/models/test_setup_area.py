@@ -126,7 +126,8 @@ def test_a_box_much_shorter_than_a_person_standing_there_is_out_of_region():
     h = (v - 120) * 1.4 * np.exp(rng.normal(0, 0.04, 200))  # perspective: taller when nearer
     boxes = np.stack([u - 0.2 * h, v - h, u + 0.2 * h, v], axis=1)[:, None]
     area = SetupArea.fit(np.c_[rng.uniform(0, 3, 200), rng.uniform(0, 3, 200)], boxes)
-    assert area.cameras[0].height_model is not None
+    region = area.cameras[0]
+    assert region is not None and region.height_model is not None
     foot_v, foot_u = 400.0, 300.0
     person = (foot_v - 120) * 1.4
     probe = np.array(

@@ -41,12 +41,12 @@ def test_ideal_profile_keeps_the_former_noise_statistics() -> None:
     camera = CameraSpec((0.05, 4.0, 2.3), (8.0, 4.0, 0.9), 60.0)
     config = SceneConfig("stats", (12.0, 8.0), (camera,), people=1, detector_profile="ideal")
     scene = Scene(config, seed=11)
-    true, noisy = [], []
+    true_blocks, noisy_blocks = [], []
     for block in range(60):
         obs = scene.observe_block(block)
-        true.append(obs["true_boxes"][:, 0, 0])
-        noisy.append(obs["boxes"][:, 0, 0])
-    true, noisy = np.concatenate(true), np.concatenate(noisy)
+        true_blocks.append(obs["true_boxes"][:, 0, 0])
+        noisy_blocks.append(obs["boxes"][:, 0, 0])
+    true, noisy = np.concatenate(true_blocks), np.concatenate(noisy_blocks)
     h = true[:, 3] - true[:, 1]
     margin = 0.2 * h
     clean = (true[:, 0] > margin) & (true[:, 1] > margin) & (true[:, 2] < 640 - margin)
@@ -66,7 +66,7 @@ def test_ideal_profile_keeps_the_former_noise_statistics() -> None:
 
 
 def test_occlusion_misses_hidden_person_and_shrinks_half_hidden_one() -> None:
-    near = [100, 100, 200, 400]  # body region: x 115..185 (70 % of the width)
+    near = [100.0, 100.0, 200.0, 400.0]  # body region: x 115..185 (70 % of the width)
     boxes, _ = _detect([near, [120, 150, 180, 350], [160, 150, 260, 350]], [3.0, 6.0, 6.0])
     np.testing.assert_allclose(boxes[0], near)
     assert np.isnan(boxes[1]).all()  # entirely behind the near person
@@ -170,12 +170,12 @@ def test_box_noise_is_correlated_in_time_like_a_detector() -> None:
     scene = Scene(
         SceneConfig("c", (12.0, 8.0), (camera,), people=1, detector_profile=noise), seed=1
     )
-    err = []
+    blocks = []
     for block in range(8):
         obs = scene.observe_block(block)
         b, t = obs["boxes"][:, 0, 0], obs["true_boxes"][:, 0, 0]
-        err.append((b[:, 0] + b[:, 2] - t[:, 0] - t[:, 2]) / 2 / (t[:, 3] - t[:, 1]))
-    err = np.concatenate(err)
+        blocks.append((b[:, 0] + b[:, 2] - t[:, 0] - t[:, 2]) / 2 / (t[:, 3] - t[:, 1]))
+    err = np.concatenate(blocks)
     pairs = np.isfinite(err[1:]) & np.isfinite(err[:-1])
     corr = np.corrcoef(err[1:][pairs], err[:-1][pairs])[0, 1]
     assert 0.55 < corr < 0.9

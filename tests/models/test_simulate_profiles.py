@@ -22,7 +22,7 @@ from models.simulate import (
 )
 from models.simulate.false_positives import mean_lifetime
 from models.simulate.noise import correlated_normals, detect
-from models.simulate.profile import PROFILE_DIR, parse_profile
+from models.simulate.profile import PROFILE_DIR, DetectorProfile, parse_profile
 
 SIZE = np.array([[640, 480]])
 RESULTS = PROFILE_DIR.parents[2] / "bench" / "results"
@@ -169,23 +169,23 @@ def test_miss_rate_per_height_bin_matches_the_profile(name: str) -> None:
         tolerance = 4 * np.sqrt(max(expected * (1 - expected), 1e-4) / inside.sum()) + 1e-3
         assert abs(missed[inside].mean() - expected) < tolerance, (lo, hi, expected)
     if name != "ideal":  # the sampled recall is no kinder than the real video's either
-        for (lo, hi), recall in _vtest_recall(name).items():
-            inside = (heights >= lo) & (heights < hi)
+        for (low, high), recall in _vtest_recall(name).items():
+            inside = (heights >= low) & (heights < high)
             assert 1 - missed[inside].mean() < recall + 0.03
 
 
 def test_persistent_misses_keep_the_miss_rate_in_a_walking_scene() -> None:
     # The latent AR(1) makes misses come in runs but must keep the per-frame probability; runs
     # make a single walk noisy (sd ~0.02 over seeds), so four walks are pooled.
-    missed, expected = [], []
+    missed_walks, expected_walks = [], []
     for seed in range(4):
         scene, obs = _walk("nanodet", blocks=100, seed=seed)
         true, boxes = obs["true_boxes"][:, 0, 0], obs["boxes"][:, 0, 0]
         clean = _clean(true)
         h = true[clean, 3] - true[clean, 1]
-        expected.append(scene.profile.miss_probability(h, 480.0))
-        missed.append(np.isnan(boxes[clean]).all(-1))
-    missed, expected = np.concatenate(missed), np.concatenate(expected)
+        expected_walks.append(scene.profile.miss_probability(h, 480.0))
+        missed_walks.append(np.isnan(boxes[clean]).all(-1))
+    missed, expected = np.concatenate(missed_walks), np.concatenate(expected_walks)
     assert len(missed) > 10000
     assert abs(missed.mean() - expected.mean()) < 0.03
 
@@ -326,10 +326,14 @@ def test_a_detector_whose_input_grows_sees_tall_frames_at_their_input_scale() ->
     # (SSDLite squeezes every frame into 300x300: 66.7 px).
     nanodet, ssdlite = load_profile("nanodet"), load_profile("ssdlite")
     heights = np.array([150.0, 90.0])
-    np.testing.assert_allclose(nanodet.reference_height(heights, 1080.0), [100.0, 60.0])
-    np.testing.assert_allclose(ssdlite.reference_height(heights, 1080.0), [150 * 4 / 9, 40.0])
-    np.testing.assert_allclose(nanodet.reference_height(heights, 720.0), heights * 2 / 3)
-    np.testing.assert_allclose(nanodet.reference_height(heights, 480.0), heights)
+
+    def at(profile: DetectorProfile, image_height: float) -> np.ndarray:
+        return profile.reference_height(heights, np.array(image_height))
+
+    np.testing.assert_allclose(at(nanodet, 1080.0), np.array([100.0, 60.0]))
+    np.testing.assert_allclose(at(ssdlite, 1080.0), np.array([150 * 4 / 9, 40.0]))
+    np.testing.assert_allclose(at(nanodet, 720.0), heights * 2 / 3)
+    np.testing.assert_allclose(at(nanodet, 480.0), heights)
     cameras = np.array([[480.0], [1080.0]])  # per camera, broadcast over people
     np.testing.assert_allclose(
         nanodet.reference_height(np.array([[90.0, 150.0]]), cameras), [[90, 150], [60, 100]]

@@ -8,13 +8,13 @@ import cv2
 import numpy as np
 
 from models.simulate import PRESETS, Perturbation, Scene, get_config
-from models.simulate.render import render_background
+from models.simulate.render import Renderer, render_background
 from models.simulate.skeleton import MID_HIP
 
 
 def _changed(scene: Scene, frame: int, camera: int) -> np.ndarray:
     image = scene.render(frame, camera)
-    background = scene._renderer.background(scene.cameras_at(frame)[camera])
+    background = _renderer(scene).background(scene.cameras_at(frame)[camera])
     return np.abs(image.astype(int) - background.astype(int)).sum(-1) > 30
 
 
@@ -95,7 +95,7 @@ def test_painted_body_fills_its_perspective_box_near_and_far() -> None:
             if box[2] > 638 or box[3] > 478:
                 continue  # truncated at the border
             image = scene.render(frame, camera)
-            background = scene._renderer.background(scene.cameras_at(frame)[camera])
+            background = _renderer(scene).background(scene.cameras_at(frame)[camera])
             ys, xs = np.nonzero(_painted(image, background))
             height = box[3] - box[1]
             assert abs(ys.min() - box[1]) < 0.04 * height + 2, (frame, camera)
@@ -111,7 +111,7 @@ def test_nearer_person_is_painted_over_the_farther() -> None:
 
     scene = Scene(PRESETS["office-3cam"], seed=2)
     scene.render(0, 0)
-    renderer = scene._renderer
+    renderer = _renderer(scene)
     checked = 0
     for frame in range(0, 1200, 10):
         obs = scene.observe(frame)
@@ -166,3 +166,9 @@ def test_rooms_are_furnished_the_same_for_every_camera() -> None:
                 for d in (bare, decor)
             )
             assert (np.abs(plain.astype(int) - furnished.astype(int)).sum(-1) > 30).mean() > 0.02
+
+
+def _renderer(scene: Scene) -> Renderer:
+    """The scene's renderer (made by its first ``render``)."""
+    assert scene._renderer is not None
+    return scene._renderer

@@ -165,11 +165,12 @@ def test_kept_correspondence_is_not_stolen():
 
 def test_bad_input_is_refused():
     scorer = StreamScorer()
-    scorer.add(1.0, [0], [[0.0, 0.0]], [], np.zeros((0, 2)))
+    origin, nobody = np.zeros((1, 2)), np.zeros((0, 2))
+    scorer.add(1.0, [0], origin, [], nobody)
     with pytest.raises(MomlocError, match="does not follow"):
-        scorer.add(1.0, [0], [[0.0, 0.0]], [], np.zeros((0, 2)))
+        scorer.add(1.0, [0], origin, [], nobody)
     with pytest.raises(MomlocError, match="twice"):
-        scorer.add(2.0, [0, 0], [[0.0, 0.0], [1.0, 1.0]], [], np.zeros((0, 2)))
+        scorer.add(2.0, [0, 0], np.array([[0.0, 0.0], [1.0, 1.0]]), [], nobody)
     with pytest.raises(MomlocError, match="gate"):
         StreamScorer(gate_m=0.0)
 
@@ -177,6 +178,6 @@ def test_bad_input_is_refused():
 def test_add_returns_the_frames_matches():
     """(truth row, served row) pairs within the gate, for diagnostics (bench/stream_breakdown)."""
     scorer = StreamScorer(0.5)
-    pairs = scorer.add(0.0, [4, 5], [[0.0, 0.0], [3.0, 0.0]], [9, 8], [[3.1, 0.0], [5.0, 5.0]])
-    assert pairs == [(1, 0)]
-    assert scorer.add(0.1, [4], [[0.0, 0.0]], [], np.zeros((0, 2))) == []
+    truth, served = np.array([[0.0, 0.0], [3.0, 0.0]]), np.array([[3.1, 0.0], [5.0, 5.0]])
+    assert scorer.add(0.0, [4, 5], truth, [9, 8], served) == [(1, 0)]
+    assert scorer.add(0.1, [4], np.zeros((1, 2)), [], np.zeros((0, 2))) == []

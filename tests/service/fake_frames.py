@@ -2,17 +2,21 @@
 
 Shared by the box-carrier and detection-schedule tests: the images are real pixels (so optical
 flow has something to follow), the detector returns each frame's true box exactly and records
-which frames it was given.
+which frames it was given. :class:`FunctionStage` and :class:`NoRig` are the pipeline tests'
+doubles of a detection stage and a rig (``service.stages.DetectStage``,
+``service.pipeline.live.Rig``).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from types import SimpleNamespace
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from capture.rig import FrameSet
+from capture.worker import CameraState, Frame
 from models.detector.base import Detections, PersonDetector
+from service.stages import Unscheduled
 
 FPS = 30.0
 
@@ -48,14 +52,14 @@ class BoxWorld:
     def box(self, i: int, camera: int) -> np.ndarray:
         return moving_box(i, camera, velocity=self.velocity)
 
-    def frame_set(self, i: int) -> SimpleNamespace:
-        frames = []
+    def frame_set(self, i: int) -> FrameSet:
+        frames: list[Frame | None] = []
         for k in range(self.cameras):
             image = draw([self.box(i, k)])
             self.truth[id(image)] = (i, k)
             self._images.append(image)
-            frames.append(SimpleNamespace(camera=k, image=image, timestamp=i / FPS, seq=i))
-        return SimpleNamespace(frames=frames, skew=0.0)
+            frames.append(Frame(camera=k, image=image, timestamp=i / FPS, seq=i))
+        return FrameSet(frames=frames, skew=0.0)
 
 
 class FakeDetector(PersonDetector):
@@ -86,3 +90,40 @@ class Clock:
 
     def __call__(self) -> float:
         return self.t
+
+
+def frames_at(
+    seq: int, stamp: float, present: Sequence[bool], image: np.ndarray | None = None
+) -> FrameSet:
+    """One frame set: a frame numbered ``seq`` at ``stamp`` for each camera ``present``."""
+    frames = [
+        Frame(camera=k, image=image, timestamp=stamp, seq=seq) if on else None
+        for k, on in enumerate(present)
+    ]
+    return FrameSet(frames=frames, skew=0.0)
+
+
+class FunctionStage(Unscheduled):
+    """A detection stage made of a function of the frame set (no schedule, no thread)."""
+
+    def __init__(
+        self, detect: Callable[[FrameSet], list[Detections]], keypoints: bool = False
+    ) -> None:
+        self.detect = detect
+        self.keypoints = keypoints
+
+    def __call__(self, frame_set: FrameSet) -> list[Detections]:
+        return self.detect(frame_set)
+
+
+class NoRig:
+    """A rig for pipelines driven by ``Pipeline.process`` alone: it never has a frame set."""
+
+    def start(self) -> None: ...
+    def stop(self) -> None: ...
+
+    def frame_set(self, after: FrameSet | None = None, timeout: float = 0.0) -> FrameSet | None:
+        return None
+
+    def states(self) -> list[CameraState]:
+        return []

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from service.stages import WorldBounds
+
 MID_HEIGHT = 0.85
 PERSON_HEIGHT = 1.7
 PERSON_HALF_WIDTH = 0.25
@@ -58,7 +60,35 @@ def person_boxes(projections: np.ndarray, world: np.ndarray) -> np.ndarray:
     return out
 
 
-class OracleRuntime:
+class ModelDouble:
+    """The part of :class:`~service.stages.LocalizationModel` a localizer double does not model,
+    answered the way ``MomRuntime`` answers for a model file without it: no fitted floor prior
+    (covariance NaN, no floor views), no set-up area (everyone inside), no stored bounds, and a
+    decoder that puts nobody in any image (NaN pixels: no line of sight, no camera covers
+    anyone). A double sets ``num_cameras`` and ``image_sizes`` and defines ``localize`` and
+    ``reprojection_error``; one with geometry overrides ``reproject``."""
+
+    num_cameras: int
+    image_sizes: np.ndarray
+    observation = "bbox"
+    world_bounds: WorldBounds | None = None
+
+    def reproject(self, world: np.ndarray) -> np.ndarray:
+        return np.full((len(np.asarray(world).reshape(-1, 2)), self.num_cameras, 2), np.nan)
+
+    def covariance(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
+        return np.full((len(boxes), 2, 2), np.nan)
+
+    def floor_views(
+        self, boxes: np.ndarray, keypoints: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        return None
+
+    def inside(self, boxes: np.ndarray, world: np.ndarray) -> np.ndarray:
+        return np.ones(len(boxes), dtype=bool)
+
+
+class OracleRuntime(ModelDouble):
     """``MomRuntime`` stand-in built from true projection matrices (see the module docstring)."""
 
     def __init__(self, projections: np.ndarray) -> None:
@@ -66,7 +96,7 @@ class OracleRuntime:
         self.num_cameras = len(self.projections)
         self.image_sizes = np.tile([640, 480], (self.num_cameras, 1))
 
-    def localize(self, boxes: np.ndarray) -> np.ndarray:
+    def localize(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
         """Least-squares floor point whose mid-height point projects onto the seen box centres."""
         boxes = np.asarray(boxes, dtype=np.float64)
         centre = (boxes[..., :2] + boxes[..., 2:]) / 2
@@ -89,6 +119,8 @@ class OracleRuntime:
         points = np.concatenate([world, np.full((len(world), 1), MID_HEIGHT)], axis=1)
         return np.stack([project(p, points) for p in self.projections], axis=1)
 
-    def reprojection_error(self, boxes: np.ndarray, world: np.ndarray) -> np.ndarray:
+    def reprojection_error(
+        self, boxes: np.ndarray, world: np.ndarray, keypoints: np.ndarray | None = None
+    ) -> np.ndarray:
         centre = (np.asarray(boxes)[..., :2] + np.asarray(boxes)[..., 2:]) / 2
         return np.linalg.norm(self.reproject(world) - centre, axis=-1)

@@ -13,7 +13,9 @@ from service.api.routes.stream import _parse_rate
 from service.api.snapshot_image import id_colour, render_camera_jpeg
 from service.pipeline.hub import Hub
 from service.pipeline.listeners import CameraView
-from service.snapshot import Snapshot
+from service.snapshot import EMPTY, Snapshot
+from service.stages import FrameResult, FrameSet
+from tests.people import person
 
 
 @pytest.mark.parametrize(
@@ -42,19 +44,23 @@ def test_preview_draws_boxes_in_the_id_colour():
         [(np.array([20, 30, 80, 110], np.float32), 4), (np.array([np.nan] * 4, np.float32), None)],
     )
     data = render_camera_jpeg(view, quality=95)
+    assert data is not None
     decoded = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    assert decoded is not None
     edge = decoded[70, 20].astype(int)  # left edge of the box, below the label
     assert np.abs(edge - np.array(id_colour(4))).max() < 40
     assert decoded[70, 50].min() > 230  # inside the box stays white
     assert image.min() == 255  # the pipeline's frame is never drawn on
     small = render_camera_jpeg(view, width=80)
-    assert cv2.imdecode(np.frombuffer(small, np.uint8), cv2.IMREAD_COLOR).shape == (60, 80, 3)
+    assert small is not None
+    shrunk = cv2.imdecode(np.frombuffer(small, np.uint8), cv2.IMREAD_COLOR)
+    assert shrunk is not None and shrunk.shape == (60, 80, 3)
     assert render_camera_jpeg(CameraView(None)) is None
 
 
 def test_metrics_text_reads_live_state():
     hub = Hub()
-    hub.publish(Snapshot.build(3, 1.0, [{"id": 1}, {"id": 2}]))
+    hub.publish(Snapshot.build(3, 1.0, [person(1), person(2)]))
     pipeline = SimpleNamespace(
         stats=lambda: {
             "fps": 29.5,
@@ -66,7 +72,7 @@ def test_metrics_text_reads_live_state():
         runtime=object(),
     )
     states = [{"connected": True, "fps": 30.0, "last_frame_age": 0.01}]
-    daemon = SimpleNamespace(pipeline=pipeline, hub=hub, camera_states=lambda: states)
+    daemon = SimpleNamespace(pipeline=pipeline, hub=hub, camera_states=lambda: states, outputs=None)
     body, content_type = metrics_text(daemon)
     text = body.decode()
     assert content_type.startswith("text/plain")
@@ -97,7 +103,17 @@ def test_throughput_stats_are_read_safely_while_frames_are_published():
             return iterator
 
     throughput = Throughput()
-    frame = SimpleNamespace(t_capture=0.0, timings_ms={"detect": 1.0})
+    frame = FrameResult(
+        frame_set=FrameSet(frames=[], skew=0.0),
+        t_capture=0.0,
+        fused=[],
+        detections=[],
+        associations=[],
+        tracks=[],
+        snapshot=EMPTY,
+        runtime=None,
+        timings_ms={"detect": 1.0},
+    )
     throughput(frame)
     throughput._done = Window(throughput._done, maxlen=120)
 

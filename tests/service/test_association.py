@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from common.errors import MomlocError
+from service.stages import Association
 from service.tracking.association import associate
-from tests.service.mom_doubles import OracleRuntime, person_boxes, room_cameras
+from tests.service.mom_doubles import ModelDouble, OracleRuntime, person_boxes, room_cameras
 
 
 def shuffled_detections(
@@ -96,7 +97,7 @@ def test_four_cameras_with_missing_views() -> None:
         # when they stand within ~0.8 m: that trade-off is measured in bench/serving/association.py.
         result = associate(detections, runtime, max_error_px=25.0)
         assert correctly_associated(result, owners, boxes)
-        single = [a for a in result if a.cameras == [2] and owners[2][a.detection_index[2]] == 2]
+        single = [a for a in result if a.cameras == [2] and owners[2][_index(a, 2)] == 2]
         assert len(single) == 1
         assert np.linalg.norm(single[0].world - world[2]) < 0.2
 
@@ -118,21 +119,24 @@ def test_inconsistent_boxes_stay_separate_people() -> None:
     assert cameras(max_error_px=1e6, max_view_gap_m=1e6) == [[0, 1]]
 
 
-class ScriptedRuntime:
+class ScriptedRuntime(ModelDouble):
     """Two cameras; box j is ``[j, 0, j + 1, 200]`` (reference height: errors are not rescaled);
     pair errors come from a table."""
 
     num_cameras = 2
+    image_sizes = np.array([[640, 480], [640, 480]])
 
     def __init__(self, pair_error: dict[tuple[int, int], float]) -> None:
         self.pair_error = pair_error
 
-    def localize(self, boxes: np.ndarray) -> np.ndarray:
+    def localize(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
         # "world" = (index in cam 0, index in cam 1); every single view at (-1, -1)
         both = np.isfinite(boxes[:, :, 0]).all(axis=1)
         return np.where(both[:, None], np.nan_to_num(boxes[:, :, 0]), -1.0)
 
-    def reprojection_error(self, boxes: np.ndarray, world: np.ndarray) -> np.ndarray:
+    def reprojection_error(
+        self, boxes: np.ndarray, world: np.ndarray, keypoints: np.ndarray | None = None
+    ) -> np.ndarray:
         out = np.where(np.isfinite(boxes).all(axis=2), 0.0, np.nan)
         for b, (i, j) in enumerate(world.astype(int)):
             if i >= 0 and j >= 0:
@@ -161,7 +165,7 @@ def test_single_camera_model_outputs_every_box() -> None:
     world = np.array([[2.0, 2.0], [4.0, 3.0], [3.0, 5.0]])
     boxes = person_boxes(projections, world)[:, 0]
     result = associate([boxes], OracleRuntime(projections))
-    assert sorted(a.detection_index[0] for a in result) == [0, 1, 2]
+    assert sorted(_index(a, 0) for a in result) == [0, 1, 2]
     for a in result:
         assert a.cameras == [0]
         assert np.linalg.norm(a.world - world[a.detection_index[0]]) < 0.05
@@ -214,7 +218,7 @@ def test_real_model_associates_three_people(trained_runtime) -> None:
         correct += ok
         if ok:
             for a in result:
-                person = owners[a.cameras[0]][a.detection_index[a.cameras[0]]]
+                person = owners[a.cameras[0]][_index(a, a.cameras[0])]
                 errors.append(np.linalg.norm(a.world - obs.world[person]))
     assert frames >= 50
     # A tiny 20-epoch model: measured 52/60 (87 %); the bench's full model reaches > 99 %.
@@ -313,6 +317,7 @@ def test_floor_gate_cost_is_the_mahalanobis_rise_of_the_fused_position() -> None
     views = _Views([box, box, np.r_[box, box]], None)
     pair = {0: 0, 1: 0}
     cost = _FloorFit(views, Floor()).chi2([(pair, {2: 0}), (pair, {2: 1})])
+    assert cost is not None
     scale = FLOOR_INFO_SCALE**2
     lam = np.linalg.inv(along_x * scale) + np.linalg.inv(along_y * scale)
     fused = np.linalg.solve(lam, np.linalg.inv(along_x * scale) @ est[0, 0]
@@ -322,4 +327,12 @@ def test_floor_gate_cost_is_the_mahalanobis_rise_of_the_fused_position() -> None
         assert got == pytest.approx(d @ np.linalg.solve(np.linalg.inv(lam) + along_x * scale, d))
     assert cost[0] < 1.0 < 25.0 < cost[1]  # the default gate admits the first, not the second
     info[3, 2] = 0.0  # a camera without a floor map: no veto
-    assert np.isnan(_FloorFit(views, Floor()).chi2([(pair, {2: 1})])[0])
+    vetoless = _FloorFit(views, Floor()).chi2([(pair, {2: 1})])
+    assert vetoless is not None and np.isnan(vetoless[0])
+
+
+def _index(association: Association, camera: int) -> int:
+    """The index of ``association``'s detection in ``camera`` (which sees it)."""
+    index = association.detection_index[camera]
+    assert index is not None
+    return index

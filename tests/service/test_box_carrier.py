@@ -69,7 +69,7 @@ def test_late_detection_corrects_the_current_box_without_a_duplicate() -> None:
     carrier.correct(3 / FPS, (moving_box(3) + np.array([5, 0, 5, 0], np.float32))[None])
     result = carrier.current()
     assert len(result) == 1
-    assert result.age[0] == pytest.approx(2 / FPS, abs=1e-6)
+    assert result.age is not None and result.age[0] == pytest.approx(2 / FPS, abs=1e-6)
     held = moving_box(0)
     assert result.boxes[0][0] > held[0] + 4  # moved towards the late measurement
 

@@ -8,6 +8,7 @@ import dataclasses
 import pytest
 
 from capture.synthetic import SyntheticRig
+from capture.worker import Frame
 from models.mom.runtime import MomRuntime
 from models.simulate import Perturbation, make_scene
 from service.api.state import Daemon
@@ -40,7 +41,10 @@ def _health_over_time(bump: Perturbation) -> list[tuple[int, dict]]:
     out = []
     for index in range(0, END, STEP):
         frame_set = rig.produce(index)
-        frames = [dataclasses.replace(f, timestamp=1000.0 + index / FPS) for f in frame_set.frames]
+        frames: list[Frame | None] = [
+            None if f is None else dataclasses.replace(f, timestamp=1000.0 + index / FPS)
+            for f in frame_set.frames
+        ]
         pipeline.process(dataclasses.replace(frame_set, frames=frames))
         if index % 30 == 0:
             out.append((index, daemon.health()))
@@ -100,9 +104,10 @@ def test_combine_attributes_a_shared_error_rise_to_the_camera_whose_image_moved(
     errors, shift = _states([False, False], ["collecting", "collecting"], [True, False])
     verdict = combine(errors, shift, ["door", "window"])
     assert [c.moved for c in verdict] == [True, False]
+    assert verdict[0].message is not None
     assert verdict[0].message.startswith("camera 0 (door) looks moved: reprojection error 20.0")
     # the images see nothing but the error stays high: still reported, saying so
     errors, shift = _states([False, False], ["ready", "ready"], [False, True])
     verdict = combine(errors, shift)
     assert [c.moved for c in verdict] == [False, True]
-    assert "the image check sees no shift" in verdict[1].message
+    assert "the image check sees no shift" in (verdict[1].message or "")

@@ -115,7 +115,9 @@ def test_rigid_ransac_recovers_rotation_despite_outliers() -> None:
     rot = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
     dst = src @ rot.T + [4.0, -3.0]
     dst[:20] += rng.normal(0, 30, (20, 2))  # people in front of a third of the corners
-    motion, keep = rigid_ransac(src, dst, 1.0)
+    found = rigid_ransac(src, dst, 1.0)
+    assert found is not None
+    motion, keep = found
     assert np.allclose(motion[:, :2], rot, atol=1e-6) and np.allclose(motion[:, 2], [4, -3])
     assert keep[20:].all() and keep[:20].sum() <= 2
 
@@ -125,8 +127,8 @@ def test_a_bump_during_reference_collection_restarts_it() -> None:
     image = (rng.random((240, 320)) * 255).astype(np.uint8)
     monitor = CameraShiftMonitor(1, reference_frames=3)
     frames = [image, image, np.roll(image, 12, axis=1)]  # bumped at the third frame
-    for t, frame in enumerate(frames):
-        monitor.offer(float(t), [frame])
+    for i, frame in enumerate(frames):
+        monitor.offer(float(i), [frame])
     assert monitor.status()[0].reference == "collecting"
     for t in (3.0, 4.0, 5.0):
         monitor.offer(t, [frames[-1]])

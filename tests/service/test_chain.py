@@ -11,7 +11,9 @@ from service.outputs.zone_monitor import ZoneMonitor
 from service.outputs.zones import Zone
 from service.pipeline.chain import Chain
 from service.snapshot import Snapshot
+from service.stages import Track
 from service.tracking.tracker import RECOMMENDED, Tracker
+from tests.people import person
 from tests.service.mom_doubles import OracleRuntime, person_boxes, room_cameras
 
 INSIDE_X = 4.0  # the fake set-up area: x below this
@@ -33,7 +35,7 @@ def _frames(runtime: OracleRuntime, people: np.ndarray) -> list[Detections]:
 
 
 def _run(chain: Chain, runtime: OracleRuntime, people: np.ndarray, seconds: float = 2.0):
-    tracks = []
+    tracks: list[Track] = []
     for i in range(int(seconds * 10)):
         _, tracks = chain(i / 10, _frames(runtime, people), runtime, [True, True], i)
     return tracks
@@ -77,7 +79,7 @@ def test_a_model_without_an_area_keeps_everyone(runtime):
 
 
 def test_a_snapshot_without_outside_people_is_its_own_inside_view():
-    snapshot = Snapshot.build(3, 1.0, [{"id": 1, "x": 0.0, "y": 0.0}])
+    snapshot = Snapshot.build(3, 1.0, [person(1)])
     assert snapshot.inside_only() is snapshot
 
 

@@ -8,6 +8,7 @@ import pytest
 
 from capture.rig import CameraRig
 from capture.sources import V4L2Source, VideoFileSource
+from capture.worker import CameraWorker
 from common.errors import MomlocError
 from service.daemon import build_daemon
 from service.pipeline.build import build_rig
@@ -38,7 +39,8 @@ def test_cameras_are_opened_by_their_settings_type(tmp_path: Path) -> None:
     )
     rig, player = build_rig(settings)
     assert isinstance(rig, CameraRig) and player is None
-    first, by_id, played = (worker.source for worker in rig.workers)
+    workers = [w for w in rig.workers if isinstance(w, CameraWorker)]
+    first, by_id, played = (worker.source for worker in workers)
     assert isinstance(first, V4L2Source) and first.device == 2 and first.width == 320
     assert isinstance(by_id, V4L2Source) and by_id.device == "/dev/v4l/by-id/usb-cam-index0"
     assert isinstance(played, VideoFileSource) and played.path == video and not played.loop
@@ -48,16 +50,21 @@ def test_cameras_are_opened_by_their_settings_type(tmp_path: Path) -> None:
 
 
 def test_the_detectors_input_growth_is_a_setting() -> None:
+    from models.detector.nanodet import NanoDetDetector
+    from service.detection.schedule import DetectionScheduler
     from service.pipeline.build import build_detect_stage
 
-    def stage(**detector: object) -> object:
+    def stage(**detector: object) -> NanoDetDetector:
         settings = load_settings(
             None,
             cameras=[{"type": "v4l2", "device": "0"}],
             detector=detector,
             detection={"schedule": "every_frame"},
         )
-        return build_detect_stage(settings, None).detector
+        built = build_detect_stage(settings, None)
+        assert isinstance(built, DetectionScheduler)
+        assert isinstance(built.detector, NanoDetDetector)
+        return built.detector
 
     assert stage().max_shrink == 3.0  # the kind's default
     assert stage(max_shrink=2).max_shrink == 2.0
@@ -71,13 +78,18 @@ def test_the_detectors_runtime_is_a_typed_setting() -> None:
     """``detector.runtime`` picks NanoDet's inference runtime; auto: the first installed of the
     measured preference."""
     from models.detector import runtimes
+    from models.detector.nanodet import NanoDetDetector
+    from service.detection.schedule import DetectionScheduler
     from service.pipeline.build import build_detect_stage
 
     def built(detection: dict[str, object], **detector: object) -> object:
         settings = load_settings(
             None, cameras=[{"type": "v4l2", "device": "0"}], detector=detector, detection=detection
         )
-        return build_detect_stage(settings, None).detector.graph.runtime
+        stage = build_detect_stage(settings, None)
+        assert isinstance(stage, DetectionScheduler)
+        assert isinstance(stage.detector, NanoDetDetector)
+        return stage.detector.graph.runtime
 
     assert built({"schedule": "every_frame"}, runtime="onnxruntime") == "onnxruntime"
     preferred = runtimes.choose_runtime("auto", user_model=False)

@@ -8,13 +8,14 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Sequence
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+from capture.rig import FrameSet
+from capture.worker import Frame
 from models.detector.base import Detections
-from service.detection.box_carrier import box_iou
+from service.detection.box_carrier import CarriedDetections, box_iou
 from service.detection.schedule import (
     DeferredRunner,
     DetectionJob,
@@ -23,7 +24,7 @@ from service.detection.schedule import (
 )
 from service.pipeline.hub import Hub
 from service.pipeline.live import Pipeline
-from tests.service.fake_frames import FPS, BoxWorld, Clock, FakeDetector
+from tests.service.fake_frames import FPS, BoxWorld, Clock, FakeDetector, NoRig
 
 
 def jobs(detector):
@@ -40,6 +41,12 @@ def _scheduler(world: BoxWorld, cost: float, **options) -> tuple[DetectionSchedu
     return DetectionScheduler(detector, runner=runner, clock=clock, **options), clock
 
 
+def _calls(scheduler: DetectionScheduler) -> list[list[tuple[int, int]]]:
+    """The (frame, camera) pairs of each call of the scheduler's fake detector."""
+    assert isinstance(scheduler.detector, FakeDetector)
+    return scheduler.detector.calls
+
+
 def _run(scheduler: DetectionScheduler, clock: Clock, world: BoxWorld, frames: int) -> list:
     out = []
     for i in range(frames):
@@ -54,7 +61,7 @@ def test_slow_detector_never_queues_and_always_gets_the_newest_frame_set() -> No
     world = BoxWorld()
     scheduler, clock = _scheduler(world, cost=0.09)  # ~3 frame slots per call
     published = _run(scheduler, clock, world, 60)
-    calls = scheduler.detector.calls
+    calls = _calls(scheduler)
     # one call at a time, each on the frame set that was newest when the detector became free
     assert [c[0][0] for c in calls] == list(range(0, 60, 3))
     assert all(c == [(c[0][0], 0), (c[0][0], 1)] for c in calls)
@@ -81,7 +88,7 @@ def test_very_slow_detector_still_publishes_every_frame_set_with_carried_boxes()
     world = BoxWorld()
     scheduler, clock = _scheduler(world, cost=0.25)  # ~7.5 frame slots
     published = _run(scheduler, clock, world, 60)
-    assert len(scheduler.detector.calls) == 8  # frames 0, 8, 16, ..., 56
+    assert len(_calls(scheduler)) == 8  # frames 0, 8, 16, ..., 56
     boxes = [out[0] for out in published[16:]]
     assert all(len(d) == 1 for d in boxes)
     errors = [np.abs(d.boxes[0] - world.box(i, 0)).max() for i, d in enumerate(boxes, start=16)]
@@ -140,7 +147,7 @@ def test_duty_cycle_leaves_time_between_calls() -> None:
     world = BoxWorld()
     scheduler, clock = _scheduler(world, cost=0.09, max_duty=0.5)
     _run(scheduler, clock, world, 40)
-    starts = [c[0][0] for c in scheduler.detector.calls]
+    starts = [c[0][0] for c in _calls(scheduler)]
     assert starts == list(range(0, 40, 6))  # 3 slots busy, then as long again idle
     assert scheduler.stats()["detector_ms"] == pytest.approx(90.0)
 
@@ -149,8 +156,8 @@ def test_alternating_cameras() -> None:
     world = BoxWorld(cameras=3)
     scheduler, clock = _scheduler(world, cost=0.02, cameras_per_call=1)
     _run(scheduler, clock, world, 12)
-    cameras = [camera for call in scheduler.detector.calls for _, camera in call]
-    assert all(len(call) == 1 for call in scheduler.detector.calls)
+    cameras = [camera for call in _calls(scheduler) for _, camera in call]
+    assert all(len(call) == 1 for call in _calls(scheduler))
     assert cameras[:6] == [0, 1, 2, 0, 1, 2]
 
 
@@ -225,8 +232,7 @@ def test_detector_error_reaches_the_pipeline_thread() -> None:
 def test_pipeline_runs_the_scheduled_stage() -> None:
     world = BoxWorld()
     scheduler, clock = _scheduler(world, cost=0.05)
-    rig = SimpleNamespace(start=lambda: None, stop=lambda: None, states=lambda: [])
-    pipeline = Pipeline(rig, scheduler, Hub(), num_cameras=2, shift_threaded=False)
+    pipeline = Pipeline(NoRig(), scheduler, Hub(), num_cameras=2, shift_threaded=False)
     for i in range(6):
         clock.t = i / FPS
         pipeline.process(world.frame_set(i))
@@ -249,11 +255,10 @@ def test_real_detector_on_rendered_frames_produces_boxes() -> None:
     found = []
     for i in range(8):
         clock.t = i / FPS
-        frames = [
-            SimpleNamespace(camera=k, image=scene.render(i, k), timestamp=i / FPS, seq=i)
-            for k in range(2)
+        frames: list[Frame | None] = [
+            Frame(camera=k, image=scene.render(i, k), timestamp=i / FPS, seq=i) for k in range(2)
         ]
-        out = scheduler(SimpleNamespace(frames=frames, skew=0.0))
+        out = scheduler(FrameSet(frames=frames, skew=0.0))
         truth = np.asarray(scene.observe(i).true_boxes)
         for k, det in enumerate(out):
             boxes = truth[:, k][np.all(np.isfinite(truth[:, k]), axis=1)]
@@ -271,11 +276,13 @@ def test_daemon_builds_the_scheduled_stage_from_settings() -> None:
 
     settings = demo_settings(detections="rendered")
     stage = build_detect_stage(settings, None)
+    assert isinstance(stage, DetectionScheduler)
     assert stage.mode == "auto" and stage.runner is not None
     inline = settings.model_copy(
         update={"detection": settings.detection.model_copy(update={"schedule": "every_frame"})}
     )
     every_frame = build_detect_stage(inline, None)
+    assert isinstance(every_frame, DetectionScheduler)
     assert every_frame.mode == "every_frame" and every_frame.runner is None
     with pytest.raises(Exception, match="detection"):
         load_settings(None, cameras=[{"type": "synthetic", "index": 0}], detection={"often": 1})
@@ -285,11 +292,13 @@ def test_a_job_looks_again_at_known_small_people_in_windows():
     """With a window refiner the job carries the boxes known when it was made, and a small
     person the full pass misses is found in its window (real NanoDet, pasted photograph)."""
     from models.detector import create_detector
+    from models.detector.nanodet import NanoDetDetector
     from models.detector.preprocessing import box_iou as iou
     from models.detector.validation import person_frame
     from models.detector.windows import WindowRefiner
 
     detector = create_detector("nanodet")
+    assert isinstance(detector, NanoDetDetector)
     frame, truth = person_frame("camera", 55, anchor=(0.1, 0.9))
     assert (
         not len(detector.detect([frame])[0])
@@ -297,13 +306,15 @@ def test_a_job_looks_again_at_known_small_people_in_windows():
     )
     refiner = WindowRefiner(detector.resized((96, 160)))
     scheduler = DetectionScheduler(detector, refiner=refiner, runner=_NoRunner())
-    carried = [SimpleNamespace(boxes=(truth + 3)[None].astype(np.float32))]
-    job = scheduler._job([SimpleNamespace(timestamp=1.0, image=frame)], carried)
+    carried = [CarriedDetections((truth + 3)[None].astype(np.float32), np.ones(1, np.float32))]
+    frames = [Frame(camera=0, image=frame, timestamp=1.0, seq=0)]
+    job = scheduler._job(frames, carried)
     assert job is not None and len(job.priors) == 1
     (found,) = scheduler.detect_job(job)
     assert iou(truth, found.boxes).max() > 0.7
     without = DetectionScheduler(detector, runner=_NoRunner())
-    assert without._job([SimpleNamespace(timestamp=1.0, image=frame)], carried).priors == ()
+    plain = without._job(frames, carried)
+    assert plain is not None and plain.priors == ()
 
 
 class _NoRunner:

@@ -8,6 +8,7 @@ import pytest
 
 from service.snapshot import Snapshot
 from service.tracking.smoother import FixedLagSmoother
+from tests.people import person
 
 FPS = 15.0
 
@@ -58,8 +59,8 @@ def test_a_standing_persons_shake_shrinks_and_a_jump_is_spread():
 def test_every_snapshot_once_in_order_and_a_short_track_as_tracked():
     frames = stream(np.tile([[1.0, 1.0]], (40, 1)))
     # a second id seen in two frames only: too few samples to fit, left as tracked
-    frames[20][1].people.append({"id": 9, "x": 5.0, "y": 5.0, "vx": 0.3, "vy": 0.0})
-    frames[21][1].people.append({"id": 9, "x": 5.2, "y": 5.0, "vx": 0.3, "vy": 0.0})
+    frames[20][1].people.append(person(9, 5.0, 5.0, vx=0.3))
+    frames[21][1].people.append(person(9, 5.2, 5.0, vx=0.3))
     smoother = FixedLagSmoother(0.5)
     released = [[f for f, _ in smoother.push(f, s)] for f, s in frames]
     assert released[0] == [] and released[7] == [] and released[8] == [0]  # 0.53 s later

@@ -8,10 +8,11 @@ import threading
 
 from service.pipeline.hub import Hub
 from service.snapshot import Snapshot
+from tests.people import person
 
 
 def snap(seq: int) -> Snapshot:
-    return Snapshot.build(seq, 1000.0 + seq, [{"id": 1, "x": seq * 0.1, "y": 0.0}])
+    return Snapshot.build(seq, 1000.0 + seq, [person(1, seq * 0.1, 0.0)])
 
 
 def test_snapshot_wire_format():
@@ -20,7 +21,17 @@ def test_snapshot_wire_format():
         "v": 1,
         "seq": 3,
         "t": 1003.0,
-        "people": [{"id": 1, "x": 0.30000000000000004, "y": 0.0}],
+        "people": [
+            {
+                "id": 1,
+                "x": 0.30000000000000004,
+                "y": 0.0,
+                "vx": 0.0,
+                "vy": 0.0,
+                "confidence": 1.0,
+                "cameras": [0],
+            }
+        ],
     }
     assert snap(3).as_dict() == body
 
@@ -51,7 +62,12 @@ def test_publish_from_another_thread_and_prefill():
         hub.publish(snap(1))
         late = hub.subscribe()  # a new client gets the newest value at once
         assert (await late.next()).seq == 1
-        thread = threading.Thread(target=lambda: [hub.publish(snap(s)) for s in range(2, 12)])
+
+        def publish_ten() -> None:
+            for s in range(2, 12):
+                hub.publish(snap(s))
+
+        thread = threading.Thread(target=publish_ten)
         thread.start()
         thread.join()
         got = await asyncio.wait_for(late.next(), 2)

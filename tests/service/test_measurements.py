@@ -7,13 +7,14 @@ first sees a person with its range wrong by 0.5 m, then the second camera joins.
 
 from __future__ import annotations
 
-from types import SimpleNamespace
-
 import numpy as np
 import pytest
 
+from capture.rig import FrameSet
+from models.detector.base import Detections
 from service.pipeline.hub import Hub
 from service.pipeline.live import Pipeline
+from service.stages import Association
 from service.tracking.measurements import (
     MULTI_VIEW_STD_M,
     SINGLE_VIEW_ACROSS_STD_M,
@@ -24,7 +25,8 @@ from service.tracking.measurements import (
 )
 from service.tracking.tracker import RECOMMENDED, Tracker
 from service.tracking.view_geometry import line_of_sight
-from tests.service.mom_doubles import OracleRuntime, person_boxes, room_cameras
+from tests.service.fake_frames import FunctionStage, NoRig, frames_at
+from tests.service.mom_doubles import ModelDouble, OracleRuntime, person_boxes, room_cameras
 
 CAMERAS = room_cameras(2)  # corners (-0.5, -0.5) and (6.5, -0.5), 2.4 m high
 TRUTH = np.array([3.0, 2.0])
@@ -43,44 +45,51 @@ def test_default_covariance_per_view_class():
     runtime = OracleRuntime(CAMERAS)
     single = default_covariance(runtime, [0], TRUTH)
     along = line_of_sight(runtime, 0, TRUTH)
+    assert single is not None and along is not None
     across = np.array([-along[1], along[0]])
     assert along @ single @ along == pytest.approx(SINGLE_VIEW_DEPTH_STD_M**2)
     assert across @ single @ across == pytest.approx(SINGLE_VIEW_ACROSS_STD_M**2)
-    np.testing.assert_allclose(
-        default_covariance(runtime, [0, 1], TRUTH), np.eye(2) * MULTI_VIEW_STD_M**2
-    )
-    no_decoder = SimpleNamespace(num_cameras=2)  # nothing to find the line of sight with
-    assert default_covariance(no_decoder, [0], TRUTH) is None
+    both = default_covariance(runtime, [0, 1], TRUTH)
+    assert both is not None
+    np.testing.assert_allclose(both, np.eye(2) * MULTI_VIEW_STD_M**2)
+    nowhere = ModelDouble()  # its decoder puts nobody in an image: no line of sight
+    nowhere.num_cameras = 2
+    assert default_covariance(nowhere, [0], TRUTH) is None
 
 
 def test_the_models_own_covariance_wins_when_finite():
     runtime = OracleRuntime(CAMERAS)
     own = np.diag([0.04, 0.01])
     people = [
-        SimpleNamespace(cameras=[0], world=TRUTH, covariance=own),
-        SimpleNamespace(cameras=[0], world=TRUTH, covariance=np.full((2, 2), np.nan)),
-        SimpleNamespace(cameras=[0, 1], world=TRUTH),  # a runtime without covariance()
+        _seen_by([0], covariance=own),
+        _seen_by([0], covariance=np.full((2, 2), np.nan)),
+        _seen_by([0, 1], covariance=None),  # none given
     ]
     first, second, third = measurement_covariances(people, runtime)
+    default = default_covariance(runtime, [0], TRUTH)
+    assert first is not None and second is not None and third is not None
+    assert default is not None
     np.testing.assert_array_equal(first, own)
-    np.testing.assert_allclose(second, default_covariance(runtime, [0], TRUTH))
+    np.testing.assert_allclose(second, default)
     np.testing.assert_allclose(third, np.eye(2) * MULTI_VIEW_STD_M**2)
 
 
 def test_coverage_leaves_out_cameras_without_a_frame():
     runtime = OracleRuntime(CAMERAS)
-    assert coverage_function(runtime, [True, True])(TRUTH[None]).tolist() == [[True, True]]
-    assert coverage_function(runtime, [True, False])(TRUTH[None]).tolist() == [[True, False]]
+    every, first_only = (
+        coverage_function(runtime, [True, True]),
+        coverage_function(runtime, [True, False]),
+    )
+    assert every is not None and first_only is not None
+    assert every(TRUTH[None]).tolist() == [[True, True]]
+    assert first_only(TRUTH[None]).tolist() == [[True, False]]
     assert coverage_function(None, [True, True]) is None
-    assert coverage_function(SimpleNamespace(num_cameras=2), [True, True]) is None
 
 
-class _NoRig:
-    def start(self) -> None: ...
-    def stop(self) -> None: ...
-    def frame_set(self, after=None, timeout=0.0): ...
-    def states(self) -> list:
-        return []
+def _seen_by(cameras: list[int], covariance: np.ndarray | None) -> Association:
+    boxes = np.full((2, 4), np.nan, np.float32)
+    index: list[int | None] = [0 if k in cameras else None for k in (0, 1)]
+    return Association(boxes, cameras, TRUTH, 0.0, index, covariance=covariance)
 
 
 def _serve(*, lone_frames: int, joined_frames: int, camera1_delivers: bool, wired: bool = True):
@@ -95,31 +104,24 @@ def _serve(*, lone_frames: int, joined_frames: int, camera1_delivers: bool, wire
     assert sight is not None
     wrong = TRUTH + 0.5 * sight
 
-    def frames(i: int) -> SimpleNamespace:
-        present = (True, camera1_delivers or i >= lone_frames)
-        return SimpleNamespace(
-            frames=[
-                SimpleNamespace(camera=k, image=None, timestamp=100 + i / FPS, seq=i)
-                if on
-                else None
-                for k, on in enumerate(present)
-            ],
-            skew=0.0,
-        )
+    def frames(i: int) -> FrameSet:
+        return frames_at(i, 100 + i / FPS, (True, camera1_delivers or i >= lone_frames))
 
-    def detect(frame_set) -> list[np.ndarray]:
-        if frame_set.frames[0].seq < lone_frames:
+    def detect(frame_set: FrameSet) -> list[Detections]:
+        first = frame_set.frames[0]
+        assert first is not None
+        if first.seq < lone_frames:
             lone = person_boxes(CAMERAS, wrong[None])[0, 0]
-            return [lone[None].astype(np.float32), np.zeros((0, 4), np.float32)]
-        both = person_boxes(CAMERAS, TRUTH[None])[0].astype(np.float32)
-        return [both[0][None], both[1][None]]
+            return [_found(lone[None]), Detections.empty()]
+        both = person_boxes(CAMERAS, TRUTH[None])[0]
+        return [_found(both[0][None]), _found(both[1][None])]
 
     tracker = Tracker(fps_hint=FPS, **RECOMMENDED)
     if not wired:
         update = tracker.update
-        tracker.update = lambda t, xy, meta, **_: update(t, xy, meta)  # type: ignore[method-assign]
+        tracker.update = lambda t, xy, origins, **_: update(t, xy, origins)  # type: ignore[method-assign]
     pipeline = Pipeline(
-        _NoRig(), detect, Hub(), num_cameras=2, runtime=runtime, tracker=tracker,
+        NoRig(), FunctionStage(detect), Hub(), num_cameras=2, runtime=runtime, tracker=tracker,
         shift_threaded=False,
     )  # fmt: skip
     out = []
@@ -150,3 +152,7 @@ def test_a_lone_view_another_delivering_camera_should_see_is_not_served():
     doubted = _serve(lone_frames=45, joined_frames=1, camera1_delivers=True)
     believed = _serve(lone_frames=45, joined_frames=1, camera1_delivers=False)
     assert doubted[0] is None and believed[0] is not None
+
+
+def _found(boxes: np.ndarray) -> Detections:
+    return Detections(boxes.astype(np.float32), np.ones(len(boxes), np.float32))

@@ -11,9 +11,10 @@ from service.pipeline.model_watch import ModelWatcher
 
 class FakePipeline:
     def __init__(self, model_dir: Path, refuse: bool = False) -> None:
-        self.model_dir, self.refuse, self.reloads = model_dir, refuse, 0
+        self.model_dir: Path | None = model_dir
+        self.refuse, self.reloads = refuse, 0
 
-    def reload_model(self, model_dir: Path) -> dict:
+    def reload_model(self, model_dir: Path | None) -> dict[str, str]:
         self.reloads += 1
         if self.refuse:
             raise MomlocError(
@@ -39,7 +40,8 @@ def test_reloads_after_files_settle(tmp_path: Path) -> None:
     watcher.poll()
     assert pipeline.reloads == 0  # changed: wait one poll in case it is still being written
     watcher.poll()
-    assert pipeline.reloads == 1 and watcher.last_reload["ok"]
+    assert pipeline.reloads == 1 and watcher.last_reload is not None
+    assert watcher.last_reload["ok"]
     watcher.poll()
     assert pipeline.reloads == 1
 
@@ -52,7 +54,8 @@ def test_refused_model_is_reported_once(tmp_path: Path) -> None:
     for _ in range(4):
         watcher.poll()
     assert pipeline.reloads == 1
-    assert not watcher.last_reload["ok"] and "3 cameras" in watcher.last_reload["error"]
+    assert watcher.last_reload is not None and not watcher.last_reload["ok"]
+    assert "3 cameras" in watcher.last_reload["error"]
 
 
 def test_missing_files_do_nothing(tmp_path: Path) -> None:

@@ -29,8 +29,9 @@ def test_dataset_boxes_come_frame_by_frame_shuffled_per_camera(tmp_path):
     assert feed.total == 60 and feed.image_sizes == [(640, 480)] * 2
     same_order = 0
     for frame, frame_set in feed.frame_sets:
-        assert [f.timestamp for f in frame_set.frames] == [frame / 10.0] * 2
-        assert all(f.image is None for f in frame_set.frames)
+        frames = [f for f in frame_set.frames if f is not None]
+        assert [f.timestamp for f in frames] == [frame / 10.0] * 2
+        assert all(f.image is None for f in frames)
         found = feed.detect(frame_set)
         if frame == 5:  # nobody seen: an empty frame set, so tracks age as they would live
             assert [len(d) for d in found] == [0, 0]
@@ -86,7 +87,7 @@ def test_a_replay_feeds_every_box_in_source_order_at_its_own_fps(tmp_path):
     assert not feed.detect.keypoints
     seen = {}
     for frame, frame_set in feed.frame_sets:
-        assert [f.timestamp for f in frame_set.frames] == [frame / 4.0] * 2
+        assert [f.timestamp for f in frame_set.frames if f is not None] == [frame / 4.0] * 2
         seen[frame] = [d.boxes[:, 0].tolist() for d in feed.detect(frame_set)]
     assert seen == {3: [[10.0, 50.0], [1.0]], 4: [[], []], 5: [[], [5.0]]}
     assert detections_feed(tmp_path / "r.npz", fps=10.0).total == 3

@@ -14,9 +14,9 @@ from service.demo import demo_settings
 from service.outputs.osc import OscPublisher, build_bundle
 from service.outputs.settings import OscSettings
 from service.settings import load_settings
-from service.snapshot import Snapshot
+from service.snapshot import Person, Snapshot
 
-PEOPLE = [
+PEOPLE: list[Person] = [
     {"id": 3, "x": 1.25, "y": 2.5, "vx": 0.4, "vy": -0.1, "confidence": 0.9, "cameras": [0, 1]},
     {"id": 11, "x": 7.0, "y": 0.5, "vx": 0.0, "vy": 0.0, "confidence": 0.25, "cameras": [1]},
 ]
@@ -66,7 +66,7 @@ def test_publisher_sends_the_newest_snapshot_to_a_udp_receiver():
     publisher = OscPublisher(OscSettings(port=port, rate=50), occupancy=lambda: ZONES[:1])
     # offered before the thread runs: only the last one may go out (newest wins, no queue)
     for seq in range(1, 4):
-        people = [dict(PEOPLE[0], x=float(seq))]
+        people: list[Person] = [{**PEOPLE[0], "x": float(seq)}]
         publisher.offer(Snapshot.build(seq, float(seq), people))
     publisher.start()
     try:
@@ -90,11 +90,13 @@ def test_environment_variables_reach_serve_and_demo(tmp_path, monkeypatch):
     assert demo_settings().osc is None  # off unless asked for
     monkeypatch.setenv("MOMLOC_OSC__HOST", "10.1.2.3")
     monkeypatch.setenv("MOMLOC_OSC__PORT", "7400")
-    demo = demo_settings()
-    assert (demo.osc.host, demo.osc.port, demo.osc.rate) == ("10.1.2.3", 7400, 30.0)
+    demo = demo_settings().osc
+    assert demo is not None
+    assert (demo.host, demo.port, demo.rate) == ("10.1.2.3", 7400, 30.0)
     path = tmp_path / "momloc.yaml"
     path.write_text("cameras: [{type: synthetic, index: 0}]\nosc: {host: a, port: 1, rate: 5}\n")
     s = load_settings(path).osc
+    assert s is not None
     assert (s.host, s.port, s.rate) == ("10.1.2.3", 7400, 5.0)  # env wins key by key
 
 

@@ -46,7 +46,9 @@ def test_environment_variables_reach_serve_and_demo(tmp_path, monkeypatch):
     monkeypatch.setenv("MOMLOC_MQTT__PORT", "1884")
     monkeypatch.setenv("MOMLOC_MQTT__HOME_ASSISTANT__DISCOVERY", "true")
     demo = demo_settings()
-    assert (demo.mqtt.host, demo.mqtt.port, demo.mqtt.home_assistant.discovery) == (
+    mqtt = demo.mqtt
+    assert mqtt is not None
+    assert (mqtt.host, mqtt.port, mqtt.home_assistant.discovery) == (
         "broker.local", 1884, True,
     )  # fmt: skip
     assert [z.name for z in demo.zones] == [z["name"] for z in DEMO_ZONES]

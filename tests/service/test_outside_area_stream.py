@@ -58,7 +58,7 @@ def test_flagged_outside_people_are_served_and_marked() -> None:
     seen: list[bool] = []
 
     def tap(_i: int, associations: list, tracks: list) -> None:
-        seen.extend(bool(tr.meta.get("inside", True)) for tr in tracks)
+        seen.extend(tr.inside for tr in tracks)
 
     _stream(runtime, outside_area="flag", on_frame=tap)
     flags = np.array(seen)

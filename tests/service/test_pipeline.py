@@ -14,14 +14,16 @@ import numpy as np
 import pytest
 
 from capture.rig import FrameSet
-from capture.worker import Frame
+from capture.worker import CameraState, Frame
 from common.errors import MomlocError
-from models.detector.base import Detections
+from models.detector.base import Detections, PersonDetector
 from service.detection.schedule import DetectionScheduler
 from service.pipeline.hub import Hub
 from service.pipeline.live import Pipeline
 from service.stages import Association
 from service.tracking.tracker import Tracker
+from tests.service.fake_frames import FunctionStage, frames_at
+from tests.service.mom_doubles import ModelDouble
 
 
 @dataclass
@@ -40,34 +42,38 @@ class FakeRig:
     def stop(self) -> None:
         self.started = False
 
-    def frame_set(self, after=None, timeout=0.0):
+    def frame_set(self, after: FrameSet | None = None, timeout: float = 0.0) -> FrameSet:
         self.seq += self.step
         image = np.zeros((self.size[1], self.size[0], 3), np.uint8)
-        frames = [
-            SimpleNamespace(camera=k, image=image, timestamp=100.0 + self.seq / 30, seq=self.seq)
-            for k in range(2)
-        ]
-        return SimpleNamespace(frames=frames, skew=0.0)
+        return frames_at(self.seq, 100.0 + self.seq / 30, (True, True), image)
 
-    def states(self):
-        return [
-            SimpleNamespace(connected=True, fps=30.0, last_frame_age=0.01, reconnects=0, error=None)
-        ] * 2
+    def states(self) -> list[CameraState]:
+        return [CameraState(True, 30.0, 0.01, 0, None)] * 2
 
 
-class FakeRuntime:
+class FakeRuntime(ModelDouble):
+    """Positions come from ``fake_associate`` (a box alone localizes nowhere: NaN); every view
+    is ``error_px`` off."""
+
     def __init__(self, cameras: int = 2, size: tuple[int, int] = (640, 480)) -> None:
         self.num_cameras = cameras
         self.image_sizes = np.array([size] * cameras)
         self.error_px = 2.0
 
-    def reprojection_error(self, boxes: np.ndarray, world: np.ndarray) -> np.ndarray:
+    def localize(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
+        return np.full((len(boxes), 2), np.nan)
+
+    def reprojection_error(
+        self, boxes: np.ndarray, world: np.ndarray, keypoints: np.ndarray | None = None
+    ) -> np.ndarray:
         return np.full(boxes.shape[:2], self.error_px)
 
 
-def boxes_stage(frame_set):
+def boxes_stage(frame_set: FrameSet) -> list[Detections]:
     """One person per camera whose box x encodes the scene frame (so positions move)."""
-    seq = frame_set.frames[0].seq
+    first = frame_set.frames[0]
+    assert first is not None
+    seq = first.seq
     box = np.array([[100 + seq, 50, 160 + seq, 250]], np.float32)
     return [Detections(b, np.ones(1, np.float32)) for b in (box, box + 10)]
 
@@ -87,7 +93,7 @@ def make(rig=None, runtime=None, **kw) -> tuple[Pipeline, Hub]:
     hub = Hub()
     pipeline = Pipeline(
         rig or FakeRig(),
-        kw.pop("detect", boxes_stage),
+        FunctionStage(kw.pop("detect", boxes_stage), keypoints=kw.pop("keypoints", False)),
         hub,
         num_cameras=2,
         runtime=runtime if runtime is not None else FakeRuntime(),
@@ -99,9 +105,15 @@ def make(rig=None, runtime=None, **kw) -> tuple[Pipeline, Hub]:
     return pipeline, hub
 
 
+def next_set(pipeline: Pipeline) -> FrameSet:
+    frame_set = pipeline.rig.frame_set()
+    assert frame_set is not None  # a FakeRig always has a newer one
+    return frame_set
+
+
 def test_process_publishes_tracked_people_with_capture_time():
     pipeline, hub = make()
-    snaps = [pipeline.process(pipeline.rig.frame_set()) for _ in range(10)]
+    snaps = [pipeline.process(next_set(pipeline)) for _ in range(10)]
     assert [s.seq for s in snaps] == list(range(1, 11))
     last = hub.latest()
     assert last is snaps[-1]
@@ -121,7 +133,7 @@ def test_previews_without_images_keep_boxes_ids_and_size_but_no_frame():
     """Privacy mode: the preview store holds no reference to any frame."""
     pipeline, hub = make(preview_images=False)
     for _ in range(10):
-        pipeline.process(pipeline.rig.frame_set())
+        pipeline.process(next_set(pipeline))
     (person,) = hub.latest().people
     view = pipeline.view(0)
     assert view.image is None and view.size == (640, 480)
@@ -132,7 +144,7 @@ def test_previews_without_images_keep_boxes_ids_and_size_but_no_frame():
 def test_no_model_publishes_empty_snapshots():
     pipeline, _hub = make()
     pipeline.runtime = None
-    snapshot = pipeline.process(pipeline.rig.frame_set())
+    snapshot = pipeline.process(next_set(pipeline))
     assert snapshot.people == [] and pipeline.model_info() == {"loaded": False, "path": None}
 
 
@@ -181,7 +193,7 @@ def test_reload_refuses_mismatched_models_and_keeps_the_old_one(tmp_path):
     }
     original = FakeRuntime()
     pipeline, _ = make(runtime=original, load_runtime=lambda path: models[path.name])
-    pipeline.process(pipeline.rig.frame_set())  # learns the real image sizes
+    pipeline.process(next_set(pipeline))  # learns the real image sizes
     with pytest.raises(MomlocError, match="expects 3 cameras, 2 are configured"):
         pipeline.reload_model(tmp_path / "three")
     with pytest.raises(
@@ -196,29 +208,26 @@ def test_reload_refuses_mismatched_models_and_keeps_the_old_one(tmp_path):
 
 def test_model_that_does_not_fit_the_frames_is_reported():
     pipeline, _ = make(runtime=FakeRuntime(size=(1280, 720)))
-    snapshot = pipeline.process(pipeline.rig.frame_set())
+    snapshot = pipeline.process(next_set(pipeline))
     assert snapshot.people == []
     assert "1280x720" in pipeline.stats()["error"]
     assert pipeline.model_info()["compatible"] is False
 
 
 def test_detector_stage_batches_and_leaves_scores_to_the_detector():
-    class Det:
+    class Det(PersonDetector):
         def __init__(self) -> None:
-            self.batches = []
+            self.batches: list[int] = []
 
         def detect(self, frames):
             self.batches.append(len(frames))
             boxes = np.array([[0, 0, 10, 20], [5, 5, 50, 90]], np.float32)
-            return [
-                SimpleNamespace(boxes=boxes, scores=np.array([0.9, 0.2]), keypoints=None)
-                for _ in frames
-            ]
+            return [Detections(boxes, np.array([0.9, 0.2], np.float32)) for _ in frames]
 
     det = Det()
     stage = DetectionScheduler(det, mode="every_frame")
-    frame = SimpleNamespace(image=np.zeros((4, 4, 3), np.uint8))
-    out = stage(SimpleNamespace(frames=[frame, None, frame]))
+    frame = Frame(camera=0, image=np.zeros((4, 4, 3), np.uint8), timestamp=0.0, seq=0)
+    out = stage(FrameSet(frames=[frame, None, frame], skew=0.0))
     assert det.batches == [2]
     # the detector applied its own score_threshold already: a second filter here would drop
     # boxes the settings asked to keep (the 0.2 box stands for one just above the threshold)
@@ -248,13 +257,10 @@ class KeypointRuntime(FakeRuntime):
         return super().reprojection_error(boxes, world)
 
 
-def keypoint_stage(frame_set):
+def keypoint_stage(frame_set: FrameSet) -> list[Detections]:
     """Like ``boxes_stage``, with one COCO-17 keypoint set per box."""
     out = boxes_stage(frame_set)
     return [Detections(d.boxes, d.scores, np.ones((1, 17, 3), np.float32)) for d in out]
-
-
-keypoint_stage.keypoints = True  # type: ignore[attr-defined]
 
 
 def test_keypoints_reach_association_and_box_only_detectors_refuse_keypoint_models(tmp_path):
@@ -266,9 +272,9 @@ def test_keypoints_reach_association_and_box_only_detectors_refuse_keypoint_mode
         a.keypoints = np.stack([d.keypoints[0] for d in detections])
         return [a]
 
-    pipeline, _ = make(detect=keypoint_stage, runtime=KeypointRuntime())
+    pipeline, _ = make(detect=keypoint_stage, keypoints=True, runtime=KeypointRuntime())
     pipeline.chain.associate = associate
-    snapshots = [pipeline.process(pipeline.rig.frame_set()) for _ in range(10)]
+    snapshots = [pipeline.process(next_set(pipeline)) for _ in range(10)]
     assert len(snapshots[-1].people) == 1 and seen[0][0].shape == (1, 17, 3)
     assert pipeline.model_info()["observation"] == "keypoints"
     # the camera-moved check judged the reprojection error with the keypoints too
@@ -285,7 +291,7 @@ def test_keypoints_reach_association_and_box_only_detectors_refuse_keypoint_mode
 
 
 def test_detector_stage_keeps_each_boxs_keypoints():
-    class Det:
+    class Det(PersonDetector):
         keypoints = True
 
         def detect(self, frames):
@@ -294,9 +300,9 @@ def test_detector_stage_keeps_each_boxs_keypoints():
             return [Detections(boxes, np.array([0.2, 0.9], np.float32), points) for _ in frames]
 
     stage = DetectionScheduler(Det(), mode="every_frame")
-    frame = SimpleNamespace(image=np.zeros((4, 4, 3), np.uint8))
-    (out,) = stage(SimpleNamespace(frames=[frame]))
-    assert stage.keypoints
+    frame = Frame(camera=0, image=np.zeros((4, 4, 3), np.uint8), timestamp=0.0, seq=0)
+    (out,) = stage(FrameSet(frames=[frame], skew=0.0))
+    assert stage.keypoints and out.keypoints is not None
     assert out.boxes.tolist() == [[0, 0, 10, 20], [5, 5, 50, 90]]
     assert (out.keypoints[0] == 1.0).all() and (out.keypoints[1] == 2.0).all()
 
@@ -313,7 +319,7 @@ def test_skew_rule_leaves_stale_frames_out_of_fusion():
     pipeline, _ = make(detect=detect)
     pipeline.chain.associate = lambda detections, runtime, max_error_px: []
     image = np.zeros((480, 640, 3), np.uint8)
-    frames = [
+    frames: list[Frame | None] = [
         Frame(camera=0, image=image, timestamp=10.0, seq=5),  # 120 ms late
         Frame(camera=1, image=image, timestamp=10.12, seq=9),
     ]
@@ -331,7 +337,7 @@ def test_scheduled_detection_carries_keypoints_between_detections():
     keypoints on every frame set, not only on the detected ones."""
     from service.detection.schedule import DeferredRunner
 
-    class Walker:
+    class Walker(PersonDetector):
         keypoints = True
 
         def detect(self, frames):
@@ -351,9 +357,12 @@ def test_scheduled_detection_carries_keypoints_between_detections():
     outputs = []
     for i in range(12):
         clock.t = i / 30
-        frames = [Frame(camera=k, image=image, timestamp=clock.t, seq=i) for k in range(2)]
+        frames: list[Frame | None] = [
+            Frame(camera=k, image=image, timestamp=clock.t, seq=i) for k in range(2)
+        ]
         outputs.append(stage(FrameSet(frames=frames, skew=0.0)))
     later = [d for out in outputs[4:] for d in out]  # after the first detection arrived
-    assert later and all(len(d) == 1 and d.keypoints.shape == (1, 17, 3) for d in later)
-    assert all(np.isfinite(d.keypoints).all() for d in later)
+    assert later and all(len(d) == 1 for d in later)
+    points = [d.keypoints for d in later]
+    assert all(k is not None and k.shape == (1, 17, 3) and np.isfinite(k).all() for k in points)
     assert stage.jobs < 12  # most frame sets were carried, not detected

@@ -11,12 +11,13 @@ from service.outputs.settings import MqttSettings
 from service.outputs.zone_monitor import EventHub, ZoneMonitor
 from service.outputs.zones import Zone
 from service.pipeline.hub import Hub
-from service.snapshot import Snapshot
+from service.snapshot import Person, Snapshot
+from tests.people import person
 
 SQUARE = [(0, 0), (2, 0), (2, 2), (0, 2)]
 
 
-def snap(seq: int, t: float, people: list[dict]) -> Snapshot:
+def snap(seq: int, t: float, people: list[Person]) -> Snapshot:
     return Snapshot.build(seq, t, people)
 
 
@@ -29,6 +30,9 @@ def test_hub_feeds_publishers_and_a_failing_one_does_not_stop_the_others():
         def offer(self, snapshot: Snapshot) -> None:
             raise RuntimeError("boom")
 
+        def stats(self) -> dict[str, int]:
+            return {}
+
     seen: list[int] = []
 
     class Recorder:
@@ -36,6 +40,9 @@ def test_hub_feeds_publishers_and_a_failing_one_does_not_stop_the_others():
 
         def offer(self, snapshot: Snapshot) -> None:
             seen.append(snapshot.seq)
+
+        def stats(self) -> dict[str, int]:
+            return {"seen": len(seen)}
 
     recorder = Recorder()
     hub.add_publisher(Broken())
@@ -60,9 +67,9 @@ def test_zone_monitor_turns_snapshots_into_events_and_occupancy():
     hub = Hub()
     hub.add_publisher(monitor)
     for i in range(30):  # 1 s inside at 30 fps, then 1 s outside
-        hub.publish(snap(i + 1, 100 + i / 30, [{"id": 4, "x": 1.0, "y": 1.0}]))
+        hub.publish(snap(i + 1, 100 + i / 30, [person(4, 1.0, 1.0)]))
     for i in range(30):
-        hub.publish(snap(i + 31, 101 + i / 30, [{"id": 4, "x": 5.0, "y": 1.0}]))
+        hub.publish(snap(i + 31, 101 + i / 30, [person(4, 5.0, 1.0)]))
     assert calls == [(["enter"], 1), (["leave"], 0)]
     described = monitor.describe()
     assert described["zones"][0]["name"] == "sofa" and described["zones"][0]["count"] == 0

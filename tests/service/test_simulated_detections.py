@@ -26,8 +26,10 @@ def test_simulated_detections_are_the_scene_boxes_per_rig_camera() -> None:
         # each person's own keypoints ride with their box; false positives have none (NaN)
         people = np.isfinite(truth.boxes[:, camera]).all(axis=1)
         count = int(people.sum())
-        np.testing.assert_allclose(found[k].keypoints[:count], truth.keypoints[people, camera])
-        assert np.isnan(found[k].keypoints[count:]).all()
+        points = found[k].keypoints
+        assert points is not None
+        np.testing.assert_allclose(points[:count], truth.keypoints[people, camera])
+        assert np.isnan(points[count:]).all()
 
 
 def test_simulated_detections_include_the_profiles_false_positives() -> None:

@@ -7,10 +7,11 @@ import numpy as np
 
 from models.detector.base import Detections
 from models.simulate import Scene
+from models.simulate.observation import FrameObservation
 from service.offline.stream_eval import ScheduledBoxes, frame_detections, scene_config
 
 
-def _observation_with_false_boxes() -> object:
+def _observation_with_false_boxes() -> FrameObservation:
     scene = Scene(scene_config("indoor-2cam", 3, "nanodet"), seed=4)
     for i in range(400):
         obs = scene.observe(i)
@@ -25,6 +26,7 @@ def test_keypoints_ride_with_their_boxes_and_false_boxes_have_none() -> None:
         people = obs.boxes[:, k][np.isfinite(obs.boxes[:, k]).all(-1)]
         false = obs.false_boxes[k][np.isfinite(obs.false_boxes[k]).all(-1)]
         assert len(found) == len(people) + len(false)
+        assert found.keypoints is not None
         for box, points in zip(found.boxes, found.keypoints, strict=True):
             person = np.flatnonzero(np.all(np.isclose(obs.boxes[:, k], box), axis=1))
             if len(person):  # a person's box carries that person's keypoints

@@ -7,6 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
+from service.stages import Origin
 from service.tracking.image_continuity import MAX_AGE_S, ImageContinuity, ViewMemory
 from service.tracking.tracker import RECOMMENDED, Tracker
 
@@ -15,7 +16,7 @@ FPS = 30.0
 
 def run(tracker: Tracker, frames: list[np.ndarray], fps: float = FPS) -> list[list]:
     return [
-        tracker.update(i / fps, p, [{"cameras": [0, 1]}] * len(p)) for i, p in enumerate(frames)
+        tracker.update(i / fps, p, [Origin(cameras=(0, 1))] * len(p)) for i, p in enumerate(frames)
     ]
 
 
@@ -68,7 +69,7 @@ def test_one_second_occlusion_keeps_id_and_coasts() -> None:
         t = i / FPS
         hidden = 60 <= i < 90  # exactly 1 s without detections
         pos = np.zeros((0, 2)) if hidden else (np.array([0.5, 2.0]) + t * velocity)[None]
-        tracks = tracker.update(t, pos, [{"cameras": [1]}] * len(pos))
+        tracks = tracker.update(t, pos, [Origin(cameras=(1,))] * len(pos))
         if t < tracker.confirm_single_s - 1e-9:  # one camera's word: tentative for longer
             assert tracks == []
             continue
@@ -122,11 +123,13 @@ def test_single_spurious_detection_is_not_reported_and_gate_is_metres() -> None:
     assert [(tr.id, tr.coasting) for tr in tracks] == [(1, False)]
 
 
-def test_nan_positions_are_ignored_and_meta_checked() -> None:
+def test_nan_positions_are_ignored_and_origins_checked() -> None:
     tracker = Tracker(fps_hint=FPS, confirm_s=0.0)
-    tracks = tracker.update(0.0, np.array([[np.nan, 1.0], [2.0, 2.0]]), [{}, {"cameras": [2]}])
+    tracks = tracker.update(
+        0.0, np.array([[np.nan, 1.0], [2.0, 2.0]]), [Origin(), Origin(cameras=(2,))]
+    )
     assert [(tr.x, tr.y, tr.cameras) for tr in tracks] == [(2.0, 2.0, [2])]
-    with pytest.raises(ValueError, match="meta"):
+    with pytest.raises(ValueError, match="origins"):
         tracker.update(0.1, np.array([[1.0, 1.0]]), [])
 
 
@@ -135,7 +138,9 @@ def test_one_camera_needs_longer_to_be_believed() -> None:
     one, two = [], []
     for i in range(40):
         tracks = tracker.update(
-            i / FPS, np.array([[1.0, 1.0], [4.0, 4.0]]), [{"cameras": [0]}, {"cameras": [0, 1]}]
+            i / FPS,
+            np.array([[1.0, 1.0], [4.0, 4.0]]),
+            [Origin(cameras=(0,)), Origin(cameras=(0, 1))],
         )
         one.append(any(abs(tr.x - 1.0) < 0.1 for tr in tracks))
         two.append(any(abs(tr.x - 4.0) < 0.1 for tr in tracks))
@@ -151,13 +156,13 @@ def test_single_view_ghost_where_another_camera_looks_is_dropped() -> None:
         tracker = Tracker(fps_hint=FPS, ghost_s=0.5)
         for i in range(45):
             tracks = tracker.update(
-                i / FPS, np.array([[2.0, 2.0]]), [{"cameras": [0]}], coverage=coverage
+                i / FPS, np.array([[2.0, 2.0]]), [Origin(cameras=(0,))], coverage=coverage
             )
         assert bool(tracks) == reported, coverage
     tracker = Tracker(fps_hint=FPS, ghost_s=0.5)  # seen by both cameras once: a person
     for i in range(45):
-        meta = [{"cameras": [0, 1] if i == 20 else [0]}]
-        tracks = tracker.update(i / FPS, np.array([[2.0, 2.0]]), meta, coverage=both)
+        origins = [Origin(cameras=(0, 1) if i == 20 else (0,))]
+        tracks = tracker.update(i / FPS, np.array([[2.0, 2.0]]), origins, coverage=both)
     assert len(tracks) == 1
 
 
@@ -170,8 +175,8 @@ def test_measurement_covariance_is_used_and_checked() -> None:
     steered = Tracker(fps_hint=FPS, **options)
     for i in range(50):
         z = np.array([[3.0, 3.0 if i < 45 else 3.3]])
-        a = plain.update(i / FPS, z, [{"cameras": [0]}])
-        b = steered.update(i / FPS, z, [{"cameras": [0]}], covariances=[sight])
+        a = plain.update(i / FPS, z, [Origin(cameras=(0,))])
+        b = steered.update(i / FPS, z, [Origin(cameras=(0,))], covariances=[sight])
     assert b[0].y - 3.0 > 0.25 and a[0].y - 3.0 < b[0].y - 3.0
     with pytest.raises(ValueError, match="covariances"):
         steered.update(5.0, np.zeros((1, 2)), None, covariances=[])
@@ -187,7 +192,7 @@ def test_coasting_is_served_for_serve_coast_s_then_held_with_its_id() -> None:
     for i in range(90):
         hidden = 30 <= i < 60  # 1 s unseen
         pos = np.zeros((0, 2)) if hidden else np.array([[2.0, 2.0]])
-        tracks = tracker.update(i / FPS, pos, [{"cameras": [0, 1]}] * len(pos))
+        tracks = tracker.update(i / FPS, pos, [Origin(cameras=(0, 1))] * len(pos))
         if hidden:
             served.append(bool(tracks))
             why.append([w for _, w in tracker.hidden()])
@@ -200,10 +205,12 @@ def test_coasting_is_served_for_serve_coast_s_then_held_with_its_id() -> None:
 def test_hidden_names_tentative_and_ghost_tracks() -> None:
     both = lambda xy: np.ones((len(xy), 2), dtype=bool)  # noqa: E731
     tracker = Tracker(fps_hint=FPS, ghost_s=0.5, confirm_single_s=0.3)
-    tracker.update(0.0, np.array([[2.0, 2.0]]), [{"cameras": [0]}], coverage=both)
+    tracker.update(0.0, np.array([[2.0, 2.0]]), [Origin(cameras=(0,))], coverage=both)
     assert [w for _, w in tracker.hidden()] == ["tentative"]
     for i in range(1, 30):
-        tracks = tracker.update(i / FPS, np.array([[2.0, 2.0]]), [{"cameras": [0]}], coverage=both)
+        tracks = tracker.update(
+            i / FPS, np.array([[2.0, 2.0]]), [Origin(cameras=(0,))], coverage=both
+        )
     assert tracks == [] and [w for _, w in tracker.hidden()] == ["ghost"]
 
 
@@ -215,13 +222,13 @@ def test_box_its_own_camera_cannot_see_there_is_doubted() -> None:
     for doubt, reported in ((True, False), (False, True)):
         tracker = Tracker(fps_hint=FPS, ghost_s=0.5, doubt_outside=doubt)
         for i in range(45):
-            meta = [{"cameras": [0]}]
-            tracks = tracker.update(i / FPS, np.array([[2.0, 2.0]]), meta, coverage=nobody)
+            origins = [Origin(cameras=(0,))]
+            tracks = tracker.update(i / FPS, np.array([[2.0, 2.0]]), origins, coverage=nobody)
         assert bool(tracks) == reported
     tracker = Tracker(fps_hint=FPS, ghost_s=0.5, doubt_outside=True)
     for i in range(45):
-        meta = [{"cameras": [1]}]
-        tracks = tracker.update(i / FPS, np.array([[2.0, 2.0]]), meta, coverage=only_one)
+        origins = [Origin(cameras=(1,))]
+        tracks = tracker.update(i / FPS, np.array([[2.0, 2.0]]), origins, coverage=only_one)
     assert len(tracks) == 1
 
 
@@ -281,20 +288,20 @@ def test_boxes_of_each_camera_keep_neighbours_apart_where_the_floor_cannot(
         "A": np.array([[280.0, 100.0, 320.0, 500.0], [880.0, 100.0, 920.0, 500.0]]),
         "B": np.array([[580.0, 100.0, 620.0, 500.0], [1180.0, 100.0, 1220.0, 500.0]]),
     }
-    fed: dict[int, str] = {}
+    fed: dict[int, int | None] = {}
     for i in range(12):
         t = i / fps
         a, b = np.array([1.0 + t, 1.0]), np.array([1.0 + t, 1.5])
         if i == 10:
             shift = np.array([0.0, 0.3])
             a, b = a + shift, b - shift
-        meta = [{"cameras": [0, 1], "boxes": boxes[who], "who": who} for who in ("A", "B")]
-        tracks = tracker.update(t, np.stack([a, b]), meta)
+        fed_by = [Origin(cameras=(0, 1), association=i, boxes=boxes[w]) for i, w in enumerate("AB")]
+        tracks = tracker.update(t, np.stack([a, b]), fed_by)
         if i == 9:
             on_a = min(tracks, key=lambda tr: abs(tr.y - 1.0)).id
         if i == 10:
-            fed = {tr.id: tr.meta["who"] for tr in tracks}
-    assert fed[on_a] == ("A" if image_std_h > 0 else "B")
+            fed = {tr.id: tr.association for tr in tracks}
+    assert fed[on_a] == (0 if image_std_h > 0 else 1)  # association 0 is A's
 
 
 def test_image_continuity_forgets_old_boxes_and_ignores_missing_views() -> None:

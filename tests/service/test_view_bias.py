@@ -6,21 +6,24 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from service.stages import Association
+from capture.rig import FrameSet
+from models.detector.base import Detections
+from service.stages import Association, Origin
 from service.tracking.tracker import RECOMMENDED, Tracker
 from service.tracking.view_bias import ViewBias, lone_view_positions
+from tests.service.fake_frames import FunctionStage, NoRig, frames_at
+from tests.service.mom_doubles import ModelDouble
 
 BIAS = {0: np.array([0.4, -0.1]), 1: np.array([-0.3, 0.25])}  # each camera's lone-view error
 FPS = 15.0
 
 
-class BiasedViews:
+class BiasedViews(ModelDouble):
     """A localizer double: a box [x, y, x + 1, y + 1] encodes the true floor position; two
     views localize it exactly, one view alone is off by that camera's ``BIAS``."""
 
     num_cameras = 2
     image_sizes = np.array([[640, 480], [640, 480]])
-    observation = "bbox"
 
     def localize(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
         boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 2, 4)
@@ -33,7 +36,9 @@ class BiasedViews:
                 out[i] = row[seen[0], :2] + BIAS[seen[0]]
         return out
 
-    def reprojection_error(self, boxes: np.ndarray, world: np.ndarray) -> np.ndarray:
+    def reprojection_error(
+        self, boxes: np.ndarray, world: np.ndarray, keypoints: np.ndarray | None = None
+    ) -> np.ndarray:
         """Zero where seen (the pipeline's camera-moved check reads it)."""
         seen = np.isfinite(np.asarray(boxes, dtype=np.float64)).all(axis=-1)
         return np.where(seen, 0.0, np.nan)
@@ -50,9 +55,9 @@ def person(truth: np.ndarray, cameras: list[int], runtime: BiasedViews) -> Assoc
 
 
 def step(bias: ViewBias, tracker: Tracker, t: float, people: list[Association], runtime):
-    meta = [{"cameras": a.cameras, "association": i} for i, a in enumerate(people)]
+    origins = [Origin(cameras=tuple(a.cameras), association=i) for i, a in enumerate(people)]
     positions = np.array([a.world[:2] for a in people], float).reshape(-1, 2)
-    tracks = tracker.update(t, bias.correct(t, people, positions, runtime), meta)
+    tracks = tracker.update(t, bias.correct(t, people, positions, runtime), origins)
     bias.learn(t, people, runtime, tracks)
     return tracks
 
@@ -106,9 +111,11 @@ def test_offsets_are_per_camera_and_the_served_track_stays_put():
 
     plain = Tracker(fps_hint=FPS, **RECOMMENDED)  # the same without the correction
     for i in range(frames):
-        plain.update(i / FPS, person(truth, [0, 1], runtime).world[None], [{"cameras": [0, 1]}])
+        plain.update(i / FPS, person(truth, [0, 1], runtime).world[None], [Origin(cameras=(0, 1))])
     for i in range(frames, frames + int(2 * FPS)):
-        served = plain.update(i / FPS, person(truth, [1], runtime).world[None], [{"cameras": [1]}])
+        served = plain.update(
+            i / FPS, person(truth, [1], runtime).world[None], [Origin(cameras=(1,))]
+        )
     assert np.linalg.norm(np.array([served[0].x, served[0].y]) - truth) > 0.8 * error
 
 
@@ -135,8 +142,6 @@ def test_an_offset_fades_when_not_refreshed_and_unknown_tracks_are_left_alone():
 def test_the_pipeline_serves_the_corrected_position():
     """The daemon's pipeline runs the same correction: after 3 s of two views, 1 s of camera 0
     alone keeps the served person near the truth instead of drifting to the lone view's."""
-    from types import SimpleNamespace
-
     from service.pipeline.hub import Hub
     from service.pipeline.live import Pipeline
 
@@ -144,36 +149,23 @@ def test_the_pipeline_serves_the_corrected_position():
     truth = np.array([2.5, 3.5])
     both, alone = int(3 * FPS), int(1 * FPS)
 
-    def frames(i: int) -> SimpleNamespace:
-        stamp = 50 + i / FPS
-        return SimpleNamespace(
-            frames=[SimpleNamespace(camera=k, image=None, timestamp=stamp, seq=i) for k in (0, 1)],
-            skew=0.0,
-        )
-
-    def detect(frame_set) -> list[np.ndarray]:
-        return [np.zeros((0, 4), np.float32)] * 2
+    def nobody(frame_set: FrameSet) -> list[Detections]:
+        return [Detections.empty()] * 2
 
     def associate(detections, model, max_error_px=0.0):
         seq = frame_set_seq[0]
-        return [person(truth, [0, 1] if seq < both else [0], model)]
-
-    class NoRig:
-        def start(self) -> None: ...
-        def stop(self) -> None: ...
-        def frame_set(self, after=None, timeout=0.0): ...
-        def states(self) -> list: return []  # fmt: skip
+        return [person(truth, [0, 1] if seq < both else [0], runtime)]
 
     frame_set_seq = [0]
     tracker = Tracker(fps_hint=FPS, **RECOMMENDED)
     pipeline = Pipeline(
-        NoRig(), detect, Hub(), num_cameras=2, runtime=runtime, tracker=tracker,
+        NoRig(), FunctionStage(nobody), Hub(), num_cameras=2, runtime=runtime, tracker=tracker,
         associate=associate, shift_threaded=False,
     )  # fmt: skip
     try:
         for i in range(both + alone):
             frame_set_seq[0] = i
-            people = pipeline.process(frames(i)).people
+            people = pipeline.process(frames_at(i, 50 + i / FPS, (True, True))).people
     finally:
         pipeline.stop()
     assert len(people) == 1

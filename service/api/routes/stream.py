@@ -16,14 +16,14 @@ import contextlib
 import math
 
 from fastapi import APIRouter, WebSocket
-from fastapi.responses import JSONResponse
+from fastapi.responses import Response
 
 from service.api.auth import WS_AUTH_CLOSE, TokenCheck
 from service.api.errors import error_responses
 from service.api.state import Daemon
 from service.api.websocket_tasks import run_until_either
 from service.pipeline.hub import Subscription
-from service.snapshot import Snapshot
+from service.snapshot import Snapshot, SnapshotBody
 
 WS_BAD_REQUEST_CLOSE = 4400
 
@@ -36,9 +36,10 @@ def stream_router(daemon: Daemon, token: TokenCheck) -> APIRouter:
         dependencies=token.secured,
         responses=error_responses(401, 403),
         summary="Newest snapshot",
+        response_model=SnapshotBody,  # the schema /docs shows; the body is the hub's own text
     )
-    def positions() -> JSONResponse:
-        return JSONResponse(daemon.hub.latest().as_dict())
+    def positions() -> Response:
+        return Response(daemon.hub.latest().text, media_type="application/json")
 
     @router.websocket("/v1/stream")
     async def stream(websocket: WebSocket) -> None:

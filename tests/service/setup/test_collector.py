@@ -46,6 +46,9 @@ class ListFeed:
             self.sent += 1
             yield FeedFrame(self.sent / 10, self.frame.boxes, None)
 
+    def close(self) -> None:
+        """No cameras to release."""
+
 
 def test_plan_has_move_countdown_record_and_walks() -> None:
     marks = [FloorMark("a", 0, 0), FloorMark("b", 3, 0)]
@@ -60,7 +63,9 @@ def test_plan_has_move_countdown_record_and_walks() -> None:
 
 def test_frame_filter_keeps_one_person_frames_only() -> None:
     assert frame_row(FeedFrame(0, [BOX, BOX]), False) is not None
-    boxes, _ = frame_row(FeedFrame(0, [BOX, NONE]), False)
+    row = frame_row(FeedFrame(0, [BOX, NONE]), False)
+    assert row is not None
+    boxes, _ = row
     assert np.isnan(boxes[1]).all() and np.isfinite(boxes[0]).all()
     assert frame_row(FeedFrame(0, [BOX, NONE]), True) is None
     assert frame_row(FeedFrame(0, [np.concatenate([BOX, BOX]), BOX]), False) is None

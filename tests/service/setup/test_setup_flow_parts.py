@@ -47,6 +47,9 @@ class ScriptFeed:
         for i in range(round(step.seconds * 10)):
             yield FeedFrame(i / 10, [BOX, second], None)
 
+    def close(self) -> None:
+        """No cameras to release."""
+
 
 def record(tmp_path: Path, marks: list[FloorMark]) -> tuple[MarkQuality, Path]:
     out = tmp_path / "room.npz"
