@@ -70,7 +70,9 @@ class Origin:
     ``cameras``: the cameras that saw it; ``frame``: the snapshot ``seq`` of its frame set;
     ``association``: its index in that frame set's associations (the lone-view correction and
     :meth:`FrameResult.track_ids` find it there); ``cost``: the association's reprojection cost;
-    ``inside``: in the model's set-up area (``service.pipeline.chain``).
+    ``inside``: in the model's set-up area (``service.pipeline.chain``); ``boxes``: the
+    association's boxes [K, 4] (NaN where camera k does not see it), for the tracker's image
+    continuity (``service.tracking.image_continuity``).
     """
 
     cameras: tuple[int, ...] = ()
@@ -78,6 +80,7 @@ class Origin:
     association: int | None = None
     cost: float | None = None
     inside: bool = True
+    boxes: np.ndarray | None = field(default=None, compare=False)
 
 
 @dataclass

@@ -118,6 +118,7 @@ class Chain:
                 association=i,
                 cost=a.cost,
                 inside=a.inside,
+                boxes=a.boxes,
             )
             for i, a in enumerate(associations)
         ]

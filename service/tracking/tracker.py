@@ -113,6 +113,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from service.stages import Origin, Track
+from service.tracking.image_continuity import ImageContinuity, ViewMemory
 from service.tracking.motion import ConstantVelocity, StandOrWalk
 
 _UNASSIGNED = 1e9
@@ -139,6 +140,10 @@ RECOMMENDED: dict[str, Any] = {
     # issue 27: a still person lost for seconds keeps their id and their zone
     # (bench/results/still_presence.md, with the walking scenes' MOTA with and without it)
     "hold_still_s": 15.0,
+    # each camera's box centre continues the track's (service.tracking.image_continuity)
+    "image_std_h": 0.15,
+    "image_growth_hps": 0.3,
+    "image_cap": 4.0,
 }
 ASSIGN_COSTS = ("euclidean", "likelihood")
 MOTION_MODELS = {"cv": ConstantVelocity, "imm": StandOrWalk}
@@ -161,6 +166,7 @@ class _State:
     anchor_t: float = 0.0  # since when
     cameras: list[int] = field(default_factory=list)
     origin: Origin = field(default_factory=Origin)  # of the position that last fed it
+    views: ViewMemory = field(default_factory=ViewMemory)  # last box per camera
 
 
 class Tracker:
@@ -197,6 +203,9 @@ class Tracker:
         hold_still_s: float = 0.0,
         still_after_s: float = 5.0,
         still_radius_m: float = 0.3,
+        image_std_h: float = 0.0,
+        image_growth_hps: float = 0.6,
+        image_cap: float = 16.0,
     ) -> None:
         if fps_hint <= 0 or max_missing_s <= 0 or gate_m <= 0:
             raise ValueError("fps_hint, max_missing_s and gate_m must be positive")
@@ -231,6 +240,9 @@ class Tracker:
         self.hold_still_s = max(0.0, float(hold_still_s))
         self.still_after_s = float(still_after_s)
         self.still_radius_m = float(still_radius_m)
+        self.image = ImageContinuity(
+            max(0.0, float(image_std_h)), float(image_growth_hps), float(image_cap)
+        )
         self._frame_dt = 1.0 / self.fps_hint
         self._motion_options = (
             {"stand_std": stand_std_m, "stand_s": stand_s, "walk_s": walk_s}
@@ -265,6 +277,9 @@ class Tracker:
         uncertainty of each measurement; ``None`` (or a non-finite one) means the isotropic
         ``measurement_std_m``. ``coverage`` (optional): floor positions [N, 2] → [N, K] bool,
         which cameras should see a person standing there (used with ``ghost_s``).
+        ``origins[i].boxes`` (optional, [K, 4] px, NaN where camera k does not see the person):
+        the association's boxes, for the image continuity cost (``image_std_h`` > 0,
+        :mod:`service.tracking.image_continuity`).
         """
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
         keep = np.all(np.isfinite(positions), axis=1)
@@ -283,7 +298,8 @@ class Tracker:
         for track in self._tracks:
             self._predict(track, dt)
 
-        rows, cols = self._assign(positions, noise, self._time)
+        boxes = [o.boxes for o in kept]
+        rows, cols = self._assign(positions, noise, self._time, boxes)
         matched_tracks = set(rows.tolist())
         for r, c in zip(rows, cols, strict=True):
             self._correct(self._tracks[r], positions[c], noise[c], kept[c], self._time)
@@ -407,6 +423,7 @@ class Tracker:
         weight = self._rate_weight(self._frame_dt)
         track.rate = track.rate * (1.0 - weight) + weight
         track.cameras = [int(k) for k in origin.cameras]
+        track.views.remember(origin.boxes, t)
         self._count_views(track, self._frame_dt)
         self._confirm(track, t)
         track.origin = origin
@@ -504,6 +521,7 @@ class Tracker:
             anchor=np.asarray(z, np.float64)[:2].copy(),
             anchor_t=t,
         )
+        state.views.remember(origin.boxes, t)
         # credited for one frame interval, as measured (the hint before a second update)
         self._count_views(state, self._frame_dt if self._frame_dt > 0 else 1.0 / self.fps_hint)
         self._confirm(state, t)
@@ -511,7 +529,11 @@ class Tracker:
         return state
 
     def _assign(
-        self, positions: np.ndarray, noise: np.ndarray, now: float
+        self,
+        positions: np.ndarray,
+        noise: np.ndarray,
+        now: float,
+        boxes: Sequence[np.ndarray | None] = (),
     ) -> tuple[np.ndarray, np.ndarray]:
         empty = np.zeros(0, dtype=int)
         if not self._tracks or not len(positions):
@@ -530,6 +552,10 @@ class Tracker:
             s = np.stack([tr.motion.cov[:2, :2] for tr in self._tracks])[:, None] + noise[None]
             d2 = np.einsum("tpi,tpij,tpj->tp", nu, np.linalg.inv(s), nu)
             cost = d2 + np.log(np.linalg.det(s))
+        if self.image.enabled and len(boxes) == len(positions):
+            # each camera's box centre against the track's last one there, moved on by its
+            # image velocity (service.tracking.image_continuity)
+            cost = cost + self.image.cost([tr.views for tr in self._tracks], boxes, now)
         # Tentative tracks lose ties to confirmed ones: a small penalty keeps ids stable.
         penalty = np.array([0.0 if tr.confirmed else 0.05 for tr in self._tracks])
         cost = np.where(admit, cost + penalty[:, None], _UNASSIGNED)
