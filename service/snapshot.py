@@ -11,6 +11,11 @@ client on the same host measures latency as receive time - ``t``. A person outsi
 the model was set up on carries ``"outside": true``, and only when the daemon is set to serve
 them (``tracking.outside_area: flag``; by default they are not served at all).
 
+Optional since issue 27 (v1 clients ignore unknown keys): ``"posture"`` (``"standing"``,
+``"sitting"`` or ``"lying"``, crouching counts as sitting) and ``"posture_confidence"`` (0..1)
+when the model can tell (:mod:`service.tracking.posture`: it needs the set-up area's height
+model; absent means unknown).
+
 :class:`Person` and :class:`SnapshotBody` are the wire format as types: the pipeline writes
 people of that type, the API declares it as the response of ``/v1/positions`` (so ``/docs``
 shows every field) and the clients' tests read it. They are ``TypedDict`` s, not pydantic models:
@@ -56,6 +61,18 @@ class Person(TypedDict):
                 "when tracking.outside_area is flag."
             ),
         ]
+    ]
+    posture: NotRequired[
+        Annotated[
+            Literal["standing", "sitting", "lying"],
+            Field(
+                description="From the box shape (crouching counts as sitting); absent: unknown "
+                "(the model has no set-up height model)."
+            ),
+        ]
+    ]
+    posture_confidence: NotRequired[
+        Annotated[float, Field(ge=0.0, le=1.0, description="Confidence of posture, 0..1.")]
     ]
 
 

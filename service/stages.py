@@ -28,18 +28,21 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from pathlib import Path
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
 from capture.rig import FrameSet
 from models.detector.base import Detections
+from models.geometry.floor_prior import FloorPrior
 from service.snapshot import Snapshot
 
 __all__ = [
     "AreaAware",
     "AssociateStage",
     "Association",
+    "Closeable",
     "DetectStage",
     "Detections",
     "FloorViewing",
@@ -50,6 +53,7 @@ __all__ = [
     "Origin",
     "Reprojecting",
     "Snapshot",
+    "Stored",
     "Track",
     "TrackStage",
     "Unscheduled",
@@ -66,7 +70,9 @@ class Origin:
     ``cameras``: the cameras that saw it; ``frame``: the snapshot ``seq`` of its frame set;
     ``association``: its index in that frame set's associations (the lone-view correction and
     :meth:`FrameResult.track_ids` find it there); ``cost``: the association's reprojection cost;
-    ``inside``: in the model's set-up area (``service.pipeline.chain``).
+    ``inside``: in the model's set-up area (``service.pipeline.chain``); ``boxes``: the
+    association's boxes [K, 4] (NaN where camera k does not see it), for the tracker's image
+    continuity (``service.tracking.image_continuity``).
     """
 
     cameras: tuple[int, ...] = ()
@@ -74,6 +80,7 @@ class Origin:
     association: int | None = None
     cost: float | None = None
     inside: bool = True
+    boxes: np.ndarray | None = field(default=None, compare=False)
 
 
 @dataclass
@@ -98,6 +105,8 @@ class Track:
     association: int | None = None
     cost: float | None = None
     inside: bool = True
+    # (label, confidence) of service.tracking.posture, set by the chain; None: not judged
+    posture: tuple[str, float] | None = None
 
 
 @dataclass
@@ -151,11 +160,25 @@ class AreaAware(Protocol):
     def inside(self, boxes: np.ndarray, world: np.ndarray) -> np.ndarray: ...
 
 
+class Stored(Protocol):
+    """Where a model came from: its directory and ``model.json`` (the self-learning room keys
+    its labels by the floor marks recorded there) and its fitted floor geometry (None: none)."""
+
+    @property
+    def model_dir(self) -> Path: ...
+
+    @property
+    def meta(self) -> dict[str, Any]: ...
+
+    @property
+    def floor_prior(self) -> FloorPrior | None: ...
+
+
 WorldBounds = tuple[tuple[float, float], tuple[float, float]]
 """((xmin, ymin), (xmax, ymax)) metres: the floor the training positions cover."""
 
 
-class LocalizationModel(Reprojecting, WithCovariance, FloorViewing, AreaAware, Protocol):
+class LocalizationModel(Reprojecting, WithCovariance, FloorViewing, AreaAware, Stored, Protocol):
     """What the chain and the pipeline need from ``models.mom.runtime.MomRuntime``.
 
     ``observation`` is ``"bbox"`` or ``"keypoints"`` (``model.json``); keypoint models need
@@ -275,3 +298,10 @@ class FrameResult:
 
 
 FrameListener = Callable[[FrameResult], None]
+
+
+@runtime_checkable
+class Closeable(Protocol):
+    """A listener that holds a thread or pending writes: the pipeline closes it when it stops."""
+
+    def close(self) -> None: ...

@@ -54,7 +54,17 @@ SERVICE_ALLOWED = {
         "setup",
         "stop_signals",
     },
-    "api": {"stages", "snapshot", "settings", "pipeline", "outputs", "setup", "camera_health"},
+    "learning": {"stages", "snapshot", "settings", "setup", "camera_health"},
+    "api": {
+        "stages",
+        "snapshot",
+        "settings",
+        "pipeline",
+        "outputs",
+        "setup",
+        "camera_health",
+        "learning",
+    },
 }
 # models part -> the other models parts it may import
 MODELS_ALLOWED = {

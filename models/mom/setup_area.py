@@ -139,6 +139,13 @@ class CameraRegion:
     height_model: np.ndarray | None = None  # [6] log-height coefficients (_height_features)
     height_spread: float = 0.0  # robust std of the log-height residuals
 
+    def expected_height(self, foot: np.ndarray) -> np.ndarray | None:
+        """[N] pixels: how tall a person standing at the foot pixels [N, 2] looks to this
+        camera; None without a fitted height model (too few training rows)."""
+        if self.height_model is None:
+            return None
+        return np.exp(_height_features(np.asarray(foot, np.float64)) @ self.height_model)
+
     def plausible_height(self, foot: np.ndarray, height: np.ndarray, factor: float) -> np.ndarray:
         """[N] bool: the heights fit what this camera saw at those foot pixels."""
         if self.height_model is None:

@@ -157,8 +157,13 @@ def detect(
     normals: np.ndarray | None = None,
     miss_latent: np.ndarray | None = None,
     keypoint_draws: KeypointDraws | None = None,
+    hidden: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Noisy boxes [F,K,P,4] and keypoints [F,K,P,17,3] from the true geometry.
+
+    ``hidden`` [F,K,P]: the fraction of each body that furniture hides (its ``true_boxes`` are
+    already those of the visible part); it raises the miss probability like an occlusion between
+    people does (the larger of the two counts).
 
     ``normals`` [F,K,P,5]: standard normal draws for the scale error and the four edge errors,
     ``miss_latent`` [F,K,P]: the latent normals of the miss decision, ``keypoint_draws``: those
@@ -207,8 +212,9 @@ def detect(
 
     image_height = image_size[:, 1, None].astype(float)  # [K, 1] broadcasts over [F, K, P]
     truncated = np.where(seen, 1.0 - np.nan_to_num(fraction), 1.0)
+    covered_any = occluded if hidden is None else np.maximum(occluded, hidden)
     miss = profile.miss_probability(
-        np.nan_to_num(clipped_height), image_height, occluded, truncated
+        np.nan_to_num(clipped_height), image_height, covered_any, truncated
     )
     if miss_latent is None:
         miss_latent = rng.standard_normal((f, k, p))

@@ -21,6 +21,8 @@ draws exactly what it drew before they existed.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from common.errors import MomlocError
@@ -41,7 +43,7 @@ class Placed:
 
     def states(self, start: int, stop: int) -> WalkerStates:
         s = self.walking.states(start, stop)
-        return WalkerStates(s.position + self.offset, s.heading, s.phase, s.amplitude)
+        return dataclasses.replace(s, position=s.position + self.offset)
 
 
 class Together:
@@ -53,9 +55,17 @@ class Together:
 
     def states(self, start: int, stop: int) -> WalkerStates:
         parts = [g.states(start, stop) for g in self.groups]
-        return WalkerStates(
-            *(np.concatenate([getattr(p, key) for p in parts], axis=1) for key in _KEYS)
+        position, heading, phase, amplitude = (
+            np.concatenate([getattr(p, key) for p in parts], axis=1) for key in _KEYS
         )
+        if all(p.posture is None for p in parts):
+            return WalkerStates(position, heading, phase, amplitude)
+        held = [p.postures() for p in parts]
+        return WalkerStates(
+            position, heading, phase, amplitude,
+            np.concatenate([code for code, _ in held], axis=1),
+            np.concatenate([weight for _, weight in held], axis=1),
+        )  # fmt: skip
 
 
 _KEYS = ("position", "heading", "phase", "amplitude")

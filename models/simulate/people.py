@@ -29,12 +29,23 @@ _KEEP = 128  # chunks kept in memory (65536 frames)
 
 @dataclass(frozen=True)
 class WalkerStates:
-    """Per frame and person: floor position [F,P,2] (mid-hip), heading, gait phase, amplitude."""
+    """Per frame and person: floor position [F,P,2] (mid-hip), heading, gait phase, amplitude,
+    and optionally a held posture (codes of :mod:`models.simulate.postures`) and how far the
+    body has moved into it (0..1); None: everyone upright."""
 
     position: np.ndarray
     heading: np.ndarray
     phase: np.ndarray
     amplitude: np.ndarray
+    posture: np.ndarray | None = None
+    posture_weight: np.ndarray | None = None
+
+    def postures(self) -> tuple[np.ndarray, np.ndarray]:
+        """(codes [F,P] int, weights [F,P]): zeros (standing) when the states hold none."""
+        if self.posture is None or self.posture_weight is None:
+            zeros = np.zeros(self.heading.shape)
+            return zeros.astype(np.int64), zeros
+        return self.posture, self.posture_weight
 
 
 class Walking(Protocol):

@@ -14,7 +14,18 @@ living-room     5 × 4      2        640×480    2       a home: wide-angle webc
 office-3cam     8 × 6      3        640×480    4       a small office
 single-cam      6 × 5      1        640×480    2       one webcam (K = 1 tests)
 cmc-room        7.67×3.41  4        1920×1024  3 (+4)  the CMC lab (Ong et al., TPAMI 2020)
+lounge          5 × 4      2        640×480    2       living-room + sofa, coffee table
+office-desks    8 × 6      3        640×480    3       office-3cam + two desks with chairs
+demo-lounge     10 × 10    2        640×480    3 (+1)  indoor-2cam + a sofa in the demo zone
 ==============  =========  =======  =========  ======  ===================================
+
+The furnished presets (:mod:`models.simulate.furniture`, :mod:`models.simulate.postures`) have
+people who follow a script: in ``lounge`` one sits on the sofa behind the coffee table (which
+hides their shins from both cameras) while another walks, stands at the window, crouches to pick
+something up and sits in the armchair; in ``office-desks`` two work seated at desks (a desk hides
+the legs from the cameras in front of it) while a third walks between them; ``demo-lounge`` is
+the demo's room (the demo model's cameras) with a sofa in its ``lounge`` zone and one more
+person sitting on it. The scripts loop for an hour.
 
 ``cmc-room`` copies the real CMC room at 4 fps: its people are labelled in the authors'
 tracking area (x 2.03-6.30 m, the whole depth) and four more walk outside it where the real
@@ -29,11 +40,14 @@ points 13-52 px off centre are left out): a handful of pose numbers, not the eva
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Sequence
 
 from common.errors import MomlocError
+from models.simulate.furniture import chair, sofa, table
 from models.simulate.profile import DetectorProfile, load_profile
 from models.simulate.scene import CameraSpec, Perturbation, Scene, SceneConfig
+from models.simulate.script import Segment
 
 INSET = 0.05
 CMC_ROOM = (7.67, 3.41)
@@ -82,6 +96,46 @@ def room_config(
     ring = ring_cameras(width, depth, cameras, hfov_deg, image_size, distortion, heights)
     return SceneConfig(name, (width, depth), ring, people=people)
 
+
+HOUR_S = 3600.0
+FACING = {"+x": 0.0, "+y": math.pi / 2, "-x": math.pi, "-y": -math.pi / 2}
+
+
+def seated(seat: tuple[float, float], facing: str, seconds: float = HOUR_S) -> tuple[Segment, ...]:
+    """Someone sitting at ``seat`` (their mid-hip, metres) facing ``facing`` for ``seconds``."""
+    return (Segment(seat, seat, seconds, "sitting", FACING[facing]),)
+
+
+def looping(route: list[Segment], seconds: float = HOUR_S) -> tuple[Segment, ...]:
+    """``route`` repeated for at least ``seconds`` (it should end where it starts)."""
+    once = sum(s.seconds for s in route)
+    return tuple(route * max(1, math.ceil(seconds / once)))
+
+
+def _walk(a: tuple[float, float], b: tuple[float, float], speed: float = 1.0) -> Segment:
+    return Segment(a, b, max(math.dist(a, b) / speed, 0.1))
+
+
+_LIVING = room_config("lounge", 5.0, 4.0, 2, people=1, hfov_deg=75.0, distortion=(-0.08, 0.01),
+                      heights=(2.0, 1.9))  # fmt: skip
+_LOUNGE_ROUTE = [
+    _walk((1.0, 1.0), (4.2, 1.2)),
+    Segment((4.2, 1.2), (4.2, 1.2), 20.0),  # at the window
+    _walk((4.2, 1.2), (3.0, 1.6)),
+    Segment((3.0, 1.6), (3.0, 1.6), 4.0, "crouching", FACING["-y"], ramp_s=1.0),
+    _walk((3.0, 1.6), (0.8, 2.0)),
+    Segment((0.8, 2.0), (0.8, 2.0), 60.0, "sitting", FACING["+x"]),  # the armchair
+    _walk((0.8, 2.0), (1.0, 1.0)),
+]
+_OFFICE = room_config("office-desks", 8.0, 6.0, 3, people=1, hfov_deg=70.0)
+_OFFICE_ROUTE = [
+    _walk((1.0, 1.0), (6.8, 1.0)),
+    _walk((6.8, 1.0), (6.8, 4.8)),
+    Segment((6.8, 4.8), (6.8, 4.8), 30.0),  # at the printer
+    _walk((6.8, 4.8), (1.2, 4.8)),
+    _walk((1.2, 4.8), (1.0, 1.0)),
+]
+_DEMO = room_config("demo-lounge", 10.0, 10.0, 2, people=3)
 
 PRESETS: dict[str, SceneConfig] = {
     "indoor-2cam": room_config("indoor-2cam", 10.0, 10.0, 2, people=3),
@@ -138,6 +192,32 @@ PRESETS: dict[str, SceneConfig] = {
         # bench/results/cmc_detector_measurements.json); walkers keep 0.35 m from the edges.
         outside_people=4,
         outside_region=(0.25, 2.03, 0.05, 3.36),
+    ),
+    "lounge": dataclasses.replace(
+        _LIVING,
+        people=0,
+        furniture=(
+            *sofa(1.4, 3.95, 3.6, "-y"),
+            *table(1.7, 2.25, 3.3, 2.75),
+            *chair(0.7, 2.0, "+x"),
+        ),
+        scripts=(seated((2.5, 3.5), "-y"), looping(_LOUNGE_ROUTE)),
+    ),
+    "office-desks": dataclasses.replace(
+        _OFFICE,
+        people=0,
+        furniture=(
+            *table(2.0, 2.6, 3.4, 3.3, top=0.74),
+            *chair(2.7, 3.75, "-y"),
+            *table(4.6, 2.7, 6.0, 3.4, top=0.74),
+            *chair(5.3, 2.25, "+y"),
+        ),
+        scripts=(seated((2.7, 3.7), "-y"), seated((5.3, 2.3), "+y"), looping(_OFFICE_ROUTE)),
+    ),
+    "demo-lounge": dataclasses.replace(
+        _DEMO,
+        furniture=(*sofa(6.0, 7.3, 8.0, "-y"), *table(6.3, 5.6, 7.7, 6.0)),
+        scripts=(seated((7.0, 6.85), "-y"),),
     ),
 }
 

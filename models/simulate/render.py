@@ -37,13 +37,15 @@ part dominates (the fills are ~0.5 ms of it); inner bands are drawn without anti
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 from models.simulate.camera import NEAR, PinholeCamera, project_points
-from models.simulate.room import Decor, render_background, room_decor
+from models.simulate.furniture import Occluders
+from models.simulate.room import Decor, Furniture, render_background, room_decor
 from models.simulate.skeleton import HEAD, MID_HIP, NUM_POINTS, RADII, P
 
 __all__ = ["Look", "Renderer", "appearance", "draw_people", "render_background"]
@@ -181,8 +183,13 @@ def light_direction(pixels: np.ndarray, anchor: np.ndarray, light: np.ndarray,
 
 
 def draw_people(image: np.ndarray, camera: PinholeCamera, points: np.ndarray,
-                heights: np.ndarray, looks: list[Look], light: np.ndarray) -> None:  # fmt: skip
-    """Paint people [P, M, 3] (world points) into ``image`` in place, far to near."""
+                heights: np.ndarray, looks: list[Look], light: np.ndarray,
+                occluders: np.ndarray | None = None) -> None:  # fmt: skip
+    """Paint people [P, M, 3] (world points) into ``image`` in place, far to near.
+
+    ``occluders`` [H, W]: the depth of furniture that stands in the room at each pixel
+    (:meth:`models.simulate.furniture.Occluders.depth_map`): where it is nearer than the body
+    part painted there, the pixels painted before that person are put back."""
     points = with_extra_points(points, heights)
     pixels, depth, magnification = project_points(
         points, camera.K, camera.R, camera.t, np.asarray(camera.distortion), with_scale=True
@@ -200,7 +207,7 @@ def draw_people(image: np.ndarray, camera: PinholeCamera, points: np.ndarray,
         hi = (body + box_radius[person][:, None]).max(0)
         if hi[0] < 0 or hi[1] < 0 or lo[0] >= w or lo[1] >= h:
             continue
-        _shadow(image, camera, points[person, MID_HIP], heights[person])
+        _shadow(image, camera, points[person, MID_HIP], heights[person], occluders)
         toward = light_direction(px[P["chest"]], points[person, P["chest"]], light, camera)
         rings = [
             np.round(
@@ -208,8 +215,48 @@ def draw_people(image: np.ndarray, camera: PinholeCamera, points: np.ndarray,
             ).astype(np.int32)
             for off, size, _, _ in _BANDS
         ]
+        roi = _occluded_roi(occluders, lo, hi, d)
+        before = None if roi is None else image[roi].copy()
         _paint_person(image, rings, r, d, looks[person])
         _head(image, px, r, d, looks[person], toward)
+        if roi is not None and before is not None and occluders is not None:
+            behind = occluders[roi] < _depth_buffer(rings[0], px, r, d, roi)
+            image[roi][behind] = before[behind]
+
+
+def _occluded_roi(occluders: np.ndarray | None, lo: np.ndarray, hi: np.ndarray,
+                  d: np.ndarray) -> tuple[slice, slice] | None:  # fmt: skip
+    """The pixels of a person's box where furniture may hide them (None: nowhere)."""
+    if occluders is None:
+        return None
+    h, w = occluders.shape
+    x0, y0 = (max(int(v) - 2, 0) for v in lo)
+    x1, y1 = min(int(hi[0]) + 3, w), min(int(hi[1]) + 3, h)
+    if x1 <= x0 or y1 <= y0:
+        return None
+    roi = (slice(y0, y1), slice(x0, x1))
+    if not (occluders[roi] < d[:NUM_POINTS].max()).any():
+        return None
+    return roi
+
+
+def _depth_buffer(ring: np.ndarray, px: np.ndarray, r: np.ndarray, d: np.ndarray,
+                  roi: tuple[slice, slice]) -> np.ndarray:  # fmt: skip
+    """Depth [h, w] of the body at each pixel of ``roi`` (inf off the body): every part's hull
+    filled with its mean depth, far to near, then the head disc."""
+    y, x = roi
+    buffer = np.full((y.stop - y.start, x.stop - x.start), np.inf, np.float32)
+    origin = np.array([x.start, y.start]) * 16
+    part_depth = np.where(_PART_MASK, d[_PART_IDX], 0.0).sum(1) / _PART_MASK.sum(1)
+    for s in np.argsort(-part_depth).tolist():
+        idx = _PART_IDX[s][_PART_MASK[s]]
+        poly = cv2.convexHull((ring[idx].reshape(-1, 2) - origin).astype(np.int32))
+        cv2.fillConvexPoly(buffer, poly, float(part_depth[s]), cv2.LINE_8, 4)
+    for point in (P["neck"], HEAD):
+        centre = tuple(int(v) for v in np.round(px[point] * 16 - origin))
+        cv2.circle(buffer, centre, max(int(r[point] * 16 * 1.1), 16), float(d[point]), -1,
+                   cv2.LINE_8, 4)  # fmt: skip
+    return buffer
 
 
 def _paint_person(image: np.ndarray, rings: list[np.ndarray], r: np.ndarray, d: np.ndarray,
@@ -287,8 +334,10 @@ def _head(image: np.ndarray, px: np.ndarray, r: np.ndarray, d: np.ndarray, look:
             _disc(image, 0.4 * centre + 0.4 * crown + 0.2 * lit, radius * 0.6, hair * 1.15)
 
 
-def _shadow(image: np.ndarray, camera: PinholeCamera, floor: np.ndarray, height: float) -> None:
-    """A soft dark ellipse on the floor under the person (darkens, does not paint)."""
+def _shadow(image: np.ndarray, camera: PinholeCamera, floor: np.ndarray, height: float,
+            occluders: np.ndarray | None = None) -> None:  # fmt: skip
+    """A soft dark ellipse on the floor under the person (darkens, does not paint), except
+    where furniture (``occluders``: its depth per pixel) stands in front of it."""
     ring = np.zeros((12, 3))
     ring[:, :2] = floor[:2] + 0.14 * height * _CIRCLE
     pixels, depth = camera.project_depth(ring)
@@ -301,6 +350,8 @@ def _shadow(image: np.ndarray, camera: PinholeCamera, floor: np.ndarray, height:
         return
     mask = np.zeros((y1 - y0, x1 - x0), np.uint8)
     cv2.fillConvexPoly(mask, poly - [x0, y0], 1)
+    if occluders is not None:
+        mask[occluders[y0:y1, x0:x1] < depth.min()] = 0
     roi = image[y0:y1, x0:x1]
     roi[mask > 0] = (roi[mask > 0] * 0.8).astype(np.uint8)
 
@@ -309,12 +360,18 @@ class Renderer:
     """Caches each camera's background; ``frame`` returns a fresh uint8 BGR image."""
 
     def __init__(self, room: tuple[float, float], wall_height: float, looks: list[Look],
-                 outdoor: bool = False) -> None:  # fmt: skip
+                 outdoor: bool = False, furniture: tuple[Furniture, ...] = ()) -> None:  # fmt: skip
         self.room = room
         self.outdoor = outdoor
         self.wall_height = wall_height
         self.looks = looks
         self.decor: Decor | None = None if outdoor else room_decor(room, wall_height)
+        if self.decor is not None and furniture:
+            self.decor = dataclasses.replace(
+                self.decor, furniture=self.decor.furniture + tuple(furniture)
+            )
+        self.occluders = Occluders(furniture)
+        self._depths: dict[int, tuple[PinholeCamera, np.ndarray | None]] = {}
         width, depth = room
         # The room's lamp over its centre; outdoors a high sun in the south-west.
         self.light = (np.array([width / 2, depth / 2, wall_height - 0.3]) if not outdoor
@@ -338,5 +395,13 @@ class Renderer:
              heights: np.ndarray) -> np.ndarray:  # fmt: skip
         """A copy of ``background`` with the people painted in."""
         image = background.copy()
-        draw_people(image, camera, points, heights, self.looks, self.light)
+        draw_people(image, camera, points, heights, self.looks, self.light,
+                    self._occluder_depth(camera))  # fmt: skip
         return image
+
+    def _occluder_depth(self, camera: PinholeCamera) -> np.ndarray | None:
+        cached = self._depths.get(id(camera))
+        if cached is None or cached[0] is not camera:
+            cached = (camera, self.occluders.depth_map(camera))
+            self._depths[id(camera)] = cached
+        return cached[1]

@@ -10,8 +10,11 @@ Why structure at all: on a plain two-tone room a detector only has to find "the 
 wall", which flatters it; real rooms have edges, furniture and colour patches near people.
 Why nothing person-like: the furniture is wide and boxy (no coat stands, plants or floor lamps)
 and stands within 0.3 m of a wall, where people do not walk (``people.MARGIN``), so a person is
-never behind furniture (the renderer paints people over the background) and the detector's false
-boxes stay the detector's, not the scene's. A box that would contain a camera is left out.
+never behind this furniture (the renderer paints people over the background) and the detector's
+false boxes stay the detector's, not the scene's. A box that would contain a camera is left out.
+Furniture that does stand where people are (sofas, tables, desks) is a scene's own
+(``SceneConfig.furniture``, :mod:`models.simulate.furniture`), drawn with this room and hiding
+the people behind it.
 
 Cost: about 30-60 ms per 640×480 camera, once (vectorised ray casting over all pixels).
 """

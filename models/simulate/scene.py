@@ -9,8 +9,9 @@ persistent misses, ``[seed, 9, b]`` and ``[seed, 9, b + 1]`` for the keypoint no
 have a correlation time (without one both come from ``[seed, 1, b]``), ``[seed, 4, b]``,
 ``[seed, 4, b + 1]`` and ``[seed, 8, b]`` for the false positives, ``[seed, 5]`` for their fixed
 places; ``[seed, 11]`` and ``[seed, 12, s]`` for the people outside the set-up area, see
-:mod:`models.simulate.outside`), so ``observe(i)`` returns the same arrays whatever was
-observed before, and ``simulate`` (which observes whole blocks at once) agrees with it.
+:mod:`models.simulate.outside`; ``[seed, 13, i]`` for the height of scripted person ``i``), so
+``observe(i)`` returns the same arrays whatever was observed before, and ``simulate`` (which
+observes whole blocks at once) agrees with it.
 ``[seed, 1, b]`` is drawn from in a fixed order, boxes first and the keypoints' gross errors
 last, so the boxes do not depend on the keypoint model.
 
@@ -38,11 +39,14 @@ import numpy as np
 from common.errors import MomlocError
 from models.simulate import false_positives
 from models.simulate.camera import NEAR, PinholeCamera, project_points
+from models.simulate.furniture import Occluders
 from models.simulate.noise import KeypointDraws, correlated_normals, detect
 from models.simulate.observation import OBSERVED, FrameObservation
 from models.simulate.outside import Placed, Together, outside_walkers
 from models.simulate.people import Walkers, Walking
 from models.simulate.profile import DEFAULT_PROFILE, DetectorProfile, load_profile
+from models.simulate.room import Furniture
+from models.simulate.script import ScriptedWalker, Segment
 from models.simulate.skeleton import HEAD, MID_HIP, RADII, body_points
 
 if TYPE_CHECKING:  # imported when the first frame is drawn (it needs cv2)
@@ -99,13 +103,19 @@ class SceneConfig:
     outside_people: int = 0
     outside_band: float = 0.0
     outside_region: tuple[float, float, float, float] | None = None  # None: room + band
+    # Furniture standing in the room (sofas, tables, desks): drawn, and it hides the parts of
+    # people behind it from the cameras and their detector (models.simulate.furniture).
+    furniture: tuple[Furniture, ...] = ()
+    # People who follow a script (sit on the sofa, crouch, fall; room metres), labelled after
+    # the ``people`` random walkers (who may then be 0).
+    scripts: tuple[tuple[Segment, ...], ...] = ()
 
     def __post_init__(self) -> None:
         if not 1 <= len(self.cameras) <= MAX_CAMERAS:
             raise MomlocError(f"scene '{self.name}': {len(self.cameras)} cameras, expected 1 to 9")
         if min(self.room) <= 1.0:
             raise MomlocError(f"scene '{self.name}': room {self.room} must be over 1 m each way")
-        if self.people < 1:
+        if self.people < (0 if self.scripts else 1):
             raise MomlocError(f"scene '{self.name}': people must be at least 1, got {self.people}")
         if not 1.0 <= self.fps <= 240.0:
             raise MomlocError(f"scene '{self.name}': fps {self.fps} outside 1..240")
@@ -152,6 +162,14 @@ class Scene:
         self.walkers: Walking = (
             walkers if config.area is None else Placed(walkers, (config.area[0], config.area[2]))
         )
+        if config.scripts:
+            scripted = [
+                ScriptedWalker(list(script), config.fps, np.random.default_rng([self.seed, 13, i]))
+                for i, script in enumerate(config.scripts)
+            ]
+            groups: list[Walking] = [self.walkers] if config.people else []
+            self.walkers = Together([*groups, *scripted])
+        self.occluders = Occluders(config.furniture)
         self.outsiders: Walking | None = None
         if config.outside_people:
             self.outsiders = outside_walkers(
@@ -210,7 +228,7 @@ class Scene:
         i = frame_index % BLOCK
         return FrameObservation(
             frame=frame_index,
-            track=np.arange(self.config.people, dtype=np.int64),
+            track=np.arange(len(self.walkers.heights), dtype=np.int64),
             **{key: block[key][i].copy() for key in OBSERVED},
         )
 
@@ -228,11 +246,12 @@ class Scene:
             raise MomlocError(f"camera {camera_index} not in 0..{self.num_cameras - 1}")
         with self._lock:
             if self._renderer is None:
-                count = self.config.people + self.config.outside_people
+                count = len(self._everyone().heights)
                 looks = appearance(np.random.default_rng([self.seed, 2]), count)
                 self._renderer = Renderer(
-                    self.config.room, self.config.wall_height, looks, self.config.outdoor
-                )
+                    self.config.room, self.config.wall_height, looks, self.config.outdoor,
+                    self.config.furniture,
+                )  # fmt: skip
             camera = self.cameras_at(frame_index)[camera_index]
             points = self.body_points(frame_index)
             background = self._renderer.background(camera)
@@ -245,8 +264,9 @@ class Scene:
         with self._lock:
             states = everyone.states(frame_index, frame_index + 1)
         return body_points(
-            states.position, states.heading, states.phase, states.amplitude, everyone.heights
-        )[0]
+            states.position, states.heading, states.phase, states.amplitude, everyone.heights,
+            *states.postures(),
+        )[0]  # fmt: skip
 
     def observe_block(self, block: int) -> dict[str, np.ndarray]:
         """Frames ``BLOCK * block`` .. ``BLOCK * (block + 1) - 1`` at once, arrays [F, P, ...]."""
@@ -265,8 +285,9 @@ class Scene:
         everyone = self._everyone()
         states = everyone.states(start, start + BLOCK)
         points = body_points(
-            states.position, states.heading, states.phase, states.amplitude, everyone.heights
-        )  # [F, P, M, 3]
+            states.position, states.heading, states.phase, states.amplitude, everyone.heights,
+            *states.postures(),
+        )  # [F, P, M, 3]  # fmt: skip
         intr, rot, trans, dist = self._camera_arrays(start, start + BLOCK)
         pixels, depth, magnification = project_points(
             points[:, None],
@@ -279,7 +300,9 @@ class Scene:
         front = depth > NEAR
         radius = RADII * everyone.heights[:, None]  # [P, M]
         rho = intr[:, :, None, None, 0, 0] * radius * magnification / np.where(front, depth, 1.0)
-        volume = front & (radius > 0)
+        # Furniture between a camera and a body point hides it: the box is the visible body's.
+        hidden = self.occluders.hidden(points, self.cameras)  # [F, K, P, M]
+        volume = front & (radius > 0) & ~hidden
         lo = np.where(volume[..., None], pixels - rho[..., None], np.inf).min(-2)
         hi = np.where(volume[..., None], pixels + rho[..., None], -np.inf).max(-2)
         true_boxes = np.concatenate([lo, hi], -1)
@@ -295,6 +318,9 @@ class Scene:
         face_away[..., 0:3] = (depth[..., 0] > head)[..., None]
         face_away[..., 3] = depth[..., 3] > head
         face_away[..., 4] = depth[..., 4] > head
+        face_away |= hidden[..., :17]  # a joint behind furniture: occluded like a turned-away one
+        weight = np.where(RADII > 0, RADII**2, 0.0)  # a body point's share of the visible body
+        hidden_fraction = (hidden * weight).sum(-1) / weight.sum()
         rng = np.random.default_rng([self.seed, 1, block])
         shape = (BLOCK, self.num_cameras, len(everyone.heights))
         boxes, keypoints = detect(
@@ -308,6 +334,7 @@ class Scene:
             self._correlated(3, block, (*shape, 5), self.profile.edges.correlation_s),
             self._correlated(6, block, shape, self.profile.miss.correlation_s),
             self._keypoint_draws(block, shape),
+            hidden_fraction,
         )
         n = len(self.walkers.heights)  # labelled people first, then the outside ones
         people = {

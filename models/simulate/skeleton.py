@@ -16,7 +16,11 @@ the natural vertical bob). ``amplitude`` 0 is standing still, 1 a normal walk.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
+
+from models.simulate import postures
 
 COCO_KEYPOINTS = (
     "nose", "left_eye", "right_eye", "left_ear", "right_ear",
@@ -72,12 +76,15 @@ def body_points(
     phase: np.ndarray,
     amplitude: np.ndarray,
     height: np.ndarray,
+    posture: np.ndarray | None = None,
+    posture_weight: np.ndarray | None = None,
 ) -> np.ndarray:
     """World points [..., NUM_POINTS, 3] of people at ``position`` [..., 2] (mid-hip floor point).
 
     ``heading`` (radians, walking direction in the floor frame), ``phase`` (gait phase, radians),
     ``amplitude`` (0 standing .. 1 walking) and ``height`` (metres) broadcast against the
-    people dimensions of ``position``.
+    people dimensions of ``position``. ``posture`` (codes of :mod:`models.simulate.postures`)
+    and ``posture_weight`` (0..1) morph the body into a held pose (sitting, crouching, lying).
     """
     shape = np.broadcast_shapes(
         position.shape[:-1],
@@ -86,21 +93,43 @@ def body_points(
         np.shape(amplitude),
         np.shape(height),
     )
-    a = np.broadcast_to(amplitude, shape)
-    ph = np.broadcast_to(phase, shape)
-    local = np.zeros((*shape, NUM_POINTS, 3))  # (forward, left, up) in units of H, hip at z=0
+    local = _walking_pose(np.broadcast_to(amplitude, shape), np.broadcast_to(phase, shape))
+    lowest = np.minimum(local[..., P["left_ankle"], 2], local[..., P["right_ankle"], 2])
+    local[..., 2] += (ANKLE_HEIGHT - lowest)[..., None]
+    if posture is not None and posture_weight is not None:
+        local = postures.blend(local, _held_poses(), posture, posture_weight)
+
+    h = np.broadcast_to(height, shape)[..., None]
+    cos, sin = np.cos(heading)[..., None], np.sin(heading)[..., None]
+    fwd, left, up = local[..., 0] * h, local[..., 1] * h, local[..., 2] * h
+    world = np.empty_like(local)
+    world[..., 0] = position[..., None, 0] + fwd * cos - left * sin
+    world[..., 1] = position[..., None, 1] + fwd * sin + left * cos
+    world[..., 2] = up
+    return world
+
+
+@functools.cache
+def _held_poses() -> np.ndarray:
+    """[4, NUM_POINTS, 3] local poses of the posture codes (built once)."""
+    zero = np.zeros(())
+    return postures.held_poses(POINT_NAMES, _walking_pose(zero, zero))
+
+
+def _walking_pose(a: np.ndarray, ph: np.ndarray) -> np.ndarray:
+    """Local points [..., NUM_POINTS, 3] (forward, left, up; units of H), mid-hip at z = 0."""
+    shape = a.shape
+    local = np.zeros((*shape, NUM_POINTS, 3))
 
     def put(name: str, forward: np.ndarray | float, left: float, up: np.ndarray | float) -> None:
         local[..., P[name], 0] = forward
         local[..., P[name], 1] = left
         local[..., P[name], 2] = up
 
-    ankles = {}
     for side, sign, offset in (("left", 1.0, 0.0), ("right", -1.0, np.pi)):
         hip_flex = a * 0.42 * np.sin(ph + offset)
         knee_flex = 0.05 + a * (0.12 + 0.75 * np.clip(np.cos(ph + offset), 0.0, None))
         knee, ankle = _leg(hip_flex, knee_flex)
-        ankles[side] = ankle
         put(f"{side}_hip", 0.0, sign * 0.058, 0.0)
         put(f"{side}_knee", knee[..., 0], sign * 0.06, knee[..., 1])
         put(f"{side}_ankle", ankle[..., 0], sign * 0.062, ankle[..., 1])
@@ -130,14 +159,4 @@ def body_points(
     put("chest", 0.02, 0.0, 0.22)
     put("abdomen", 0.015, 0.0, 0.10)
     put("mid_hip", 0.0, 0.0, 0.01)
-    lowest = np.minimum(ankles["left"][..., 1], ankles["right"][..., 1])
-    local[..., 2] += (ANKLE_HEIGHT - lowest)[..., None]
-
-    h = np.broadcast_to(height, shape)[..., None]
-    cos, sin = np.cos(heading)[..., None], np.sin(heading)[..., None]
-    fwd, left, up = local[..., 0] * h, local[..., 1] * h, local[..., 2] * h
-    world = np.empty_like(local)
-    world[..., 0] = position[..., None, 0] + fwd * cos - left * sin
-    world[..., 1] = position[..., None, 1] + fwd * sin + left * cos
-    world[..., 2] = up
-    return world
+    return local

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from service.camera_health.reprojection import CameraMoved
+from service.learning.room import LearningRoom
 from service.outputs.wiring import Outputs
 from service.pipeline.hub import Hub
 from service.pipeline.live import Pipeline
@@ -47,6 +48,7 @@ class Daemon:
     outputs: Outputs | None = None  # zones and the configured publishers
     training: TrainingJob | None = None  # the /setup page's Train button
     verifier: Verifier | None = None  # the /setup page's check step
+    learning: LearningRoom | None = None  # self-labels (service.learning); None: turned off
     privacy: Privacy = "off"  # positions_only: no camera image leaves the process
 
     @property
@@ -62,6 +64,7 @@ class Daemon:
     def camera_states(self) -> list[dict[str, Any]]:
         states = self.pipeline.rig.states()
         alignment = self.pipeline.alignment_status(self.camera_names)
+        repairs = {} if self.learning is None else self.learning.repair_messages()
         out = []
         for k, state in enumerate(states):
             d = dataclasses.asdict(state) if dataclasses.is_dataclass(state) else dict(vars(state))
@@ -74,6 +77,7 @@ class Daemon:
                 "reconnects": int(d.get("reconnects") or 0),
                 "error": d.get("error"),
                 "alignment": _alignment(alignment[k]) if k < len(alignment) else None,
+                "repair": repairs.get(k),  # self-healing (service.learning.healer)
             }
             out.append(d)
         return out
@@ -106,6 +110,7 @@ class Daemon:
             "clients": self.hub.subscriber_count,
             "stream": self.hub.stream_stats(),
             "model_reload": None if self.watcher is None else self.watcher.last_reload,
+            "learning": {"enabled": False} if self.learning is None else self.learning.stats(),
             **({} if self.outputs is None else self.outputs.health()),
             **self.extras,
         }

@@ -128,6 +128,7 @@ def run_stream(
     view_bias: ViewBias | bool = True,
     outside_area: OutsideArea = "drop",
     on_frame: Callable[[int, list[Association], list[Track]], None] | None = None,
+    postures: bool = True,
     detect_every: int = 1,
     detect_delay: int = 0,
 ) -> dict[float, dict]:
@@ -142,6 +143,7 @@ def run_stream(
     ``outside_area``: what the chain does with people outside the model's set-up area
     (:mod:`service.pipeline.chain`);
     ``on_frame(i, associations, tracks)`` taps every frame (diagnostics, other scorers);
+    ``postures``: seated and lying boxes read as standing ones (:mod:`service.tracking.posture`);
     ``detect_every`` > 1 models the daemon's scheduled detector (:class:`ScheduledBoxes`).
     """
     scene = Scene(config, seed=seed)
@@ -155,6 +157,7 @@ def run_stream(
         outside_area=outside_area,
         use_covariance=use_covariance,
         view_bias=None if view_bias is False else view_bias,
+        postures=postures,
     )
     delivered = [True] * int(runtime.num_cameras)
     schedule = ScheduledBoxes(detect_every, detect_delay) if detect_every > 1 else None

@@ -8,6 +8,10 @@ the chain by hand and a fix to one copy could silently leave the other behind.
 
 Per frame set (time ``t``, one :class:`~models.detector.base.Detections` per camera):
 
+0. **postures**: a seated or lying person's box is replaced by the box a standing person at the
+   same place would give (the model was set up on standing people), and every box gets a
+   posture that the track carries, smoothed, into the snapshot (:mod:`service.tracking.posture`;
+   ``postures=False``: boxes as detected);
 1. **associate** the boxes of all cameras into people (:mod:`service.tracking.association`); each
    association says whether it lies in the model's set-up area (:mod:`models.mom.setup_area`);
 2. **the set-up area**: ``outside_area="drop"`` (default) keeps people outside the area the model
@@ -43,6 +47,8 @@ from service.stages import (
 from service.tracking.association import DEFAULT_MAX_ERROR_PX
 from service.tracking.association import associate as associate_people
 from service.tracking.measurements import coverage_function, measurement_covariances
+from service.tracking.posture import BoxPostures, PostureSmoother
+from service.tracking.posture import normalise as normalise_postures
 from service.tracking.view_bias import ViewBias
 
 OutsideArea = Literal["drop", "flag"]
@@ -61,6 +67,7 @@ class Chain:
         outside_area: OutsideArea = "drop",
         use_covariance: bool = True,
         view_bias: ViewBias | Literal[True] | None = True,
+        postures: bool = True,
     ) -> None:
         if outside_area not in OUTSIDE_AREA_POLICIES:
             raise ValueError(f"outside_area {outside_area!r}: expected one of drop, flag")
@@ -72,6 +79,10 @@ class Chain:
         # lone-view offsets (service.tracking.view_bias); None: single views are not corrected
         self.view_bias: ViewBias | None = ViewBias() if view_bias is True else view_bias
         self.timings_ms: dict[str, float] = {}  # of the last call, per step
+        # seated and lying boxes read as standing ones, and each track's posture
+        # (service.tracking.posture); False: boxes as detected, no posture
+        self.postures = postures
+        self.posture_smoother = PostureSmoother()
 
     def new_model(self) -> None:
         """Forget what was learned about the former model's localizer (lone-view offsets)."""
@@ -91,7 +102,12 @@ class Chain:
         the tracker still ages its tracks."""
         started = time.perf_counter()
         associations: list[Association] = []
+        box_postures: BoxPostures | None = None
         if runtime is not None:
+            if self.postures:
+                detections, box_postures = normalise_postures(
+                    detections, getattr(runtime, "setup_area", None), runtime.image_sizes
+                )
             found = self.associate(detections, runtime, max_error_px=self.max_error_px)
             associations = gate_to_area(found, runtime, self.outside_area)
         associated = time.perf_counter()
@@ -102,6 +118,7 @@ class Chain:
                 association=i,
                 cost=a.cost,
                 inside=a.inside,
+                boxes=a.boxes,
             )
             for i, a in enumerate(associations)
         ]
@@ -117,11 +134,38 @@ class Chain:
         )
         if self.view_bias is not None:  # learn the offsets from what fed each track
             self.view_bias.learn(t, associations, runtime, tracks)
+        if self.postures:
+            postures = (
+                [box_postures.of(a.detection_index) for a in associations]
+                if box_postures is not None
+                else []
+            )
+            self._smooth_postures(t, tracks, postures)
         self.timings_ms = {
             "associate": (associated - started) * 1e3,
             "track": (time.perf_counter() - associated) * 1e3,
         }
         return associations, tracks
+
+    def _smooth_postures(
+        self, t: float, tracks: list[Track], postures: list[tuple[str, float]]
+    ) -> None:
+        """Each served track's posture (``Track.posture``: label and confidence), averaged over
+        time from the postures of the associations that fed it (``postures``, one per
+        association of this frame set); a coasting track keeps the last one."""
+        smoother = self.posture_smoother
+        for track in tracks:
+            fed = track.association if not track.coasting else None
+            seen = postures[fed] if fed is not None and fed < len(postures) else None
+            track.posture = (
+                smoother.update(track.id, t, *seen) if seen else smoother.current(track.id)
+            )
+        smoother.forget({track.id for track in tracks} | set(self.tracker_ids()))
+
+    def tracker_ids(self) -> list[int]:
+        """Ids the tracker still holds (served or not): their postures are kept."""
+        hidden = getattr(self.tracker, "hidden", None)
+        return [track.id for track, _ in hidden()] if callable(hidden) else []
 
 
 def gate_to_area(

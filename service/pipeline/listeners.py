@@ -5,7 +5,8 @@ The pipeline (``service.pipeline.live``) runs detect -> associate -> localize ->
 and then hands the whole result to its listeners, in its own thread, after the snapshot is out. Each
 listener here does one job and must stay cheap (a copy of a reference, a deque append); anything
 slow runs on its own thread (the image camera-moved check does, see
-``service.camera_health.image_shift``).
+``service.camera_health.image_shift``; so does the self-label collector,
+``service.learning.listener``). A listener with a ``close()`` is closed when the pipeline stops.
 
 - :class:`CameraWatch`: the two camera-moved checks (decoder reprojection error of people seen
   by two or more cameras, and the image shift of the static background), combined per camera.

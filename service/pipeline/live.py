@@ -40,7 +40,7 @@ import logging
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any, Literal, Protocol
 
 import numpy as np
 
@@ -56,6 +56,7 @@ from service.pipeline.listeners import CameraView, CameraWatch, DetectionTap, Pr
 from service.snapshot import Person, Snapshot
 from service.stages import (
     AssociateStage,
+    Closeable,
     DetectStage,
     FrameListener,
     FrameResult,
@@ -177,7 +178,9 @@ class Pipeline:
 
     def stop(self) -> None:
         self._worker.stop()
-        self.camera_watch.close()
+        for listener in self._listeners:  # those with a thread or pending writes
+            if isinstance(listener, Closeable):
+                listener.close()
         self.detect.close()  # the detection scheduler's worker thread, if any
         self.rig.stop()
 
@@ -364,6 +367,13 @@ class Pipeline:
         }
 
 
+POSTURES: dict[str, Literal["standing", "sitting", "lying"]] = {
+    "standing": "standing",
+    "sitting": "sitting",
+    "lying": "lying",
+}
+
+
 def _person(track: Track) -> Person:
     person: Person = {
         "id": int(track.id),
@@ -376,6 +386,10 @@ def _person(track: Track) -> Person:
     }
     if not served_inside(track):  # served flagged (tracking.outside_area: flag)
         person["outside"] = True
+    posture = track.posture
+    if posture and posture[0] in POSTURES:  # service.tracking.posture; absent: unknown
+        person["posture"] = POSTURES[posture[0]]
+        person["posture_confidence"] = round(float(posture[1]), 3)
     return person
 
 

@@ -167,7 +167,7 @@ class TrainingJob:
                 )
                 staging = final.with_name(final.name + ".training")
                 shutil.rmtree(staging, ignore_errors=True)
-                process = _spawn(recording, staging, options)
+                process = spawn_train(recording, staging, options)
                 self._process = process
                 started = time.monotonic()
             outcome = self._follow(process, staging, final, ".first" if first_loaded else None)
@@ -192,7 +192,7 @@ class TrainingJob:
     ) -> dict[str, Any] | None:
         """Follow one stage to its end; the loaded model's info, or None after a failure."""
         errors: deque[str] = deque(maxlen=40)
-        reader = threading.Thread(target=_drain, args=(process.stderr, errors), daemon=True)
+        reader = threading.Thread(target=drain, args=(process.stderr, errors), daemon=True)
         reader.start()
         assert process.stdout is not None
         for line in process.stdout:
@@ -277,15 +277,18 @@ class TrainingJob:
         return dict(self._state)
 
 
-def _spawn(recording: Path, staging: Path, options: list[str]) -> subprocess.Popen[str]:
-    """``momloc train recording --out staging`` at low priority, progress as JSON lines."""
+def spawn_train(
+    recording: Path, staging: Path, options: list[str], nice_by: int = NICE
+) -> subprocess.Popen[str]:
+    """``momloc train recording --out staging`` at low priority (``nice_by``), progress as JSON
+    lines (also used by the room's self-improvement, ``service.learning.improve``)."""
     command = [
         sys.executable, "-m", "service.cli", "train", str(recording),
         "--out", str(staging), "--quiet", "--progress-json", *options,
     ]  # fmt: skip
     nice = shutil.which("nice")  # exec's the command: same pid, so cancel still works
     if nice is not None:
-        command = [nice, "-n", str(NICE), *command]
+        command = [nice, "-n", str(nice_by), *command]
     return subprocess.Popen(
         command,
         stdout=subprocess.PIPE,
@@ -306,7 +309,7 @@ def _idle() -> dict[str, Any]:
     }
 
 
-def _drain(stream: IO[str] | None, into: deque[str]) -> None:
+def drain(stream: IO[str] | None, into: deque[str]) -> None:
     if stream is None:
         return
     for line in stream:

@@ -47,6 +47,15 @@ Output policy (documented for API users):
 - with ``doubt_outside`` the ghost check also doubts a single-view track whose own camera
   should *not* see it where it is (``coverage``): a box localized where the camera that
   reported it cannot see a person is a false box localized from its odd size and place;
+- a person who has stayed within ``still_radius_m`` (0.3 m) for ``still_after_s`` (5 s) when
+  last seen, by two cameras (``multi_view``), is *still*: unseen, their track is served and kept
+  for ``hold_still_s`` (15 s in ``RECOMMENDED``) instead of ``serve_coast_s`` / ``max_missing_s``,
+  and its gate stops growing after ``max_missing_s`` (they did not walk off). Why: a seated or
+  standing person is the one a detector loses for seconds (half hidden, still, low contrast),
+  and each loss used to end their id and empty their zone (issue 27: an hour on the sofa with
+  dropouts of seconds, ``bench/results/still_presence.md``). The price is a person who stood
+  still and then left unseen (out of view) is served where they stood for up to 15 s; the
+  walking scenes' MOTA did not move (same file);
 - ``confidence`` is a running detection rate (exponential average of seen / unseen frame sets
   over ``rate_time_s`` seconds, so the same at any frame rate) times the coasting factor, in 0..1;
 - a track counts as seen by two cameras (``multi_view``: no longer subject to the single-view
@@ -104,6 +113,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from service.stages import Origin, Track
+from service.tracking.image_continuity import ImageContinuity, ViewMemory
 from service.tracking.motion import ConstantVelocity, StandOrWalk
 
 _UNASSIGNED = 1e9
@@ -127,6 +137,13 @@ RECOMMENDED: dict[str, Any] = {
     "birth_clearance_m": 0.8,
     "merge_m": 0.35,
     "merge_s": 0.5,
+    # issue 27: a still person lost for seconds keeps their id and their zone
+    # (bench/results/still_presence.md, with the walking scenes' MOTA with and without it)
+    "hold_still_s": 15.0,
+    # each camera's box centre continues the track's (service.tracking.image_continuity)
+    "image_std_h": 0.15,
+    "image_growth_hps": 0.3,
+    "image_cap": 4.0,
 }
 ASSIGN_COSTS = ("euclidean", "likelihood")
 MOTION_MODELS = {"cv": ConstantVelocity, "imm": StandOrWalk}
@@ -145,8 +162,11 @@ class _State:
     multi_view_time: float = 0.0  # seconds seen by two or more cameras at once
     doubted_s: float = 0.0  # time single-view while another camera should have seen it
     shadowed_s: float = 0.0  # time spent within merge_m of an older track
+    anchor: np.ndarray | None = None  # where the track has stayed (within still_radius_m)
+    anchor_t: float = 0.0  # since when
     cameras: list[int] = field(default_factory=list)
     origin: Origin = field(default_factory=Origin)  # of the position that last fed it
+    views: ViewMemory = field(default_factory=ViewMemory)  # last box per camera
 
 
 class Tracker:
@@ -180,6 +200,12 @@ class Tracker:
         birth_clearance_m: float = 0.0,
         merge_s: float = 0.0,
         merge_m: float = 0.0,
+        hold_still_s: float = 0.0,
+        still_after_s: float = 5.0,
+        still_radius_m: float = 0.3,
+        image_std_h: float = 0.0,
+        image_growth_hps: float = 0.6,
+        image_cap: float = 16.0,
     ) -> None:
         if fps_hint <= 0 or max_missing_s <= 0 or gate_m <= 0:
             raise ValueError("fps_hint, max_missing_s and gate_m must be positive")
@@ -211,6 +237,12 @@ class Tracker:
         self.merge_s = max(0.0, float(merge_s))
         self.merge_m = max(0.0, float(merge_m))
         self.serve_coast_s = self.max_missing_s if serve_coast_s is None else float(serve_coast_s)
+        self.hold_still_s = max(0.0, float(hold_still_s))
+        self.still_after_s = float(still_after_s)
+        self.still_radius_m = float(still_radius_m)
+        self.image = ImageContinuity(
+            max(0.0, float(image_std_h)), float(image_growth_hps), float(image_cap)
+        )
         self._frame_dt = 1.0 / self.fps_hint
         self._motion_options = (
             {"stand_std": stand_std_m, "stand_s": stand_s, "walk_s": walk_s}
@@ -245,6 +277,9 @@ class Tracker:
         uncertainty of each measurement; ``None`` (or a non-finite one) means the isotropic
         ``measurement_std_m``. ``coverage`` (optional): floor positions [N, 2] → [N, K] bool,
         which cameras should see a person standing there (used with ``ghost_s``).
+        ``origins[i].boxes`` (optional, [K, 4] px, NaN where camera k does not see the person):
+        the association's boxes, for the image continuity cost (``image_std_h`` > 0,
+        :mod:`service.tracking.image_continuity`).
         """
         positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
         keep = np.all(np.isfinite(positions), axis=1)
@@ -263,7 +298,8 @@ class Tracker:
         for track in self._tracks:
             self._predict(track, dt)
 
-        rows, cols = self._assign(positions, noise, self._time)
+        boxes = [o.boxes for o in kept]
+        rows, cols = self._assign(positions, noise, self._time, boxes)
         matched_tracks = set(rows.tolist())
         for r, c in zip(rows, cols, strict=True):
             self._correct(self._tracks[r], positions[c], noise[c], kept[c], self._time)
@@ -280,7 +316,7 @@ class Tracker:
         self._tracks = [
             tr
             for tr in self._tracks
-            if (self._time - tr.last_seen) <= self.max_missing_s
+            if (self._time - tr.last_seen) <= self._max_missing(tr)
             and (tr.confirmed or tr.last_seen == self._time)
         ]
         return self.tracks()
@@ -309,15 +345,30 @@ class Tracker:
         return "ghost" if self._ghost(tr) else "coasting"
 
     def _servable(self, tr: _State) -> bool:
-        """Seen now, or coasting for at most ``serve_coast_s`` (module docstring)."""
+        """Seen now, or coasting for at most ``serve_coast_s``, or a still person unseen for
+        at most ``hold_still_s`` (module docstring)."""
         now = self._time if self._time is not None else 0.0
-        return now - tr.last_seen <= self.serve_coast_s + 1e-9
+        limit = self.hold_still_s if self._still(tr) else self.serve_coast_s
+        return now - tr.last_seen <= max(limit, self.serve_coast_s) + 1e-9
+
+    def _still(self, tr: _State) -> bool:
+        """A person seen by two cameras who had stayed within ``still_radius_m`` for
+        ``still_after_s`` when last seen: held through ``hold_still_s`` of misses."""
+        return (
+            self.hold_still_s > 0
+            and tr.multi_view
+            and tr.anchor is not None
+            and tr.last_seen - tr.anchor_t >= self.still_after_s
+        )
+
+    def _max_missing(self, tr: _State) -> float:
+        return max(self.max_missing_s, self.hold_still_s) if self._still(tr) else self.max_missing_s
 
     def _report(self, tr: _State) -> Track:
         now = self._time if self._time is not None else 0.0
         missing = now - tr.last_seen
         mean = tr.motion.mean
-        coast = max(0.0, 1.0 - missing / self.max_missing_s)
+        coast = max(0.0, 1.0 - missing / self._max_missing(tr))
         return Track(
             id=tr.id,
             x=float(mean[0]),
@@ -366,9 +417,13 @@ class Tracker:
         track.motion.correct(z, self._robust(track, z, r))
         track.last_seen = t
         track.hits += 1
+        here = track.motion.mean[:2]
+        if track.anchor is None or np.linalg.norm(here - track.anchor) > self.still_radius_m:
+            track.anchor, track.anchor_t = here.copy(), t
         weight = self._rate_weight(self._frame_dt)
         track.rate = track.rate * (1.0 - weight) + weight
         track.cameras = [int(k) for k in origin.cameras]
+        track.views.remember(origin.boxes, t)
         self._count_views(track, self._frame_dt)
         self._confirm(track, t)
         track.origin = origin
@@ -463,7 +518,10 @@ class Tracker:
             last_seen=t,
             cameras=[int(k) for k in origin.cameras],
             origin=origin,
+            anchor=np.asarray(z, np.float64)[:2].copy(),
+            anchor_t=t,
         )
+        state.views.remember(origin.boxes, t)
         # credited for one frame interval, as measured (the hint before a second update)
         self._count_views(state, self._frame_dt if self._frame_dt > 0 else 1.0 / self.fps_hint)
         self._confirm(state, t)
@@ -471,7 +529,11 @@ class Tracker:
         return state
 
     def _assign(
-        self, positions: np.ndarray, noise: np.ndarray, now: float
+        self,
+        positions: np.ndarray,
+        noise: np.ndarray,
+        now: float,
+        boxes: Sequence[np.ndarray | None] = (),
     ) -> tuple[np.ndarray, np.ndarray]:
         empty = np.zeros(0, dtype=int)
         if not self._tracks or not len(positions):
@@ -479,7 +541,8 @@ class Tracker:
         predicted = np.stack([tr.motion.mean[:2] for tr in self._tracks])
         nu = positions[None, :, :] - predicted[:, None, :]  # [T, P, 2]
         dist = np.linalg.norm(nu, axis=2)
-        missing = np.array([now - tr.last_seen for tr in self._tracks])
+        # a still person held unseen did not walk off: their gate stops growing at max_missing_s
+        missing = np.array([min(now - tr.last_seen, self.max_missing_s) for tr in self._tracks])
         gate = self.gate_m + self.gate_growth_mps * missing
         admit = dist <= gate[:, None]
         cost = dist
@@ -489,6 +552,10 @@ class Tracker:
             s = np.stack([tr.motion.cov[:2, :2] for tr in self._tracks])[:, None] + noise[None]
             d2 = np.einsum("tpi,tpij,tpj->tp", nu, np.linalg.inv(s), nu)
             cost = d2 + np.log(np.linalg.det(s))
+        if self.image.enabled and len(boxes) == len(positions):
+            # each camera's box centre against the track's last one there, moved on by its
+            # image velocity (service.tracking.image_continuity)
+            cost = cost + self.image.cost([tr.views for tr in self._tracks], boxes, now)
         # Tentative tracks lose ties to confirmed ones: a small penalty keeps ids stable.
         penalty = np.array([0.0 if tr.confirmed else 0.05 for tr in self._tracks])
         cost = np.where(admit, cost + penalty[:, None], _UNASSIGNED)

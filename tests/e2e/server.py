@@ -22,7 +22,7 @@ from models.simulate.scene import Scene
 from service.api.server import serve_in_thread
 from service.api.state import Daemon
 from service.daemon import build_daemon
-from service.demo import demo_settings
+from service.demo import DEMO_PRESET, demo_settings
 from service.outputs.wiring import Outputs
 from service.pipeline.hub import Hub
 from service.pipeline.live import Rig
@@ -139,11 +139,23 @@ def running_server(
     # The simulator's boxes unless a test asks for the drawn frames through the detector: these
     # tests are about the server, and the detector would only add CPU load and timing slack.
     settings.setdefault("detections", "simulated")
+    # The walkers alone (the counts and zones these tests were written for) unless a test asks
+    # for the demo as it plays (scene=DEMO_SCENE: a person seated on the sofa too).
+    settings.setdefault("scene", DEMO_PRESET)
     model_dir = settings.pop("model_dir", None)
     guard = {k: settings.pop(k) for k in ("allowed_origins", "allowed_hosts") if k in settings}
+    # self-labels only where a test asks (with its own data_dir): not into the working folder
+    learning = settings.pop("learning", {"enabled": False})
+    data_dir = settings.pop("data_dir", None)
     config = demo_settings(host="127.0.0.1", **settings)
     if model_dir:
         config = config.model_copy(update={"model_dir": Path(model_dir)})
+    config = config.model_copy(
+        update={
+            "learning": config.learning.model_copy(update=learning),
+            **({} if data_dir is None else {"data_dir": Path(data_dir)}),
+        }
+    )
     if lockstep:
         inline = config.detection.model_copy(update={"schedule": "every_frame"})
         config = config.model_copy(update={"detection": inline})

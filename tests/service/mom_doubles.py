@@ -8,8 +8,12 @@ the seen box centres (exact for one view, a compromise for an inconsistent tuple
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import Any
+
 import numpy as np
 
+from models.geometry.floor_prior import FloorPrior
 from service.stages import WorldBounds
 
 MID_HEIGHT = 0.85
@@ -65,13 +69,17 @@ class ModelDouble:
     answered the way ``MomRuntime`` answers for a model file without it: no fitted floor prior
     (covariance NaN, no floor views), no set-up area (everyone inside), no stored bounds, and a
     decoder that puts nobody in any image (NaN pixels: no line of sight, no camera covers
-    anyone). A double sets ``num_cameras`` and ``image_sizes`` and defines ``localize`` and
-    ``reprojection_error``; one with geometry overrides ``reproject``."""
+    anyone), no directory or ``model.json``. A double sets ``num_cameras`` and ``image_sizes``
+    and defines ``localize`` and ``reprojection_error``; one with geometry overrides
+    ``reproject``."""
 
     num_cameras: int
     image_sizes: np.ndarray
     observation = "bbox"
     world_bounds: WorldBounds | None = None
+    model_dir = Path("model-double")  # no directory: nothing reads it
+    meta: dict[str, Any] = {}  # noqa: RUF012 (never mutated)
+    floor_prior: FloorPrior | None = None
 
     def reproject(self, world: np.ndarray) -> np.ndarray:
         return np.full((len(np.asarray(world).reshape(-1, 2)), self.num_cameras, 2), np.nan)

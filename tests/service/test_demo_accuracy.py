@@ -14,11 +14,16 @@ default profile (``nanodet``: what ``momloc demo --detections simulated`` shows)
 
 from __future__ import annotations
 
-from service.demo import demo_settings, replay_demo
+from service.demo import DEMO_PRESET, demo_settings, replay_demo
+
+# The walking gates below score the demo's cameras and model on the walkers alone (the recorded
+# figures); the demo itself also seats a person on the sofa (DEMO_SCENE), scored at the end.
 
 
 def test_demo_scene_with_simulated_boxes_under_kind_noise():
-    score = replay_demo(demo_settings(detections="simulated", profile="ideal"), frames=600)
+    score = replay_demo(
+        demo_settings(detections="simulated", profile="ideal", scene=DEMO_PRESET), frames=600
+    )
     s = score.summary()
     # recorded: mean 0.117 m, median 0.087 m, 97.7 % within 0.5 m, recall 1.0, precision 1.0, 3 ids
     assert s["median_m"] < 0.15 and s["mean_m"] < 0.16, s
@@ -27,7 +32,9 @@ def test_demo_scene_with_simulated_boxes_under_kind_noise():
 
 
 def test_demo_scene_with_simulated_boxes_as_blind_as_the_shipped_detector():
-    score = replay_demo(demo_settings(detections="simulated", profile="nanodet"), frames=600)
+    score = replay_demo(
+        demo_settings(detections="simulated", profile="nanodet", scene=DEMO_PRESET), frames=600
+    )
     s = score.summary()
     # 2026-12-02 (RECOMMENDED with coasting served 0.5 s, likelihood assignment, see
     # service/tracking/tracker.py, and service.tracking.view_bias): mean 0.259 m, median 0.186 m,
@@ -45,7 +52,7 @@ def test_demo_scene_with_simulated_boxes_as_blind_as_the_shipped_detector():
 
 def test_demo_scene_with_drawn_frames_through_the_shipped_detector():
     """The default demo: NanoDet on the drawn frames, the demo model trained on its boxes."""
-    score = replay_demo(demo_settings(detections="rendered"), frames=330)
+    score = replay_demo(demo_settings(detections="rendered", scene=DEMO_PRESET), frames=330)
     s = score.summary()
     # recorded: mean 0.108 m, median 0.065 m, 95.8 % within 0.5 m, recall 1.0, precision 0.841
     # (coasting tracks, see bench/results/demo_scene.md), 5 ids; frames 30..599: 0.089 m mean,
@@ -53,3 +60,17 @@ def test_demo_scene_with_drawn_frames_through_the_shipped_detector():
     assert s["median_m"] < 0.1 and s["mean_m"] < 0.14, s
     assert s["within_0.5m"] > 0.92 and s["recall"] > 0.95 and s["precision"] > 0.78, s
     assert s["ids"] <= 8, s
+
+
+def test_demo_scene_serves_the_person_on_the_sofa() -> None:
+    """The demo as it plays (issue 27): three walkers and one person seated on the sofa behind
+    the coffee table the whole time. The shipped demo model predates the set-up area, so no
+    posture correction: the seated person is served, ~0.45 m toward the cameras
+    (bench/results/postures.md, demo-lounge)."""
+    score = replay_demo(demo_settings(detections="simulated", profile="ideal"), frames=300)
+    s = score.summary()
+    # recorded 2026-12-03 (frames 30..299, ideal): mean 0.189 m, median 0.106 m, 87.4 % within
+    # 0.5 m, recall 0.957, precision 0.80; frames 30..599: mean 0.18 m, 88.7 %. The walkers
+    # alone (above): mean 0.117 m, 97.7 %, precision 1.0
+    assert s["recall"] > 0.9 and s["precision"] > 0.7, s
+    assert s["median_m"] < 0.15 and s["within_0.5m"] > 0.8, s

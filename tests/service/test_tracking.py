@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from service.stages import Origin
+from service.tracking.image_continuity import MAX_AGE_S, ImageContinuity, ViewMemory
 from service.tracking.tracker import RECOMMENDED, Tracker
 
 FPS = 30.0
@@ -271,3 +272,47 @@ def test_timing_rules_mean_the_same_at_4_and_30_frame_sets_a_second(fps: float) 
     missed = [o for o in out[seen:] if o]
     rates = [o[0].confidence for o in missed]
     assert all(b < a for a, b in itertools.pairwise(rates))
+
+
+@pytest.mark.parametrize("image_std_h", [0.0, RECOMMENDED["image_std_h"]])
+def test_boxes_of_each_camera_keep_neighbours_apart_where_the_floor_cannot(
+    image_std_h: float,
+) -> None:
+    """Two people walking side by side 0.5 m apart at 4 fps; in one frame set their floor
+    positions come out crossed (each 0.3 m off towards the other, as a cut box does in a
+    crowd), while each camera's boxes stay where they were. On the floor alone each track takes
+    the other's measurement; with image continuity each keeps its own."""
+    fps = 4.0
+    tracker = Tracker(fps_hint=fps, assign_cost="likelihood", image_std_h=image_std_h)
+    boxes = {  # camera 0 and 1: box centres 300 px apart, 400 px tall
+        "A": np.array([[280.0, 100.0, 320.0, 500.0], [880.0, 100.0, 920.0, 500.0]]),
+        "B": np.array([[580.0, 100.0, 620.0, 500.0], [1180.0, 100.0, 1220.0, 500.0]]),
+    }
+    fed: dict[int, int | None] = {}
+    for i in range(12):
+        t = i / fps
+        a, b = np.array([1.0 + t, 1.0]), np.array([1.0 + t, 1.5])
+        if i == 10:
+            shift = np.array([0.0, 0.3])
+            a, b = a + shift, b - shift
+        fed_by = [Origin(cameras=(0, 1), association=i, boxes=boxes[w]) for i, w in enumerate("AB")]
+        tracks = tracker.update(t, np.stack([a, b]), fed_by)
+        if i == 9:
+            on_a = min(tracks, key=lambda tr: abs(tr.y - 1.0)).id
+        if i == 10:
+            fed = {tr.id: tr.association for tr in tracks}
+    assert fed[on_a] == (0 if image_std_h > 0 else 1)  # association 0 is A's
+
+
+def test_image_continuity_forgets_old_boxes_and_ignores_missing_views() -> None:
+    memory = ViewMemory()
+    memory.remember(np.array([[100.0, 0.0, 140.0, 200.0], [np.nan] * 4]), 0.0)
+    memory.remember(np.array([[110.0, 0.0, 150.0, 200.0], [np.nan] * 4]), 0.25)
+    assert memory.velocity[0] > 0 and 1 not in memory.seen
+    term = ImageContinuity(std_h=0.1, growth_hps=0.3, cap=4.0)
+    here = np.array([[120.0, 0.0, 160.0, 200.0], [10.0, 0.0, 50.0, 100.0]])
+    far = np.array([[900.0, 0.0, 940.0, 200.0], [np.nan] * 4])
+    cost = term.cost([memory], [here, far, None], 0.5)
+    assert cost[0, 0] < 0 < cost[0, 1] <= 3.0  # capped: one camera never vetoes alone
+    assert cost[0, 2] == 0.0  # no box in common: no opinion
+    assert term.cost([memory], [far], 0.25 + MAX_AGE_S + 0.01)[0, 0] == 0.0  # forgotten

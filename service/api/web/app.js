@@ -202,6 +202,9 @@ async function refreshHealth() {
       const moved = Boolean(c.alignment && c.alignment.moved);
       rows.push(row(`cam ${c.index} ${c.name}`, (c.connected ? `${(c.fps ?? 0).toFixed(1)} fps, age ${((c.last_frame_age ?? 0) * 1000).toFixed(0)} ms` : (c.error || "disconnected")) + (moved ? " · MOVED" : ""), c.connected && !moved));
     }
+    const learning = h.learning || {};
+    if (learning.enabled) rows.push(row("learned from", `${learning.self_labels.toLocaleString("en-US")} positions`, true));
+    for (const r of learning.repairs || []) rows.push(row(`repair cam ${r.camera}`, r.message, r.state === "repaired"));
     if (p.error) rows.push(row("error", p.error, false));
     document.querySelector("#health tbody").replaceChildren(...rows);
     showMoved(h.cameras);
@@ -223,6 +226,7 @@ function showMoved(cameras) {
     const msg = c.alignment.message || "re-collect the floor marks (momloc collect, or the /setup page) and retrain (momloc train)";
     const detail = msg.includes(": ") ? msg.slice(msg.indexOf(": ") + 2) : msg;
     line.append(title, detail.charAt(0).toUpperCase() + detail.slice(1) + ".");
+    if (c.repair) line.append(` ${c.repair.charAt(0).toUpperCase() + c.repair.slice(1)}.`); // self-healing
     return line;
   }));
   for (const fig of document.querySelectorAll("#cameras figure")) {

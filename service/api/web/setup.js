@@ -224,8 +224,21 @@ async function refreshHealth() {
     $("intro").textContent = h.setup_mode
       ? "No model yet: tape a few marks on the floor, record them here, train, check; then positions appear on the live map."
       : `Model loaded from ${h.model.path}${h.model.verification ? " · checked: " + h.model.verification.text : ""}. Record and train again to replace it.`;
+    renderLearning(h.learning);
     if (!h.setup_mode) view.people = (await call("GET", "/v1/positions")).people;
   } catch (err) { /* restarting: the status poll shows errors */ }
+}
+
+// The room that learns (/v1/health learning): positions learned from, the last improvement.
+function renderLearning(l) {
+  const line = $("learning");
+  line.hidden = !l || !l.enabled;
+  if (line.hidden) return;
+  const parts = [`Learned from ${l.self_labels.toLocaleString("en-US")} positions of people walking`];
+  const last = l.improvement && l.improvement.last;
+  if (last) parts.push(last.reason);
+  for (const r of l.repairs || []) parts.push(r.message);
+  line.textContent = parts.join(" · ") + ".";
 }
 
 async function poll() {

@@ -162,7 +162,7 @@ def test_training_reports_the_kept_models_error_not_the_last_epochs(
             text=True,
         )  # fmt: skip
 
-    monkeypatch.setattr(training, "_spawn", fake_train)
+    monkeypatch.setattr(training, "spawn_train", fake_train)
     (tmp_path / "rec.npz").write_bytes(b"")
     job = training.TrainingJob(lambda: tmp_path, lambda path: {"loaded": True})
     job.start(tmp_path / "rec.npz", first_model=True)

@@ -1,0 +1,77 @@
+"""The rows a self-improvement run trains on: the floor marks plus self-labels, weighted.
+
+Marks rows stay as recorded: they are the only ground truth, and they fix the floor frame.
+Self-labels join as ordinary dataset rows (the box of every camera that saw the person, the
+fused position as ``world``), so ``momloc train`` refits the floor geometry
+(:mod:`models.geometry.floor_prior`, which fits dense rows one by one) and the encoder on them,
+and chooses the served policy on its validation split (:mod:`models.mom.prior_policy`: once
+the labels cover the floor, the encoder and blend are weighed instead of serving the marks'
+geometry alone).
+
+Weighting by covariance: a label enters with probability ``(STD_FULL_M / std)²`` (clipped to
+``MIN_KEEP``..1), so the weight of a label in the fit is its inverse variance relative to a
+well-placed two-view position. Why thinning and not a loss weight: ``momloc train``,
+the floor prior's fit and the policy choice all take plain rows; a per-row weight would have
+to pass through all three (and the dataset format). Seeded, so a run is reproducible.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from models.data.dataset import MomDataset
+from service.learning.labels import LabelBatch
+
+STD_FULL_M = 0.05  # labels this sure (or surer) always enter
+MIN_KEEP = 0.05
+FRAME_RATE = 30.0  # label times -> the dataset's integer frame index
+
+
+def label_weights(labels: LabelBatch) -> np.ndarray:
+    """[N] each label's chance to enter the training rows (module docstring)."""
+    std = np.maximum(labels.std_m(), 1e-6)
+    return np.clip((STD_FULL_M / std) ** 2, MIN_KEEP, 1.0)
+
+
+def training_set(marks: MomDataset, labels: LabelBatch | None, seed: int = 0) -> MomDataset:
+    """``marks`` with the (weighted) ``labels`` appended as rows; labels of another camera
+    count are refused with ``ValueError``."""
+    if labels is None or labels.n == 0:
+        return marks
+    if labels.num_cameras != marks.num_cameras:
+        raise ValueError(
+            f"self-labels have {labels.num_cameras} cameras, the marks {marks.num_cameras}"
+        )
+    rng = np.random.default_rng(seed)
+    kept = labels.subset(rng.random(labels.n) < label_weights(labels))
+    if kept.n == 0:
+        return marks
+    dims = marks.world.shape[1]
+    world = np.zeros((kept.n, dims), np.float32)
+    world[:, :2] = kept.world
+    frame = marks.frame.max() + 1 + np.round((kept.t - kept.t.min()) * FRAME_RATE).astype(np.int64)
+    track = marks.track.max() + 1 + kept.track - kept.track.min()
+    keypoints = None
+    if marks.keypoints is not None:
+        joints = marks.keypoints.shape[2]
+        keypoints = np.concatenate(
+            [marks.keypoints, _joints(kept.keypoints, joints)], axis=0
+        ).astype(np.float32)
+    return MomDataset(
+        world=np.concatenate([marks.world, world]).astype(np.float32),
+        boxes=np.concatenate([marks.boxes, kept.boxes]).astype(np.float32),
+        frame=np.concatenate([marks.frame, frame]).astype(np.int64),
+        track=np.concatenate([marks.track, track]).astype(np.int64),
+        image_size=marks.image_size,
+        keypoints=keypoints,
+    )
+
+
+def _joints(points: np.ndarray, joints: int) -> np.ndarray:
+    """Label keypoints [N, K, J', 3] as [N, K, joints, 3] (NaN where the label has none)."""
+    if points.shape[2] == joints:
+        return points
+    out = np.full((*points.shape[:2], joints, 3), np.nan, np.float32)
+    shared = min(joints, points.shape[2])
+    out[:, :, :shared] = points[:, :, :shared]
+    return out

@@ -1,0 +1,211 @@
+"""Posture from the box shape, and the box a standing person at the same place would give.
+
+Why: the localizer is trained on people standing and walking (set-up marks, walks), so it reads
+a box's bottom as the feet and its height as a person's. A seated person's box ends at the feet
+0.4-0.5 m ahead of the hips, or at a table top when the legs are hidden; a lying person's box is
+low and wide. Fed as they are, the model put a seated person 0.2-0.5 m toward the camera and a
+lying one 0.6-1.2 m off (``bench/results/postures.md``).
+
+What is known without calibration: the set-up area's per-camera height model
+(:class:`models.mom.setup_area.CameraRegion.expected_height`: how tall a person standing at each
+foot pixel looks). Per box, ``ratio`` = box height / expected height at its bottom centre and
+``aspect`` = width / height:
+
+- **standing**: ratio ≥ ``SEATED_RATIO``; left as it is;
+- **lying**: aspect ≥ ``LYING_ASPECT`` with ratio below ``SEATED_RATIO``, or ratio below
+  ``LYING_RATIO``: the body lies on the floor, so the box centre is on the floor near the hips;
+  the standing box there replaces it;
+- **sitting** (crouching too: both are a short, wider box): the head is ``SEATED_TOP`` of a
+  standing person's height above the floor, so the feet of a standing person with the same head
+  pixel are found by a fixed-point search on the height model, and that standing box replaces
+  the seated one. Keeping the top and not the bottom is what makes hidden legs harmless. The
+  simulated seated body's top is at 0.715 of its standing height; 0.64 is what the simulated
+  lounge measured best (per-frame median 0.09 m against 0.29 m at 0.715 and 0.62 m at 0.8):
+  the fitted height model reads standing people there ~14 % short, and the factor absorbs that.
+  It is a figure of one simulated room, to be checked on real seated people.
+
+A box within ``BORDER_PX`` of the image border is left as it is (``unknown``): a person cut
+off by the frame edge is short for another reason.
+
+The thresholds were read off the simulated ratios and aspects of each posture (the bench prints
+them); the confidence is how far the box is from the nearest threshold, scaled to 0.5..1.
+
+A model without a height model (trained before the set-up area, e.g. an old demo model) gets
+``unknown`` and its boxes unchanged. Rejected: the aspect ratio alone (a standing person's box
+is 0.2-0.6 wide per unit height, a seated one's 0.5-1.1: they overlap), and keypoints (the hips
+would give the floor point directly, but a pose estimator is optional and guesses hidden legs).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections import defaultdict
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from models.detector.base import Detections
+from models.mom.setup_area import SetupArea
+
+STANDING, SITTING, LYING, UNKNOWN = "standing", "sitting", "lying", "unknown"
+SEATED_RATIO = 0.78  # box height / a standing person's there: below, not standing
+SEATED_ASPECT = 0.45  # ... and at least this wide per unit height (an occluded walker's
+# visible upper half is short too, but narrow)
+LYING_RATIO = 0.45
+LYING_ASPECT = 1.0
+SEATED_TOP = 0.64  # a seated head's top over the expected standing height (module docstring)
+BORDER_PX = 2.0  # a box this close to the image border may be cut off: not judged
+STANDING_ASPECT = 0.4  # width of the standing box that replaces a seated or lying one
+SMOOTHING_S = 1.0  # a track's posture: evidence averaged over this time
+
+
+@dataclass(frozen=True)
+class BoxPostures:
+    """Per camera: the posture [M] and its confidence [M] of each detection."""
+
+    labels: list[np.ndarray]
+    confidence: list[np.ndarray]
+
+    def of(self, detection_index: Sequence[int | None]) -> tuple[str, float]:
+        """The posture of an association (its boxes' per camera indices): the label with the
+        most confidence summed over its boxes, and the mean confidence of that label."""
+        votes: dict[str, list[float]] = defaultdict(list)
+        for k, i in enumerate(detection_index):
+            if i is not None and k < len(self.labels) and i < len(self.labels[k]):
+                votes[str(self.labels[k][i])].append(float(self.confidence[k][i]))
+        if not votes:
+            return UNKNOWN, 0.0
+        label = max(votes, key=lambda name: sum(votes[name]))
+        total = sum(sum(v) for v in votes.values())
+        return label, round(sum(votes[label]) / max(total, 1e-9) * float(np.mean(votes[label])), 3)
+
+
+def classify(ratio: np.ndarray, aspect: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Labels [N] and confidences [N] from height ratios and aspects (module docstring)."""
+    ratio, aspect = np.asarray(ratio, float), np.asarray(aspect, float)
+    lying = (ratio < LYING_RATIO) | ((aspect >= LYING_ASPECT) & (ratio < SEATED_RATIO))
+    standing = ~lying & ((ratio >= SEATED_RATIO) | (aspect < SEATED_ASPECT))
+    labels = np.where(lying, LYING, np.where(standing, STANDING, SITTING)).astype(object)
+    margin = np.where(
+        standing,
+        (ratio - SEATED_RATIO) / 0.15,
+        np.where(
+            lying,
+            np.maximum(LYING_RATIO - ratio, aspect - LYING_ASPECT) / 0.3,
+            np.minimum(SEATED_RATIO - ratio, np.abs(ratio - LYING_RATIO)) / 0.15,
+        ),
+    )
+    return labels, np.round(0.5 + 0.5 * np.clip(np.nan_to_num(margin), 0.0, 1.0), 3)
+
+
+def standing_boxes(
+    boxes: np.ndarray, labels: np.ndarray, area: SetupArea, camera: int
+) -> np.ndarray:
+    """The boxes [M, 4] a standing person at the same floor point would give camera ``camera``:
+    seated ones from their top, lying ones from their centre (module docstring)."""
+    region = area.cameras[camera] if camera < len(area.cameras) else None
+    out = np.array(boxes, dtype=np.float64, copy=True)
+    if region is None or region.height_model is None or not len(out):
+        return out
+    u = 0.5 * (out[:, 0] + out[:, 2])
+    foot = np.where(labels == LYING, 0.5 * (out[:, 1] + out[:, 3]), out[:, 3])
+    seated = labels == SITTING
+    for _ in range(8):  # y_top = y_foot - SEATED_TOP * h(y_foot): converges in a few steps
+        height = region.expected_height(np.stack([u, foot], 1))
+        assert height is not None
+        foot = np.where(seated, out[:, 1] + SEATED_TOP * height, foot)
+    height = region.expected_height(np.stack([u, foot], 1))
+    assert height is not None
+    half = 0.5 * STANDING_ASPECT * height
+    replaced = np.stack([u - half, foot - height, u + half, foot], 1)
+    return np.where(((labels == SITTING) | (labels == LYING))[:, None], replaced, out)
+
+
+def camera_postures(
+    boxes: np.ndarray, area: SetupArea | None, camera: int, image_size: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Labels [M], confidences [M] and standing boxes [M, 4] of one camera's boxes [M, 4]
+    (NaN rows stay NaN and ``unknown``, as do boxes at the border of an image of
+    ``image_size`` (width, height); everything ``unknown`` without a height model)."""
+    boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
+    region = None if area is None or camera >= len(area.cameras) else area.cameras[camera]
+    bottom = np.stack([0.5 * (boxes[:, 0] + boxes[:, 2]), boxes[:, 3]], 1)
+    expected = None if region is None else region.expected_height(bottom)
+    if expected is None or area is None or not len(boxes):
+        return np.full(len(boxes), UNKNOWN, dtype=object), np.zeros(len(boxes)), boxes
+    height = np.maximum(boxes[:, 3] - boxes[:, 1], 1e-6)
+    labels, confidence = classify(height / expected, (boxes[:, 2] - boxes[:, 0]) / height)
+    seen = np.isfinite(boxes).all(axis=1)
+    if image_size is not None:
+        w, h = float(image_size[0]), float(image_size[1])
+        seen &= (boxes[:, 0] > BORDER_PX) & (boxes[:, 1] > BORDER_PX)
+        seen &= (boxes[:, 2] < w - BORDER_PX) & (boxes[:, 3] < h - BORDER_PX)
+    labels = np.where(seen, labels, UNKNOWN)
+    confidence = np.where(seen, confidence, 0.0)
+    return labels, confidence, standing_boxes(boxes, labels, area, camera)
+
+
+def normalise(
+    detections: Sequence[Detections], area: SetupArea | None, image_sizes: np.ndarray | None = None
+) -> tuple[list[Detections], BoxPostures]:
+    """Each camera's detections with seated and lying boxes replaced by standing ones, and the
+    posture of every box (``unknown`` everywhere without a height model)."""
+    labels: list[np.ndarray] = []
+    confidence: list[np.ndarray] = []
+    out: list[Detections] = []
+    for k, det in enumerate(detections):
+        size = None if image_sizes is None else image_sizes[k]
+        names, conf, fixed = camera_postures(det.boxes, area, k, size)
+        labels.append(names)
+        confidence.append(conf)
+        changed = (names != STANDING) & (names != UNKNOWN)
+        out.append(
+            dataclasses.replace(det, boxes=fixed.astype(np.float32)) if changed.any() else det
+        )
+    return out, BoxPostures(labels, confidence)
+
+
+def rows_as_standing(
+    boxes: np.ndarray, area: SetupArea | None, image_sizes: np.ndarray | None = None
+) -> np.ndarray:
+    """Rows of boxes [N, K, 4] (one person per row, NaN where unseen) with every camera's
+    seated and lying boxes replaced by standing ones: what the chain localizes."""
+    out = np.array(boxes, np.float64, copy=True)
+    for k in range(out.shape[1]):
+        size = None if image_sizes is None else image_sizes[k]
+        out[:, k] = camera_postures(out[:, k], area, k, size)[2]
+    return out
+
+
+class PostureSmoother:
+    """A track's posture over time: per label, an exponential average of the confidence its
+    associations gave it over ``SMOOTHING_S``, so one odd box does not flip it."""
+
+    def __init__(self, smoothing_s: float = SMOOTHING_S) -> None:
+        self.smoothing_s = smoothing_s
+        self._evidence: dict[int, dict[str, float]] = {}
+        self._time: dict[int, float] = {}
+
+    def update(self, track_id: int, t: float, label: str, confidence: float) -> tuple[str, float]:
+        """Fold one observation in; the track's posture and its confidence (0..1)."""
+        evidence = self._evidence.setdefault(track_id, {})
+        dt = max(t - self._time.get(track_id, t), 0.0)
+        self._time[track_id] = t
+        keep = float(np.exp(-dt / self.smoothing_s)) if evidence else 0.0
+        for name in evidence:
+            evidence[name] *= keep
+        evidence[label] = evidence.get(label, 0.0) + (1.0 - keep if keep else 1.0) * confidence
+        return self.current(track_id)
+
+    def current(self, track_id: int) -> tuple[str, float]:
+        evidence = self._evidence.get(track_id)
+        if not evidence or sum(evidence.values()) <= 0:
+            return UNKNOWN, 0.0
+        label = max(evidence, key=lambda name: evidence[name])
+        return label, round(evidence[label] / sum(evidence.values()), 3)
+
+    def forget(self, alive: set[int]) -> None:
+        for gone in set(self._evidence) - alive:
+            self._evidence.pop(gone, None)
+            self._time.pop(gone, None)

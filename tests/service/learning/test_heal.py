@@ -1,0 +1,142 @@
+"""Self-healing: a bumped camera's floor map re-learned from positions the other camera gives."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from models.geometry.floor_prior import FloorPrior
+from models.simulate import Perturbation
+from models.simulate.presets import make_scene
+from service.learning.heal import HealSamples, repair
+from service.learning.healer import Healer, Session
+from service.learning.listener import SelfLabeler
+from service.settings import DEMO_MODEL_DIR
+from tests.service.learning.frames import FakeModel
+
+BUMP = Perturbation(camera=1, start_frame=0, dx=10.0, roll_deg=3.0)
+
+
+def camera_views(seed: int, frames: range, bumped: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """True floor positions [N, 2] and camera 1's boxes [N, 4] (ideal boxes), after the bump
+    unless ``bumped`` is False."""
+    scene = make_scene(
+        "indoor-2cam", seed=seed, perturbations=[BUMP] if bumped else [], detector_profile="ideal"
+    )
+    world, boxes = [], []
+    for i in frames:
+        obs = scene.observe(i)
+        seen = np.isfinite(obs.boxes[:, 1]).all(axis=1)
+        world.append(obs.world[seen, :2])
+        boxes.append(obs.boxes[seen, 1])
+    return np.concatenate(world), np.concatenate(boxes)
+
+
+def lone_error(prior: FloorPrior, world: np.ndarray, boxes: np.ndarray) -> float:
+    lone = np.full((len(world), prior.num_cameras, 4), np.nan)
+    lone[:, 1] = boxes
+    xy, _ = prior.predict(lone)
+    return float(np.nanmedian(np.linalg.norm(xy - world, axis=1)))
+
+
+def test_a_repair_brings_the_bumped_camera_back_and_passes_its_check() -> None:
+    meta = json.loads((DEMO_MODEL_DIR / "model.json").read_text())
+    before = FloorPrior.from_json(meta["floor_prior"]["prior"])
+    rng = np.random.default_rng(0)
+    world, boxes = camera_views(3, range(0, 1500, 5))
+    reference = world + rng.normal(0, 0.1, world.shape)  # the other camera's positions
+    samples = HealSamples(
+        t=list(np.arange(len(world), dtype=float)),
+        world=list(reference),
+        std=[0.1] * len(world),
+        box=list(boxes),
+    )
+    fixed = repair(meta, 1, samples, single_m=0.15)
+    test_world, test_boxes = camera_views(4, range(0, 600, 7))
+    after = FloorPrior.from_json(fixed.meta["floor_prior"]["prior"])
+    bumped = lone_error(before, test_world, test_boxes)
+    repaired = lone_error(after, test_world, test_boxes)
+    unbumped = lone_error(before, *camera_views(4, range(0, 600, 7), bumped=False))
+    # back to what the camera did before the bump (the same people, seen from where it was)
+    assert repaired < 0.8 * bumped and repaired < 1.1 * unbumped, (bumped, repaired, unbumped)
+    assert fixed.passed and fixed.positions == len(world)
+    assert fixed.meta["floor_prior"]["policy"] == "prior"
+    assert (
+        fixed.meta["floor_prior"]["prior"]["cameras"][0]
+        == meta["floor_prior"]["prior"]["cameras"][0]
+    )
+    assert fixed.meta["decoder"]["matrices"][0] == meta["decoder"]["matrices"][0]
+    assert fixed.meta["decoder"]["matrices"][1] != meta["decoder"]["matrices"][1]
+    assert meta["floor_prior"]["policy"] == "blend"  # the model in service is left as it was
+
+
+def test_positions_that_do_not_match_the_boxes_fail_the_check() -> None:
+    meta = json.loads((DEMO_MODEL_DIR / "model.json").read_text())
+    world, boxes = camera_views(3, range(0, 1500, 5))
+    shuffled = np.random.default_rng(1).permutation(world)  # positions of someone else
+    samples = HealSamples(
+        list(np.arange(len(world), dtype=float)), list(shuffled), [0.1] * len(world), list(boxes)
+    )
+    try:
+        fixed = repair(meta, 1, samples, single_m=0.15)
+    except Exception:  # no map fits at all: as good as failing the check
+        return
+    assert not fixed.passed, fixed.error_m
+
+
+class StoredModel(FakeModel):
+    """The serving model as the healer reads it: its ``model.json`` and directory."""
+
+    def __init__(self, meta: dict) -> None:
+        super().__init__(meta=meta)
+        self.model_dir = DEMO_MODEL_DIR
+
+
+class Serving:
+    def __init__(self, meta: dict) -> None:
+        self.runtime = StoredModel(meta)
+        self.reloaded: list[Path] = []
+
+    def reload_model(self, model_dir: str | Path | None = None) -> dict[str, Any]:
+        self.reloaded.append(Path(str(model_dir)))
+        return {}
+
+
+def session_with(world: np.ndarray, boxes: np.ndarray) -> Session:
+    session = Session(camera=1, since=1e9, wall=0.0, need=len(world))
+    session.samples = HealSamples(
+        list(np.arange(len(world), dtype=float)), list(world), [0.1] * len(world), list(boxes)
+    )
+    return session
+
+
+def test_a_passing_repair_is_served_as_a_copy_of_the_model_and_said_so(tmp_path: Path) -> None:
+    meta = json.loads((DEMO_MODEL_DIR / "model.json").read_text())
+    serving = Serving(meta)
+    healer = Healer(tmp_path, SelfLabeler(tmp_path, threaded=False), serving)
+    world, boxes = camera_views(3, range(0, 1500, 5))
+    session = session_with(world, boxes)
+    healer._repair(session)
+    final = tmp_path / "model"
+    assert session.state == "repaired" and serving.reloaded == [final]
+    served = json.loads((final / "model.json").read_text())
+    assert served["floor_prior"]["policy"] == "prior"
+    assert (final / "encoder.onnx").read_bytes() == (DEMO_MODEL_DIR / "encoder.onnx").read_bytes()
+    message = healer.status()[0]["message"]
+    assert f"re-learned from {len(world)} positions" in message and "camera 1 moved at" in message
+
+
+def test_a_failing_repair_is_not_served_and_collection_goes_on(tmp_path: Path) -> None:
+    meta = json.loads((DEMO_MODEL_DIR / "model.json").read_text())
+    serving = Serving(meta)
+    healer = Healer(tmp_path, SelfLabeler(tmp_path, threaded=False), serving)
+    world, boxes = camera_views(3, range(0, 1500, 5))
+    world, boxes = world[:300], boxes[:300]
+    session = session_with(np.random.default_rng(1).permutation(world), boxes)
+    healer._repair(session)
+    assert serving.reloaded == [] and not (tmp_path / "model").exists()
+    assert session.state == "collecting" and session.need == 600
+    assert session.samples.n == 0 and "collecting more positions" in (session.message or "")

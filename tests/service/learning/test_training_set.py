@@ -1,0 +1,36 @@
+"""The rows a self-improvement run trains on: the marks as recorded, labels by their certainty."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from service.learning.training_set import label_weights, training_set
+from tests.service.learning.test_gate import labels_batch, marks_dataset
+
+
+def test_marks_stay_and_labels_join_as_rows_of_their_own_tracks() -> None:
+    marks, labels = marks_dataset(), labels_batch(200)
+    rows = training_set(marks, labels)
+    assert rows.n == marks.n + labels.n  # std 0.05 m: every label enters
+    np.testing.assert_array_equal(rows.world[: marks.n], marks.world)
+    assert set(rows.track[marks.n :]).isdisjoint(set(marks.track))
+    assert rows.frame[marks.n :].min() > marks.frame.max()
+    np.testing.assert_allclose(rows.world[marks.n :], labels.world)
+
+
+def test_uncertain_labels_count_less() -> None:
+    labels = labels_batch(2000)
+    labels.covariance[1000:] *= 4.0  # std 0.1 m: a quarter of the weight
+    weights = label_weights(labels)
+    assert weights[:1000] == pytest.approx(1.0) and weights[1000:] == pytest.approx(0.25)
+    rows = training_set(marks_dataset(), labels, seed=1)
+    kept = rows.n - marks_dataset().n
+    assert 1000 + 0.2 * 1000 < kept < 1000 + 0.3 * 1000
+
+
+def test_labels_of_another_camera_count_are_refused() -> None:
+    labels = labels_batch(10)
+    labels.boxes = np.concatenate([labels.boxes, labels.boxes[:, :1]], axis=1)
+    with pytest.raises(ValueError, match="3 cameras"):
+        training_set(marks_dataset(), labels)

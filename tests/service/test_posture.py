@@ -1,0 +1,80 @@
+"""Posture from the box shape (service.tracking.posture): labels, the standing box that replaces
+a seated or lying one, the track's smoothed posture, and the snapshot's optional field."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from models.detector.base import Detections
+from models.mom.setup_area import CameraRegion, SetupArea
+from service.pipeline.live import _person
+from service.stages import Track
+from service.tracking import posture
+from service.tracking.posture import LYING, SITTING, STANDING, UNKNOWN, PostureSmoother
+
+STANDING_PX = 200.0  # a person standing anywhere looks 200 px tall to this camera
+
+
+def _area() -> SetupArea:
+    flat = np.array([np.log(STANDING_PX), 0, 0, 0, 0, 0], float)
+    hull = np.array([[0.0, 0.0], [640.0, 0.0], [640.0, 480.0], [0.0, 480.0]])
+    region = CameraRegion(hull, (50.0, 400.0), flat, 0.05)
+    return SetupArea(np.array([[0.0, 0.0], [5.0, 0.0], [5.0, 4.0]]), 0.5, (region,))
+
+
+def test_box_shape_gives_the_posture() -> None:
+    ratio = np.array([1.0, 0.65, 0.65, 0.4, 0.6, 0.6])
+    aspect = np.array([0.4, 0.7, 0.3, 0.9, 1.6, 0.8])
+    labels, confidence = posture.classify(ratio, aspect)
+    # an upright box; a short wide one (seated); short but narrow (an occluded walker's upper
+    # half): left standing; very short; low and wide; short and fairly wide
+    assert labels.tolist() == [STANDING, SITTING, STANDING, LYING, LYING, SITTING]
+    assert ((confidence >= 0.5) & (confidence <= 1.0)).all()
+
+
+def test_seated_and_lying_boxes_become_standing_ones() -> None:
+    seated = [300.0, 100.0, 380.0, 230.0]  # 130 px tall, 80 wide
+    lying = [200.0, 300.0, 360.0, 380.0]  # 80 px tall, 160 wide
+    upright = [100.0, 100.0, 180.0, 300.0]
+    cut = [0.0, 250.0, 60.0, 330.0]  # short, but at the image border
+    labels, _, boxes = posture.camera_postures(
+        np.array([seated, lying, upright, cut]), _area(), 0, np.array([640, 480])
+    )
+    assert labels.tolist() == [SITTING, LYING, STANDING, UNKNOWN]
+    # seated: the head stays, the feet go SEATED_TOP standing heights below it
+    foot = 100.0 + posture.SEATED_TOP * STANDING_PX
+    assert boxes[0] == pytest.approx([340 - 40, foot - 200, 340 + 40, foot])
+    assert boxes[1, 3] == pytest.approx(340.0) and boxes[1, 3] - boxes[1, 1] == pytest.approx(200)
+    assert boxes[2] == pytest.approx(upright) and boxes[3] == pytest.approx(cut)
+
+
+def test_normalise_keeps_detections_of_models_without_a_height_model() -> None:
+    det = Detections(np.array([[300, 100, 380, 230]], np.float32), np.ones(1, np.float32))
+    same, postures = posture.normalise([det], None)
+    assert same[0] is det and postures.of([0]) == (UNKNOWN, 0.0)
+    fixed, postures = posture.normalise([det], _area(), np.array([[640, 480]]))
+    assert fixed[0].boxes[0, 3] == pytest.approx(228.0) and postures.of([0])[0] == SITTING
+
+
+def test_one_odd_box_does_not_flip_a_track_posture() -> None:
+    smoother = PostureSmoother(smoothing_s=1.0)
+    for i in range(30):
+        label, _ = smoother.update(7, i / 15, SITTING, 0.9)
+    assert label == SITTING
+    assert smoother.update(7, 2.0, STANDING, 1.0)[0] == SITTING
+    for i in range(31, 60):
+        label, confidence = smoother.update(7, i / 15, LYING, 0.8)
+    assert label == LYING and confidence > 0.8
+    smoother.forget(set())
+    assert smoother.current(7) == (UNKNOWN, 0.0)
+
+
+def test_snapshot_person_carries_the_posture_only_when_known() -> None:
+    track = Track(3, 1.0, 2.0, 0.0, 0.0, 0.9, [0, 1], posture=(SITTING, 0.83))
+    person = _person(track)
+    assert person["posture"] == "sitting" and person["posture_confidence"] == 0.83
+    assert "posture" not in _person(Track(4, 1.0, 2.0, 0.0, 0.0, 0.9))
+    json.dumps(person)  # plain JSON
