@@ -18,6 +18,7 @@ from websockets.asyncio.client import connect
 from capture.synthetic import SyntheticRig
 from models.simulate.scene import Scene
 from service.settings import DEMO_MODEL_DIR
+from service.snapshot import Person
 from tests.e2e.client_checks import WIRE, Tap
 from tests.e2e.server import match_to_truth, running_server
 
@@ -215,7 +216,8 @@ def test_openapi_declares_the_snapshot_and_its_person(server):
     assert body["properties"]["people"]["items"] == {"$ref": "#/components/schemas/Person"}
     person = schemas["Person"]
     fields = {"id", "x", "y", "vx", "vy", "confidence", "cameras"}
-    assert set(person["properties"]) == fields | {"outside"}
+    optional = {"outside", "posture", "posture_confidence"}  # sent only when they apply
+    assert set(person["properties"]) == fields | optional == set(Person.__annotations__)
     assert set(person["required"]) == fields
     assert person["additionalProperties"] is False
     assert all(person["properties"][name].get("description") for name in person["properties"])
