@@ -38,6 +38,7 @@ part dominates (the fills are ~0.5 ms of it); inner bands are drawn without anti
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
 
 import cv2
@@ -89,6 +90,37 @@ class Look:
             "skin": self.skin,
             "front": self.shirt,
         }[part]
+
+    @functools.cached_property
+    def shades(self) -> dict[tuple[str, bool], Shade]:
+        """Every part's paint colours, near-side and far-side (darker): computed once per person,
+        since per-band colour arithmetic in Python was a third of a frame's drawing cost."""
+        return {
+            (part, far): Shade.of(self.colour(part) * (0.8 if far else 1.0))
+            for part in _PART_NAMES
+            for far in (False, True)
+        }
+
+
+@dataclass(frozen=True)
+class Shade:
+    """The colours a part is painted with: one per nested band, the single tone of a part too
+    small for bands, and its outline (BGR lists, as OpenCV takes them)."""
+
+    bands: tuple[list[float], ...]
+    flat: list[float]
+    outline: list[float]
+
+    @classmethod
+    def of(cls, colour: np.ndarray) -> Shade:
+        def tone(gain: float, add: float) -> list[float]:
+            return np.minimum(colour * gain + add, 255.0).tolist()
+
+        return cls(
+            bands=tuple(tone(gain, add) for _, _, gain, add in _BANDS),
+            flat=tone(0.9, 0.0),
+            outline=(colour * 0.5).tolist(),
+        )
 
 
 def appearance(rng: np.random.Generator, people: int) -> list[Look]:
@@ -156,6 +188,8 @@ _CIRCLE = np.stack([np.cos(np.linspace(0, 2 * np.pi, 12, endpoint=False)),
                     np.sin(np.linspace(0, 2 * np.pi, 12, endpoint=False))], 1)  # fmt: skip
 # Nested hulls of a part: (offset toward the light, radius, brightness, added), in units of r.
 _BANDS = ((0.0, 1.0, 0.7, 0.0), (0.22, 0.76, 1.0, 0.0), (0.45, 0.4, 1.16, 10.0))
+_SHAPE_POINTS = [list(idx) for _, idx, _, _ in _SHAPES]
+_FRONT = [X["front_top"], X["front_bottom"]]
 
 
 def with_extra_points(points: np.ndarray, heights: np.ndarray) -> np.ndarray:
@@ -263,34 +297,31 @@ def _paint_person(image: np.ndarray, rings: list[np.ndarray], r: np.ndarray, d: 
                   look: Look) -> None:  # fmt: skip
     part_depth = np.where(_PART_MASK, d[_PART_IDX], 0.0).sum(1) / _PART_MASK.sum(1)
     part_size = np.where(_PART_MASK, r[_PART_IDX], 0.0).max(1)
-    far = _PART_SIDED & (d[_PART_IDX[:, 0]] > d[P["chest"]] + 0.02)
+    far = (_PART_SIDED & (d[_PART_IDX[:, 0]] > d[P["chest"]] + 0.02)).tolist()
     facing = d[P["nose"]] < d[HEAD]
-    colours = {part: look.colour(part).tolist() for part in _PART_NAMES}
+    shades = look.shades
     for s in np.lexsort((-part_depth, _PART_LAYER)).tolist():
-        _, idx, part, _ = _SHAPES[s]
-        gain = 0.8 if far[s] else 1.0
-        _shaded(image, rings, list(idx), float(part_size[s]), [c * gain for c in colours[part]])
+        part = _SHAPES[s][2]
+        _shaded(image, rings, _SHAPE_POINTS[s], float(part_size[s]), shades[part, far[s]])
         if part == "torso" and look.jacket is not None and facing:
-            front = [X["front_top"], X["front_bottom"]]
-            _shaded(image, rings, front, float(r[front].max()), look.shirt.tolist(), bands=1)
+            _shaded(image, rings, _FRONT, float(r[_FRONT].max()), shades["front", False], 1)
 
 
 def _shaded(image: np.ndarray, rings: list[np.ndarray], idx: list[int], size: float,
-            colour: list[float], bands: int = 3) -> None:  # fmt: skip
+            shade: Shade, bands: int = 3) -> None:  # fmt: skip
     """A part as nested convex hulls (shadow side, mid tone, lit side) and a soft outline.
 
     ``size`` is the part's largest radius in pixels: small parts get fewer bands, since
     sub-pixel bands cost time and are invisible."""
     n = 1 if size < 2.0 else 2 if size < 4.0 else bands
     for band in range(n):
-        _, _, gain, add = _BANDS[band] if n > 1 else (0, 0, 0.9, 0.0)
         poly = cv2.convexHull(rings[band][idx].reshape(-1, 2))
         # Only the silhouette is anti-aliased: band edges inside it cost 3x as much with AA and
         # are soft anyway (neighbouring tones).
-        cv2.fillConvexPoly(image, poly, [min(c * gain + add, 255.0) for c in colour],
+        cv2.fillConvexPoly(image, poly, shade.bands[band] if n > 1 else shade.flat,
                            cv2.LINE_AA if band == 0 else cv2.LINE_8, 4)  # fmt: skip
         if band == 0 and size > 2.5:
-            cv2.polylines(image, [poly], True, [c * 0.5 for c in colour], 1, cv2.LINE_AA, 4)
+            cv2.polylines(image, [poly], True, shade.outline, 1, cv2.LINE_AA, 4)
 
 
 def _disc(image: np.ndarray, centre: np.ndarray, radius: float, colour: np.ndarray) -> None:
