@@ -126,12 +126,10 @@ def _cut_marks(
 
     A detector's box of a person cut by the border ends a few pixels inside it in many frames
     (its edge error: the nanodet profile's bottom edge is 10 % of the box height), so the rows
-    that look whole are the same cut person, and the mark's median pixel is wrong. Measured on
-    the synthetic 3x3 set-up (nanodet, 6 s per mark): feet below the image at a mark gave a
-    median bottom edge 4-15 px above the border, which the 2 px test of a single box misses.
-    Dense data (more than ``MAX_MARKS`` floor positions) is left to the per-box 2 px test: the
-    margin there, even only on positions with 5 or more rows (people standing), cost the stream
-    regression gate 1.7-1.9 MOTA points (51.6 → 49.7-49.9 %) and 0.2-0.9 cm of jitter.
+    that look whole are the same cut person, and the mark's median pixel is wrong; a 2 px test of
+    a single box misses it. Dense data (more than ``MAX_MARKS`` floor positions) is left to the
+    per-box 2 px test: the margin cost the stream regression gate there. Figures:
+    ``bench/results/design_measurements.md`` (cut marks).
     """
     keys = np.round(world / DISTINCT_M).astype(np.int64)
     _, mark = np.unique(keys, axis=0, return_inverse=True)

@@ -8,9 +8,7 @@ so sizes follow the pinhole perspective point by point and the painted person fi
 the simulator reports (the box is the union of the ``skeleton.RADII`` spheres; the drawn radii
 below are a little slimmer where those spheres are bulky, never larger).
 
-What the figures have (``bench/detector/render_recall.py``: recall of clear people at IoU >= 0.5 by
-height on 4 presets, ``bench/results/render_recall.md``; the previous renderer in
-``render_recall_before.md``):
+What the figures have:
 
 - **proportions** on the COCO-17 skeleton the simulator animates: the shirt ends at the hip
   joints (it used to reach mid-thigh, which made legs look short), shoulders slope below the
@@ -21,18 +19,11 @@ height on 4 presets, ``bench/results/render_recall.md``; the previous renderer i
   the image per person; every part is three nested hulls (shadow side, mid tone, lit side)
   offset toward the light, far-side limbs darker, a soft outline and a floor shadow.
 
-Measured, 2026-12-01: NanoDet finds 95 % / 99 % / 89 % of clear people < 100 / 100-200 / > 200 px
-tall (97 % overall; precision 0.94) in the furnished rooms, against 99 / 100 / 87 % for the
-previous figures in plain rooms; SSDLite 13 / 50 / 44 % (was 31 / 65 / 53 %): the furniture and
-patterned floors make the scene harder, not the people easier to miss. The > 200 px misses are
-people close below a high camera (steep view, head and shoulders foreshortened), found with
-scores 0.2-0.4 at IoU 0.8-0.9. Tried on those 258 large people, each within ±2 points of the
-89 % (noise of the measurement): flat colours instead of bands, thinner arms or legs, a smaller
-head, a narrower chest, a 3×3 blur, sensor noise, other clothes; none was kept for that reason.
-
-Cost: the background once per camera (``room.render_background``, 0.2-0.45 s), then 4-5 CPU-ms
-per 640×480 frame with 2-3 people and ~8 ms with 4 (2-core host under load). Python overhead per
-part dominates (the fills are ~0.5 ms of it); inner bands are drawn without anti-aliasing.
+Recall of the shipped detectors on these figures by person height, and what was tried on the
+people it misses: ``bench/results/render_recall.md`` (``bench/detector/render_recall.py``; the
+previous renderer in ``render_recall_before.md``). Cost: the background once per camera, then a
+few CPU-ms per frame and person, Python overhead per part dominating (inner bands are drawn
+without anti-aliasing): ``bench/results/demo_cost.md``.
 """
 
 from __future__ import annotations
