@@ -92,7 +92,7 @@ def test_the_detectors_runtime_is_a_typed_setting() -> None:
         return stage.detector.graph.runtime
 
     assert built({"schedule": "every_frame"}, runtime="onnxruntime") == "onnxruntime"
-    preferred = runtimes.choose_runtime("auto", user_model=False)
+    preferred = runtimes.choose_engine("auto", "auto", user_model=False).runtime
     assert built({"schedule": "auto"}) == preferred
     assert built({"schedule": "every_frame"}, threads=1, runtime="auto") == preferred
     with pytest.raises(MomlocError, match=r"detector\.runtime: Input should be 'auto'"):
