@@ -1,4 +1,4 @@
-"""Quantize the shipped NanoDet graph to INT8 for onnxruntime and OpenVINO.
+"""Quantize the shipped NanoDet graph to INT8 for OpenVINO (and, measured only, onnxruntime).
 
 Why: at FP32 every runtime needed about twice the CPU budget of a pair of 640×480 frames on a
 2-core machine (``bench/results/detector_runtimes.md``); 8-bit weights and activations roughly
