@@ -166,7 +166,7 @@ def main(argv: list[str] | None = None) -> int:
     verdicts = []
     default = next(f"{e.runtime} {e.precision}" for e in PREFERRED if installed(e.runtime))
     for threads in (1, 2):
-        cpu = {c: statistics.median(times[(c, threads)]["cpu"]) for c in eligible}
+        cpu = {c: statistics.median(times[(c, threads)]["cpu"]) for c in configs}
         fastest = min(eligible, key=cpu.__getitem__)
         verdicts.append(
             f"- {threads} thread(s): **{fastest}** uses the least CPU among the configurations "
