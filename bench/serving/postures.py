@@ -49,7 +49,8 @@ from models.simulate.script import Segment
 from service.offline.stream_eval import MIN_VISIBLE_FRACTION, frame_detections, in_view
 from service.pipeline.chain import Chain
 from service.settings import DEMO_MODEL_DIR
-from service.tracking.posture import SITTING, UNKNOWN, rows_as_standing
+from service.tracking.posture import SITTING, UNKNOWN
+from service.tracking.posture_agreement import agreed_rows
 from service.tracking.tracker import RECOMMENDED, Tracker
 
 RESULTS = Path(__file__).resolve().parents[1] / "results"
@@ -124,7 +125,7 @@ def run(runtime: MomRuntime, config: SceneConfig, seed: int, frames: int, postur
         if seen.any():
             rows = obs.boxes[seen]
             if postures:
-                rows = rows_as_standing(rows, runtime.setup_area, runtime.image_sizes)
+                rows = agreed_rows(rows, runtime.setup_area, runtime.image_sizes)
             xy = np.asarray(runtime.localize(rows), float)
             for name, err in zip(
                 posture[seen], np.linalg.norm(xy - obs.world[seen, :2], axis=1), strict=True
