@@ -11,6 +11,13 @@ Once the boxes are associated, the person's posture is the vote over their boxes
 posture says (a seated person's standing box from its top), and the association is localized
 again from the converted boxes.
 
+A box as tall as a standing person there in an association with a seated or lying box is
+another person: the association paired a seated person's box with a walker's or with a false
+box of a standing person's size (its reprojection check cannot tell, the seated box having been
+converted into a standing one), which put the seated person up to 1 m off in the simulated
+lounge. Such an association is split into its low and its tall boxes, each localized alone,
+as if the association had refused the pair.
+
 Only a box short for a standing person there (below ``AGREE_RATIO`` of the expected height) is
 converted: a walker's box that the association mistakenly voted seated (a mispaired short box
 in the other view) keeps its own. Walkers measured in the simulated indoor rooms are below 0.9
@@ -54,6 +61,7 @@ class Relocalizing(WithCovariance, Protocol):
     def localize(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray: ...
 
 
+SPLIT_DISAGREEING = True  # a seated and a tall box are split (module docstring)
 AGREE_RATIO = 0.9  # a "standing" box shorter than this (of a standing person's height) can be
 # a seated person's view that the per-box thresholds missed
 
@@ -67,27 +75,43 @@ def agree(
 ) -> list[Association]:
     """``associations`` with each mixed one (a seated or lying vote with standing boxes short
     enough to be another view of it) rebuilt from the boxes as ``detected`` (before the
-    posture stage), all converted as the vote says, and localized again."""
+    posture stage), all converted as the vote says, and localized again; one with low and
+    tall boxes split in two (appended at the end)."""
     out = list(associations)
     if area is None or runtime.observation != "bbox":  # keypoint models read the joints
         return out
+    split: list[Association] = []
     for n, association in enumerate(associations):
+        tall = [
+            k
+            for k, i in enumerate(association.detection_index)
+            if i is not None
+            and str(postures.labels[k][i]) == STANDING
+            and not _short(np.asarray(detected[k].boxes[i], np.float64).reshape(1, 4), area, k)
+        ]
+        low = [
+            k
+            for k, i in enumerate(association.detection_index)
+            if i is not None and str(postures.labels[k][i]) in (SITTING, LYING)
+        ]
+        if SPLIT_DISAGREEING and tall and low:  # a standing person's box and a seated one
+            out[n] = _part(association, low, runtime)
+            split.append(_part(association, tall, runtime))
+            continue
         label, _ = postures.of(association.detection_index)
         if label not in (SITTING, LYING):
             continue
         rows = np.array(association.boxes, np.float64, copy=True)
         changed = False
         for k, i in enumerate(association.detection_index):
-            if i is None or str(postures.labels[k][i]) != STANDING:
+            if i is None or k in tall or str(postures.labels[k][i]) != STANDING:
                 continue
             box = np.asarray(detected[k].boxes[i], np.float64).reshape(1, 4)
-            if not _short(box, area, k):
-                continue
             rows[k] = standing_boxes(box, np.array([label], dtype=object), area, k)[0]
             changed = True
         if changed:
             out[n] = _relocalized(association, rows, runtime)
-    return out
+    return out + split
 
 
 def agreed_rows(
@@ -129,6 +153,22 @@ def _short(box: np.ndarray, area: SetupArea, camera: int) -> bool:
     if expected is None:
         return False
     return bool(box[0, 3] - box[0, 1] < AGREE_RATIO * float(expected[0]))
+
+
+def _part(association: Association, cameras: list[int], runtime: Relocalizing) -> Association:
+    """The association reduced to ``cameras`` (its other boxes dropped), localized again."""
+    keep = np.zeros(len(association.detection_index), dtype=bool)
+    keep[cameras] = True
+    rows = np.where(keep[:, None], np.asarray(association.boxes, np.float64), np.nan)
+    part = dataclasses.replace(
+        association,
+        cameras=[int(k) for k in cameras],
+        detection_index=[i if keep[k] else None for k, i in enumerate(association.detection_index)],
+        errors=np.where(keep, association.errors, np.nan)
+        if len(association.errors)
+        else association.errors,
+    )
+    return _relocalized(part, rows, runtime)
 
 
 def _relocalized(association: Association, rows: np.ndarray, runtime: Relocalizing) -> Association:

@@ -100,14 +100,15 @@ class _BoxBottoms:
 def test_a_seated_person_short_in_one_view_is_read_seated_in_both() -> None:
     """Per box, the view of a seated person that looks 0.8 of a standing height reads as
     standing; once associated with a clearly seated view, it is converted as seated too and
-    the person localized again. With a standing person's box the vote is standing: nothing
-    changes."""
+    the person localized again. A seated box paired with a standing person's box is no person:
+    the pair is split into two single views."""
     area = SetupArea(_area().floor, 0.5, (_area().cameras[0], _area().cameras[0]))
     seated = [300.0, 100.0, 380.0, 230.0]  # 0.65 of a standing height, wide: sitting
     short = [100.0, 100.0, 190.0, 260.0]  # 0.8, as wide as a walker in stride: "standing"
     tall = [100.0, 100.0, 180.0, 300.0]  # a standing person's height
     runtime = _BoxBottoms()
-    for other, converted in ((short, True), (tall, False)):
+    results = []
+    for other in (short, tall):
         detected = [
             Detections(np.array([seated], np.float32), np.ones(1, np.float32)),
             Detections(np.array([other], np.float32), np.ones(1, np.float32)),
@@ -116,11 +117,13 @@ def test_a_seated_person_short_in_one_view_is_read_seated_in_both() -> None:
         assert postures.labels[1].tolist() == [STANDING]
         boxes = np.stack([normalised[0].boxes[0], normalised[1].boxes[0]]).astype(float)
         found = Association(boxes, [0, 1], runtime.localize(boxes[None])[0], 0.1, [0, 0])
-        (agreed,) = agree([found], detected, postures, area, runtime)
-        if converted:  # the head stays: the feet go SEATED_TOP standing heights below it
-            assert agreed.boxes[1, 3] == pytest.approx(100.0 + posture.SEATED_TOP * STANDING_PX)
-            assert agreed.world[0] == pytest.approx(agreed.boxes[:, 3].mean())
-        else:
-            assert agreed is found
+        results.append(agree([found], detected, postures, area, runtime))
+    (agreed,) = results[0]  # the head stays: the feet go SEATED_TOP standing heights below it
+    assert agreed.boxes[1, 3] == pytest.approx(100.0 + posture.SEATED_TOP * STANDING_PX)
+    assert agreed.world[0] == pytest.approx(agreed.boxes[:, 3].mean())
+    low, high = results[1]
+    assert (low.cameras, low.detection_index) == ([0], [0, None])
+    assert (high.cameras, high.detection_index) == ([1], [None, 0])
+    assert low.world[0] == pytest.approx(boxes[0, 3]) and high.world[0] == pytest.approx(300.0)
     rows = agreed_rows(np.array([[seated, short]]), area, np.array([[640, 480]] * 2))
     assert rows[0, 1, 3] == pytest.approx(100.0 + posture.SEATED_TOP * STANDING_PX)
