@@ -43,6 +43,7 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -95,16 +96,24 @@ def fold_pads(graph, nodes: list) -> set[int]:
     return dropped
 
 
+def load_graph(source: Path, prefix: tuple[str, ...]) -> tuple[Any, list]:
+    """The ONNX model and its nodes, checked to start with the ``prefix`` op types."""
+    import onnx
+
+    model = onnx.load(source)
+    nodes = list(model.graph.node)
+    if tuple(node.op_type for node in nodes[: len(prefix)]) != prefix:
+        raise SystemExit(f"{source}: the graph does not start with {prefix}")
+    return model, nodes
+
+
 def ncnn_ready_onnx(source: Path, output: Path) -> None:
     """The shipped graph without its input prefix and with every Pad folded (step 2)."""
     import onnx
     from onnx import helper
 
-    model = onnx.load(source)
+    model, nodes = load_graph(source, PREFIX)
     graph = model.graph
-    nodes = list(graph.node)
-    if tuple(node.op_type for node in nodes[: len(PREFIX)]) != PREFIX:
-        raise SystemExit(f"{source}: the graph does not start with {PREFIX}")
     dropped = fold_pads(graph, nodes) | {id(node) for node in nodes[: len(PREFIX)]}
     kept = [node for node in nodes if id(node) not in dropped]
     new_input = nodes[len(PREFIX) - 1].output[0]

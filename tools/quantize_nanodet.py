@@ -57,7 +57,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from convert_nanodet_ncnn import fold_pads
+from convert_nanodet_ncnn import fold_pads, load_graph
 
 WEIGHTS = Path(__file__).resolve().parents[1] / "models" / "detector" / "weights"
 SOURCE = WEIGHTS / "nanodet_person.onnx"
@@ -83,11 +83,8 @@ def lean_graph(source: Path, output: Path) -> None:
     import onnx
     from onnx import helper, numpy_helper
 
-    model = onnx.load(source)
+    model, nodes = load_graph(source, PREFIX)
     graph = model.graph
-    nodes = list(graph.node)
-    if tuple(node.op_type for node in nodes[: len(PREFIX)]) != PREFIX:
-        raise SystemExit(f"{source}: the graph does not start with {PREFIX}")
     cast, subtract, multiply, _, _, first_conv = nodes[: len(PREFIX)]
     initializers = {init.name: init for init in graph.initializer}
     mean = numpy_helper.to_array(initializers[subtract.input[1]]).astype(np.float32)
