@@ -27,6 +27,7 @@ import argparse
 import shutil
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -92,17 +93,30 @@ def improvement_run(
     profile: str,
     budget_s: float = TRAIN_BUDGET_S,
     streamed: bool = True,
+    trained: Path | None = None,
+    rows: list[list[str]] | None = None,
+    decisions: list[dict[str, Any]] | None = None,
+    save: Callable[[], None] = lambda: None,
 ) -> tuple[list[list[str]], list[dict[str, Any]]]:
-    """One room: 4-mark model, people walk, an improvement run at each of ``minutes``."""
+    """One room: 4-mark model (``trained``: a copy of that one), people walk, an improvement
+    run at each of ``minutes``; appends to ``rows`` and ``decisions`` and calls ``save`` after
+    each (a long run keeps what it measured so far)."""
     data_dir = work / f"room-{seed}"
     data_dir.mkdir()
     shutil.copyfile(marks, data_dir / "marks.npz")
-    start = train(MomDataset.load(marks), data_dir / "model", budget_s)
+    if trained is None:
+        start = train(MomDataset.load(marks), data_dir / "model", budget_s)
+    else:
+        shutil.copytree(trained, data_dir / "model")
+        start = MomRuntime.load(data_dir / "model")
     room = RoomRun(scene_config(PRESET, 3, profile), seed, start, data_dir)
     options = ImproveOptions(nice_by=10, time_budget_s=budget_s)
     improver = Improver(data_dir, room.labeler, room, marks=data_dir / "marks.npz", options=options)
-    rows = [judge.row(f"seed {seed}: 4 marks, start", start)] if streamed else []
-    decisions = []
+    rows = [] if rows is None else rows
+    decisions = [] if decisions is None else decisions
+    if streamed:
+        rows.append(judge.row(f"seed {seed}: 4 marks, start", start))
+        save()
     for minute in minutes:
         target = int(minute * 60 * room.scene.fps)
         started = time.monotonic()
@@ -132,6 +146,7 @@ def improvement_run(
                     f"{served}: {verdict.reason.split(': ', 1)[-1]}",
                 )
             )
+        save()
     return rows, decisions
 
 
@@ -158,29 +173,34 @@ def never_worse(args: argparse.Namespace) -> Path:
     judge = Judge(args.profile, 300, 0)
     decisions: list[dict[str, Any]] = []
     seeds = [NEVER_WORSE_SEEDS + i + 1 for i in range(args.never_worse)]
+    path = RESULTS / "self_learning_never_worse.md"
+
+    def save() -> None:
+        path.write_text(
+            "# The room that learns: the gate never serves a worse model\n\n"
+            f"{machine_line()}\n\n"
+            f"indoor-2cam, detector profile `{args.profile}`; a model set up on 4 floor marks "
+            f"× {args.seconds:g} s serves {len(seeds)} rooms of 3 people walking (seeds "
+            f"{seeds[0]}–{seeds[-1]}; {len(decisions)} done); after {args.minutes[0]:g} minutes "
+            f"one self-improvement run (training capped at {NEVER_WORSE_BUDGET_S:g} s) and its "
+            "gate decision, judged against the truth: per-frame error on a dense test room "
+            f"(simulate seed {TEST_SEED}, {judge.test.n} person instances). Code: "
+            f"`bench/setup/self_learning.py --never-worse`.\n\n{gate_table(decisions)}"
+        )
+
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         marks4 = work / "marks4.npz"
         collect_marks("2x2", args.seconds, args.profile, marks4)
+        trained = work / "start"
+        train(MomDataset.load(marks4), trained, NEVER_WORSE_BUDGET_S)
         for seed in seeds:
-            _, decided = improvement_run(
+            improvement_run(
                 seed, marks4, work, judge, args.minutes[:1], args.profile,
-                NEVER_WORSE_BUDGET_S, streamed=False,
+                NEVER_WORSE_BUDGET_S, streamed=False, trained=trained,
+                decisions=decisions, save=save,
             )  # fmt: skip
-            decisions += decided
             shutil.rmtree(work / f"room-{seed}", ignore_errors=True)
-    path = RESULTS / "self_learning_never_worse.md"
-    path.write_text(
-        "# The room that learns: the gate never serves a worse model\n\n"
-        f"{machine_line()}\n\n"
-        f"indoor-2cam, detector profile `{args.profile}`; a model set up on 4 floor marks × "
-        f"{args.seconds:g} s serves {len(seeds)} rooms of 3 people walking (seeds "
-        f"{seeds[0]}–{seeds[-1]}); after {args.minutes[0]:g} minutes one self-improvement run "
-        f"(training capped at {NEVER_WORSE_BUDGET_S:g} s) and its gate decision, judged against "
-        f"the truth: per-frame error on a dense test room (simulate seed {TEST_SEED}, "
-        f"{judge.test.n} person instances). Code: `bench/setup/self_learning.py --never-worse`."
-        f"\n\n{gate_table(decisions)}"
-    )
     return path
 
 
@@ -190,7 +210,36 @@ def run(args: argparse.Namespace) -> Path:
     quick = args.quick
     seeds = args.seeds[:1] if quick else args.seeds
     judge = Judge(args.profile, 300 if quick else 900, 300 if quick else 600)
-    rows, decisions = [], []
+    rows: list[list[str]] = []
+    decisions: list[dict[str, Any]] = []
+    path = RESULTS / "self_learning.md"
+    baselines = (
+        "The 9-mark and dense-label models were not retrained in this run (`--no-baselines`): "
+        "see the run before it for theirs.\n\n"
+        if args.no_baselines
+        else ""
+    )
+
+    def save() -> None:
+        table = markdown_table(
+            ("model", "policy", "per-frame mean m", "streamed mean m", "recall %", "MOTA %",
+             "gate"),
+            rows,
+        )  # fmt: skip
+        path.write_text(
+            "# The room that learns: self-improvement from people walking\n\n"
+            f"{machine_line()}\n\n"
+            f"indoor-2cam, detector profile `{args.profile}`; floor marks × {args.seconds:g} s "
+            f"collected by the set-up plan; 3 people walk (seeds {', '.join(map(str, seeds))}); "
+            f"each training run capped at {args.budget:g} s. Per-frame: dense test room "
+            f"(simulate seed {TEST_SEED}, {judge.test.n} person instances, true association); "
+            f"streamed: the daemon's chain on {judge.stream_frames} frames of 3 people (seed "
+            f"{STREAM_SEED}), matched mean at 0.5 m. Code: `bench/setup/self_learning.py`.\n\n"
+            f"{baselines}{table}\n\n"
+            "## Never worse: every gate decision against the truth\n\n"
+            f"{gate_table(decisions)}"
+        )
+
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         marks4 = work / "marks4.npz"
@@ -202,37 +251,12 @@ def run(args: argparse.Namespace) -> Path:
             rows.append(judge.row("9 marks", train(nine, work / "nine", args.budget)))
             dense_model = train(dense.dataset, work / "dense", args.budget)
             rows.append(judge.row("dense labels", dense_model))
-            print(rows[-2], rows[-1], flush=True)
+            save()
         for seed in seeds:
-            got, decided = improvement_run(
-                seed, marks4, work, judge, args.minutes, args.profile, args.budget
-            )
-            rows += got
-            decisions += decided
-    table = markdown_table(
-        ("model", "policy", "per-frame mean m", "streamed mean m", "recall %", "MOTA %", "gate"),
-        rows,
-    )
-    baselines = (
-        "The 9-mark and dense-label models were not retrained in this run (`--no-baselines`): "
-        "see the run before it for theirs.\n\n"
-        if args.no_baselines
-        else ""
-    )
-    path = RESULTS / "self_learning.md"
-    path.write_text(
-        "# The room that learns: self-improvement from people walking\n\n"
-        f"{machine_line()}\n\n"
-        f"indoor-2cam, detector profile `{args.profile}`; floor marks × {args.seconds:g} s "
-        f"collected by the set-up plan; 3 people walk (seeds {', '.join(map(str, seeds))}); "
-        f"each training run capped at {args.budget:g} s. Per-frame: dense test room "
-        f"(simulate seed {TEST_SEED}, {judge.test.n} person instances, true association); "
-        f"streamed: the daemon's chain on {judge.stream_frames} frames of 3 people (seed "
-        f"{STREAM_SEED}), matched mean at 0.5 m. Code: `bench/setup/self_learning.py`.\n\n"
-        f"{baselines}{table}\n\n"
-        "## Never worse: every gate decision against the truth\n\n"
-        f"{gate_table(decisions)}"
-    )
+            improvement_run(
+                seed, marks4, work, judge, args.minutes, args.profile, args.budget,
+                rows=rows, decisions=decisions, save=save,
+            )  # fmt: skip
     return path
 
 
