@@ -88,7 +88,31 @@ def run(args: argparse.Namespace) -> Path:
     after = simulate(
         preset, frames, TEST_SEED, detector_profile=args.profile, perturbation=bump(0)
     ).dataset
-    rows = []
+    rows: list[tuple[Any, ...]] = []
+    name = "self_healing_quick.md" if args.quick else "self_healing.md"
+    path = args.out or RESULTS / name
+
+    def save() -> None:
+        table = markdown_table(
+            ("seed", "alert after s", "repaired after s", "error before bump m", "after bump m",
+             "repaired m", "repaired / before", "what health says"),
+            rows,
+        )  # fmt: skip
+        path.write_text(
+            "# The room that learns: a bumped camera repairs itself\n\n"
+            f"{machine_line()}\n\n"
+            f"{preset}, detector profile `{args.profile}`, a model set up on 9 floor marks × "
+            f"{args.seconds:g} s; 3 people walk; camera {CAMERA} bumped (roll 3°, shift 10 px) "
+            f"{args.bump_s:g} s into the run (scene time); repaired from {args.positions} "
+            "positions (`learning.heal_min_positions`). Times are scene seconds after the bump; "
+            f"errors are per-frame means on a dense test room ({before.n} person instances, seed "
+            f"{TEST_SEED}) seen by the unbumped and by the bumped cameras. With two cameras the "
+            "repair re-learns from the other camera's single views (refined with their "
+            "covariances), with more from the others' positions (`service/learning/heal.py`). "
+            "Code: `bench/setup/self_healing.py`.\n\n"
+            f"{table}\n"
+        )
+
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         marks = collect_marks("3x3", args.seconds, args.profile, work / "marks9.npz", preset)
@@ -115,27 +139,7 @@ def run(args: argparse.Namespace) -> Path:
                     message,
                 )
             )
-    table = markdown_table(
-        ("seed", "alert after s", "repaired after s", "error before bump m", "after bump m",
-         "repaired m", "repaired / before", "what health says"),
-        rows,
-    )  # fmt: skip
-    name = "self_healing_quick.md" if args.quick else "self_healing.md"
-    path = args.out or RESULTS / name
-    path.write_text(
-        "# The room that learns: a bumped camera repairs itself\n\n"
-        f"{machine_line()}\n\n"
-        f"{preset}, detector profile `{args.profile}`, a model set up on 9 floor marks × "
-        f"{args.seconds:g} s; 3 people walk; camera {CAMERA} bumped (roll 3°, shift 10 px) "
-        f"{args.bump_s:g} s into the run (scene time); repaired from {args.positions} positions "
-        "(`learning.heal_min_positions`). Times are scene seconds after the bump; "
-        f"errors are per-frame means on a dense test room ({before.n} person instances, seed "
-        f"{TEST_SEED}) seen by the unbumped and by the bumped cameras. With two cameras the "
-        "repair re-learns from the other camera's single views, with more from the others' "
-        "multi-view positions (`service/learning/heal.py`). "
-        "Code: `bench/setup/self_healing.py`.\n\n"
-        f"{table}\n"
-    )
+            save()
     return path
 
 
