@@ -22,20 +22,20 @@ that *could* be wrong, at the price of fewer labels (a walking room gives thousa
 - at most one label per track every ``min_interval_s``: consecutive frames are near copies, and
   a person standing still would otherwise fill the store with one position.
 
-**Beyond the set-up area.** The chain keeps people outside the area the model was set up on
-out of tracking (``tracking.outside_area``, :mod:`service.pipeline.chain`), yet people walk
-everywhere, and the floor beyond the marks is exactly where a model set up on a few marks is
-weakest. Learning only from tracked people confined the labels to the marks' hull (the first
-measured room, ``bench/results/self_learning.md``: no improvement was ever served). So the
-untracked associations beyond the area (``FrameResult.outside``) may give labels too, under the
-same rules (two or more cameras agreeing with a small covariance, low cost, alone, no overlap)
-with the track's two replaced by ones that need no track: the moment is *confirmed* when the
-previous frame set had an association beyond the area within ``BEYOND_STEP_M`` of it (a ghost
-pairing of two people's boxes rarely repeats at the same place), and the rate rule holds per
-place (no other label beyond the area within ``min_separation_m`` in the last
+**Beyond the set-up area.** The chain keeps people outside the area the model was set up on out of
+tracking (``tracking.outside_area``, :mod:`service.pipeline.chain`), yet people walk everywhere,
+and the floor beyond the marks is exactly where a model set up on a few marks is weakest. Learning
+only from tracked people confined the labels to the marks' hull (the first measured room,
+``bench/results/self_learning_before.md``: no improvement was ever served). So the untracked
+associations beyond the area (``FrameResult.outside``) may give labels too, under the same rules
+(two or more cameras agreeing with a small covariance, low cost, alone, no overlap) with the
+track's two replaced by ones that need no track: the moment is *confirmed* when the previous frame
+set (at most ``BEYOND_GAP_S`` earlier) had an association beyond the area within ``BEYOND_STEP_M``
+of it (a ghost pairing of two people's boxes rarely repeats at the same place), and the rate rule
+holds per place (no other label beyond the area within ``min_separation_m`` in the last
 ``min_interval_s``). Their labels carry track ``-1``. A model the room serves after learning from
-them is set up on their positions too, so its area grows with them
-(:mod:`models.mom.setup_area` fits the area on every training row).
+them is set up on their positions too, so its area grows with them (:mod:`models.mom.setup_area`
+fits the area on every training row).
 
 Every rejection is counted by reason (``/v1/health`` ``learning.rejected``), so a room that
 learns nothing says why.
@@ -52,6 +52,7 @@ from service.stages import Association, FrameResult
 
 KEYPOINT_JOINTS = 17  # COCO-17
 BEYOND_STEP_M = 0.3  # a person moves less between two frame sets (1.5 m/s at 5 fps)
+BEYOND_GAP_S = 0.5  # frame sets further apart do not confirm each other
 BEYOND_TRACK = -1  # the track id of labels from beyond the set-up area
 
 
@@ -186,7 +187,7 @@ def _beyond(
     t = result.t_capture
     first = len(result.associations)  # their index in ``positions``
     here = positions[first:]
-    recent = t - memory.previous_t <= max(rules.min_interval_s, 0.5)
+    recent = t - memory.previous_t <= BEYOND_GAP_S
     memory.labelled = [(s, xy) for s, xy in memory.labelled if t - s < rules.min_interval_s]
     rows = []
     for i, a in enumerate(result.outside):
