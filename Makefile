@@ -67,6 +67,7 @@ bench-service: $(VENV)/.stamp-dev
 	$(PY) -m bench.serving.camera_shift
 	$(PY) -m bench.serving.mqtt_fanout
 	$(PY) -m bench.serving.realtime
+	$(PY) -m bench.serving.demo_cost
 	$(PY) -m bench.serving.realtime_runtimes
 	$(PY) -m bench.serving.carried_accuracy
 	$(PY) -m bench.serving.stream_accuracy

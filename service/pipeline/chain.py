@@ -51,6 +51,7 @@ from service.tracking.association import associate as associate_people
 from service.tracking.measurements import coverage_function, measurement_covariances
 from service.tracking.posture import BoxPostures, PostureSmoother
 from service.tracking.posture import normalise as normalise_postures
+from service.tracking.posture_agreement import agree as agree_postures
 from service.tracking.view_bias import ViewBias
 
 OutsideArea = Literal["drop", "flag"]
@@ -108,11 +109,12 @@ class Chain:
         self.outside = []
         box_postures: BoxPostures | None = None
         if runtime is not None:
+            detected, area = detections, getattr(runtime, "setup_area", None)
             if self.postures:
-                detections, box_postures = normalise_postures(
-                    detections, getattr(runtime, "setup_area", None), runtime.image_sizes
-                )
+                detections, box_postures = normalise_postures(detections, area, runtime.image_sizes)
             found = self.associate(detections, runtime, max_error_px=self.max_error_px)
+            if box_postures is not None:  # one posture per person (its boxes' vote)
+                found = agree_postures(found, detected, box_postures, area, runtime)
             associations = gate_to_area(found, runtime, self.outside_area)
             if len(associations) < len(found):
                 self.outside = [a for a in found if not a.inside]
