@@ -14,19 +14,14 @@ if docker image inspect "$tag" >/dev/null 2>&1; then
     echo "base image $tag: present"
     exit 0
 fi
-arch=()
-import_platform=()
-if [ -n "$platform" ]; then
-    case "$platform" in
-        linux/amd64) arch=(--arch=amd64) ;;
-        linux/arm64) arch=(--arch=arm64) ;;
-        *) echo "make_base_image: platform $platform is not one of linux/amd64, linux/arm64" >&2; exit 2 ;;
-    esac
-    import_platform=(--platform "$platform")
-fi
+case "${platform:-linux/$(dpkg --print-architecture)}" in
+    linux/amd64) arch=amd64 ;;
+    linux/arm64) arch=arm64 ;;
+    *) echo "make_base_image: platform $platform is not linux/amd64 or linux/arm64" >&2; exit 2 ;;
+esac
 root="$(mktemp -d)"
 trap 'rm -rf "$root"' EXIT
-debootstrap "${arch[@]}" --variant=minbase --include=python3,python3-pip,python3-venv,ca-certificates \
+debootstrap --arch="$arch" --variant=minbase --include=python3,python3-pip,python3-venv,ca-certificates \
     bookworm "$root" http://deb.debian.org/debian >/dev/null
 cp /etc/ssl/certs/ca-certificates.crt "$root/etc/ssl/certs/ca-certificates.crt"
 printf '[global]\ncert = /etc/ssl/certs/ca-certificates.crt\nbreak-system-packages = true\n' \
@@ -34,8 +29,16 @@ printf '[global]\ncert = /etc/ssl/certs/ca-certificates.crt\nbreak-system-packag
 ln -sf /usr/bin/python3 "$root/usr/local/bin/python"
 ln -sf /usr/bin/pip3 "$root/usr/local/bin/pip"
 rm -rf "$root/var/cache/apt/archives/"*.deb "$root/var/lib/apt/lists/"*
-tar -C "$root" -c . | docker import "${import_platform[@]}" \
-    --change 'ENV PATH=/usr/local/bin:/usr/local/sbin:/usr/sbin:/usr/bin:/sbin:/bin' \
-    --change 'ENV LANG=C.UTF-8' \
-    --change 'CMD ["python3"]' - "$tag" >/dev/null
-echo "base image $tag: built from Debian bookworm${platform:+ for $platform}"
+# `docker load` of a one-layer image rather than `docker import`: import records the engine's
+# own architecture (its --platform is experimental), and an arm64 base labelled amd64 makes
+# `docker build --platform linux/arm64` look for another one in a registry.
+image="$(mktemp -d)"
+trap 'rm -rf "$root" "$image"' EXIT
+tar -C "$root" -cf "$image/layer.tar" .
+layer="sha256:$(sha256sum "$image/layer.tar" | cut -d' ' -f1)"
+printf '{"architecture":"%s","os":"linux","config":{"Env":["PATH=%s","LANG=C.UTF-8"],"Cmd":["python3"]},"rootfs":{"type":"layers","diff_ids":["%s"]}}' \
+    "$arch" /usr/local/bin:/usr/local/sbin:/usr/sbin:/usr/bin:/sbin:/bin "$layer" >"$image/config.json"
+printf '[{"Config":"config.json","RepoTags":["%s"],"Layers":["layer.tar"]}]' "$tag" \
+    >"$image/manifest.json"
+tar -C "$image" -c manifest.json config.json layer.tar | docker load >/dev/null
+echo "base image $tag: built from Debian bookworm for linux/$arch"
