@@ -14,7 +14,7 @@ The model is set up the way a user would, without calibration: a set-up recordin
 floor positions. Here the recording is simulated on the same camera geometry — a
 :class:`~models.simulate.SceneConfig` whose cameras are the MultiviewX calibration
 (:class:`bench.real.data.CalibratedSpec`, read from ``--data`` at run time), people walking the
-whole plaza, boxes with the simulator's detector profile — and trained with
+whole playground, boxes with the simulator's detector profile — and trained with
 ``models.mom.training.train.train_model``. The calibration shapes the simulated recording only; the
 served chain never sees it.
 
@@ -75,10 +75,8 @@ from models.simulate import SceneConfig
 
 CAMERAS = tuple(f"Camera{k}" for k in range(1, 7))
 IMAGE_SIZE = (1920, 1080)
-FLOOR_M = (
-    25.0,
-    15.0,
-)  # the annotated playground (MultiviewX README: 25 × 15 m; no label has y > 15)
+# the annotated playground (MultiviewX's README: 25 × 15 m; no label has y > 15 m)
+FLOOR_M = (25.0, 15.0)
 GRID = FloorGrid((0.0, 0.0), 0.025, 1000)
 CITATION = (
     "MultiviewX (github.com/hou-yz/MultiviewX commit 420ef26, demo subset of 10 frames; "
