@@ -185,7 +185,7 @@ def associate(
     anchor_chi2: float = DEFAULT_ANCHOR_CHI2,
 ) -> list[Association]:
     """Group the detections of all cameras into people (see the module docstring);
-    ``anchors``: the tracker's predicted tracks, which claim their boxes first."""
+    ``anchors``: the tracker's predicted tracks, whose leftover fragments are folded in."""
     num_cameras = int(runtime.num_cameras)
     if len(detections_per_camera) != num_cameras:
         raise MomlocError(
