@@ -5,7 +5,7 @@ short in every view. In the simulated lounge the person in the armchair is ~0.8 
 height to the camera they face away from (their feet are further than their hips, so the
 expected height at the box bottom is smaller), which reads as standing, while the other camera
 sees a short, wide seated box. Localized from one standing box and one head-based box, that
-person was put 0.4-0.6 m off (``bench/results/postures.md``, breakdown by camera labels).
+person was put far off (``bench/results/postures.md``: the seated error by camera labels).
 Once the boxes are associated, the person's posture is the vote over their boxes
 (:meth:`~service.tracking.posture.BoxPostures.of`); a box of another label is converted as that
 posture says (a seated person's standing box from its top), and the association is localized
