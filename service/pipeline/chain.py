@@ -17,7 +17,9 @@ Per frame set (time ``t``, one :class:`~models.detector.base.Detections` per cam
 2. **the set-up area**: ``outside_area="drop"`` (default) keeps people outside the area the model
    was set up on out of tracking and out of every output: the model was never taught there and
    zones, counts and automations are drawn inside. ``"flag"`` tracks them too and serves them
-   with ``outside: true`` (the map shows them; zones and MQTT leave them out unless asked);
+   with ``outside: true`` (the map shows them; zones and MQTT leave them out unless asked).
+   The dropped ones stay readable as :attr:`Chain.outside` until the next call: the learning
+   room learns from people beyond the area (:mod:`service.learning.labels`);
 3. **correct** single-view positions by their track's lone-view offset
    (:mod:`service.tracking.view_bias`) and **track** with each position's covariance and the
    cameras' coverage (:mod:`service.tracking.measurements`, :mod:`service.tracking.tracker`).
@@ -80,6 +82,7 @@ class Chain:
         # lone-view offsets (service.tracking.view_bias); None: single views are not corrected
         self.view_bias: ViewBias | None = ViewBias() if view_bias is True else view_bias
         self.timings_ms: dict[str, float] = {}  # of the last call, per step
+        self.outside: list[Association] = []  # of the last call: dropped beyond the set-up area
         # seated and lying boxes read as standing ones, and each track's posture
         # (service.tracking.posture); False: boxes as detected, no posture
         self.postures = postures
@@ -103,6 +106,7 @@ class Chain:
         the tracker still ages its tracks."""
         started = time.perf_counter()
         associations: list[Association] = []
+        self.outside = []
         box_postures: BoxPostures | None = None
         if runtime is not None:
             detected, area = detections, getattr(runtime, "setup_area", None)
@@ -112,6 +116,8 @@ class Chain:
             if box_postures is not None:  # one posture per person (its boxes' vote)
                 found = agree_postures(found, detected, box_postures, area, runtime)
             associations = gate_to_area(found, runtime, self.outside_area)
+            if len(associations) < len(found):
+                self.outside = [a for a in found if not a.inside]
         associated = time.perf_counter()
         origins = [
             Origin(
