@@ -55,6 +55,7 @@ __all__ = [
     "Snapshot",
     "Stored",
     "Track",
+    "TrackAnchor",
     "TrackStage",
     "Unscheduled",
     "WithCovariance",
@@ -125,6 +126,19 @@ class Association:
     inside: bool = (
         True  # in the model's set-up area (service.pipeline.chain; models.mom.setup_area)
     )
+
+
+@dataclass(frozen=True)
+class TrackAnchor:
+    """A held track predicted to the time of the frame set being associated: where the
+    association expects a person it already tracks (``service.tracking.association``'s
+    track-driven step, fed by ``service.tracking.tracker.Tracker.anchors``).
+
+    ``xy`` [2] m and ``cov`` [2, 2] m²: the predicted floor position and its covariance.
+    """
+
+    xy: np.ndarray
+    cov: np.ndarray
 
 
 class Reprojecting(Protocol):
@@ -247,6 +261,7 @@ class AssociateStage(Protocol):
         /,
         *,
         max_error_px: float,
+        anchors: Sequence[TrackAnchor] = (),
     ) -> list[Association]: ...
 
 

@@ -12,8 +12,10 @@ Per frame set (time ``t``, one :class:`~models.detector.base.Detections` per cam
    same place would give (the model was set up on standing people), and every box gets a
    posture that the track carries, smoothed, into the snapshot (:mod:`service.tracking.posture`;
    ``postures=False``: boxes as detected);
-1. **associate** the boxes of all cameras into people (:mod:`service.tracking.association`); each
-   association says whether it lies in the model's set-up area (:mod:`models.mom.setup_area`);
+1. **associate** the boxes of all cameras into people (:mod:`service.tracking.association`), with
+   the tracker's served tracks predicted to ``t`` as anchors (a tracked person's fragments fold
+   into one association; ``track_anchors=False``: the boxes alone); each association says
+   whether it lies in the model's set-up area (:mod:`models.mom.setup_area`);
 2. **the set-up area**: ``outside_area="drop"`` (default) keeps people outside the area the model
    was set up on out of tracking and out of every output: the model was never taught there and
    zones, counts and automations are drawn inside. ``"flag"`` tracks them too and serves them
@@ -44,6 +46,7 @@ from service.stages import (
     LocalizationModel,
     Origin,
     Track,
+    TrackAnchor,
     TrackStage,
 )
 from service.tracking.association import DEFAULT_MAX_ERROR_PX
@@ -71,6 +74,7 @@ class Chain:
         use_covariance: bool = True,
         view_bias: ViewBias | Literal[True] | None = True,
         postures: bool = True,
+        track_anchors: bool = True,
     ) -> None:
         if outside_area not in OUTSIDE_AREA_POLICIES:
             raise ValueError(f"outside_area {outside_area!r}: expected one of drop, flag")
@@ -87,6 +91,8 @@ class Chain:
         # (service.tracking.posture); False: boxes as detected, no posture
         self.postures = postures
         self.posture_smoother = PostureSmoother()
+        # the tracks claim their boxes before the rest is clustered (service.tracking.association)
+        self.track_anchors = track_anchors
 
     def new_model(self) -> None:
         """Forget what was learned about the former model's localizer (lone-view offsets)."""
@@ -112,7 +118,9 @@ class Chain:
             detected, area = detections, getattr(runtime, "setup_area", None)
             if self.postures:
                 detections, box_postures = normalise_postures(detections, area, runtime.image_sizes)
-            found = self.associate(detections, runtime, max_error_px=self.max_error_px)
+            found = self.associate(
+                detections, runtime, max_error_px=self.max_error_px, anchors=self._anchors(t)
+            )
             if box_postures is not None:  # one posture per person (its boxes' vote)
                 found = agree_postures(found, detected, box_postures, area, runtime)
             associations = gate_to_area(found, runtime, self.outside_area)
@@ -154,6 +162,13 @@ class Chain:
             "track": (time.perf_counter() - associated) * 1e3,
         }
         return associations, tracks
+
+    def _anchors(self, t: float) -> list[TrackAnchor]:
+        """The tracker's served tracks predicted to ``t`` (``Tracker.anchors``), which claim
+        their boxes in the association before the rest is clustered; none when switched off
+        or from a tracker that cannot predict."""
+        anchors = getattr(self.tracker, "anchors", None)
+        return list(anchors(t)) if self.track_anchors and callable(anchors) else []
 
     def _smooth_postures(
         self, t: float, tracks: list[Track], postures: list[tuple[str, float]]

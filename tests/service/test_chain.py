@@ -89,3 +89,21 @@ def test_a_snapshot_without_outside_people_is_its_own_inside_view():
 def test_unknown_outside_policy_is_refused():
     with pytest.raises(ValueError, match="outside_area"):
         Chain(Tracker(), outside_area="hide")  # type: ignore[arg-type]
+
+
+def test_a_tracked_person_is_one_association_despite_a_cut_box():
+    """The chain hands the tracker's predictions to the association: a person whose third
+    camera's box is off sideways in every frame (the floor maps disagree) is split in two by
+    the boxes alone, and one association once their track is served."""
+    from tests.service.test_association import FloorOracle
+
+    runtime = FloorOracle(room_cameras(3))
+    boxes = person_boxes(runtime.projections, np.array([[3.0, 3.0]]))
+    boxes[0, 2, [0, 2]] += 60.0
+    frames = [Detections(boxes[:, k].astype(np.float32), np.ones(1, np.float32)) for k in range(3)]
+    delivered = [True] * 3
+    for anchored in (False, True):
+        chain = Chain(Tracker(fps_hint=10, **RECOMMENDED), track_anchors=anchored)
+        counts = [len(chain(i / 10, frames, runtime, delivered, i)[0]) for i in range(20)]
+        assert counts[:3] == [2, 2, 2]  # no track served yet: split
+        assert set(counts[10:]) == ({1} if anchored else {2})
