@@ -1,7 +1,8 @@
 """Zone and MQTT routes.
 
 - ``GET  /v1/zones`` polygons, current occupancy (count, ids) and the last events.
-- ``WS   /v1/events`` one enter/leave event JSON per message (schema in ``service.outputs.zones``);
+- ``WS   /v1/events`` one enter/leave or fall event JSON per message (schemas in
+  ``service.outputs.zones``, ``service.outputs.falls``);
   a client that falls 1000 events behind loses the oldest (see ``service.outputs.zone_monitor``).
 - ``POST /v1/mqtt/discovery/remove`` ``{}`` deletes this room's Home Assistant entities.
 
