@@ -302,21 +302,28 @@ class SetupOnly:
     image_sizes: np.ndarray
     num_cameras: int
 
+    @classmethod
+    def simulated(cls, preset: str, frames: int = 3000, seed: int = 1000) -> SetupOnly:
+        """Fitted on ``frames`` simulated frames of ``preset``'s walkers (nanodet profile), as
+        ``train_cached`` would train on them."""
+        from bench.serving.stream_accuracy import scene_config
+        from models.simulate import simulate
+
+        data = simulate(scene_config(preset, profile=None), frames=frames, seed=seed)
+        sizes = np.array([c.image_size for c in data.scene.cameras])
+        return cls(SetupArea.fit(data.dataset.world, data.dataset.boxes), sizes, len(sizes))
+
 
 Model = MomRuntime | SetupOnly
 
 
 @functools.cache
 def room_model(room: str) -> Model:
-    from bench.serving.stream_accuracy import scene_config, train_cached
-    from models.simulate import simulate
+    from bench.serving.stream_accuracy import train_cached
 
     if ROOMS[room].trained:
         return MomRuntime.load(train_cached(ROOMS[room].cameras, None, 3000, 150))
-    data = simulate(scene_config(ROOMS[room].cameras, profile=None), frames=3000, seed=1000)
-    sizes = np.array([c.image_size for c in data.scene.cameras])
-    area = SetupArea.fit(data.dataset.world, data.dataset.boxes)
-    return SetupOnly(area, sizes, len(sizes))
+    return SetupOnly.simulated(ROOMS[room].cameras)
 
 
 def task(job: tuple[str, str, argparse.Namespace]) -> tuple[str, str, dict[str, float]]:

@@ -3,8 +3,6 @@ lies down, and the true-association runner hears a scripted fall."""
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
 from bench.serving.falls import (
@@ -15,10 +13,7 @@ from bench.serving.falls import (
     room_scene,
     truth_events,
 )
-from models.mom.setup_area import SetupArea
-from models.simulate import Scene
 from models.simulate.postures import LYING
-from models.simulate.presets import get_config
 from service.outputs.falls import FALL
 
 FPS = 10.0
@@ -51,19 +46,11 @@ def test_daily_life_sits_only_on_its_own_seat_and_never_lies():
 
 def test_the_true_association_runner_reports_a_scripted_fall():
     room = ROOMS["lounge"]
-    walkers = Scene(dataclasses.replace(get_config("living-room"), fps=FPS), seed=5)
-    world, boxes = [], []
-    for i in range(0, 900, 2):
-        obs = walkers.observe(i)
-        seen = np.isfinite(obs.boxes).all(-1).any(-1)
-        world.append(obs.world[seen, :2])
-        boxes.append(obs.boxes[seen])
-    area = SetupArea.fit(np.concatenate(world), np.concatenate(boxes))
-    sizes = np.array([c.image_size for c in walkers.config.cameras])
+    setup = SetupOnly.simulated("living-room", frames=900)  # the lounge's cameras
     route, falls = fall_script(room, np.random.default_rng(1), count=1)
     scene = room_scene(room, (tuple(route),), FPS, seed=1)
     frames = int(sum(s.seconds for s in route) * FPS)
-    events = truth_events(SetupOnly(area, sizes, len(sizes)), scene, frames)
+    events = truth_events(setup, scene, frames)
     found = [e for e in events if e["type"] == FALL]
     assert len(found) == 1
     assert np.hypot(found[0]["x"] - falls[0].where[0], found[0]["y"] - falls[0].where[1]) < 1.0

@@ -20,9 +20,7 @@ import numpy as np
 import pytest
 import websockets
 
-from models.mom.setup_area import SetupArea
-from models.simulate import Scene
-from models.simulate.presets import get_config
+from bench.serving.falls import SetupOnly
 from service.demo import DEMO_PRESET
 from service.settings import DEMO_MODEL_DIR
 from tests.e2e.mqtt_broker import Subscriber
@@ -39,14 +37,7 @@ def model_with_area(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The demo model plus the set-up area of 900 frames of the demo room's walkers."""
     folder = tmp_path_factory.mktemp("fall-model") / "model"
     shutil.copytree(DEMO_MODEL_DIR, folder)
-    scene = Scene(get_config(DEMO_PRESET), seed=3)
-    world, boxes = [], []
-    for i in range(0, 900, 3):
-        obs = scene.observe(i)
-        seen = np.isfinite(obs.boxes).all(-1).any(-1)
-        world.append(obs.world[seen, :2])
-        boxes.append(obs.boxes[seen])
-    area = SetupArea.fit(np.concatenate(world), np.concatenate(boxes))
+    area = SetupOnly.simulated(DEMO_PRESET, frames=900).setup_area
     meta = json.loads((folder / "model.json").read_text())
     meta["setup_area"] = area.to_json()
     (folder / "model.json").write_text(json.dumps(meta))
