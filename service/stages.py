@@ -271,7 +271,10 @@ class FrameResult:
     ``fused``: per camera, whether its frame took part in detection and association (False for
     no frame or a frame left out by the skew rule); ``timings_ms``: per stage wall time.
     ``runtime`` is the model that localized this set (None without one), so a listener judging
-    reprojection errors uses the same model the positions came from.
+    reprojection errors uses the same model the positions came from. ``outside``: the
+    associations beyond the model's set-up area that the chain kept out of tracking
+    (``tracking.outside_area: drop``; the learning room may still learn from them,
+    :mod:`service.learning.labels`).
     """
 
     frame_set: FrameSet
@@ -283,6 +286,7 @@ class FrameResult:
     snapshot: Snapshot
     runtime: LocalizationModel | None
     timings_ms: dict[str, float]
+    outside: list[Association] = field(default_factory=list)
 
     def track_ids(self) -> dict[tuple[int, int], int]:
         """``(camera, detection index) -> track id`` for the detections tracked in this set."""

@@ -17,7 +17,9 @@ Per frame set (time ``t``, one :class:`~models.detector.base.Detections` per cam
 2. **the set-up area**: ``outside_area="drop"`` (default) keeps people outside the area the model
    was set up on out of tracking and out of every output: the model was never taught there and
    zones, counts and automations are drawn inside. ``"flag"`` tracks them too and serves them
-   with ``outside: true`` (the map shows them; zones and MQTT leave them out unless asked);
+   with ``outside: true`` (the map shows them; zones and MQTT leave them out unless asked).
+   The dropped ones stay readable as :attr:`Chain.outside` until the next call: the learning
+   room learns from people beyond the area (:mod:`service.learning.labels`);
 3. **correct** single-view positions by their track's lone-view offset
    (:mod:`service.tracking.view_bias`) and **track** with each position's covariance and the
    cameras' coverage (:mod:`service.tracking.measurements`, :mod:`service.tracking.tracker`).
@@ -49,6 +51,7 @@ from service.tracking.association import associate as associate_people
 from service.tracking.measurements import coverage_function, measurement_covariances
 from service.tracking.posture import BoxPostures, PostureSmoother
 from service.tracking.posture import normalise as normalise_postures
+from service.tracking.posture_agreement import agree as agree_postures
 from service.tracking.view_bias import ViewBias
 
 OutsideArea = Literal["drop", "flag"]
@@ -79,6 +82,7 @@ class Chain:
         # lone-view offsets (service.tracking.view_bias); None: single views are not corrected
         self.view_bias: ViewBias | None = ViewBias() if view_bias is True else view_bias
         self.timings_ms: dict[str, float] = {}  # of the last call, per step
+        self.outside: list[Association] = []  # of the last call: dropped beyond the set-up area
         # seated and lying boxes read as standing ones, and each track's posture
         # (service.tracking.posture); False: boxes as detected, no posture
         self.postures = postures
@@ -102,14 +106,18 @@ class Chain:
         the tracker still ages its tracks."""
         started = time.perf_counter()
         associations: list[Association] = []
+        self.outside = []
         box_postures: BoxPostures | None = None
         if runtime is not None:
+            detected, area = detections, getattr(runtime, "setup_area", None)
             if self.postures:
-                detections, box_postures = normalise_postures(
-                    detections, getattr(runtime, "setup_area", None), runtime.image_sizes
-                )
+                detections, box_postures = normalise_postures(detections, area, runtime.image_sizes)
             found = self.associate(detections, runtime, max_error_px=self.max_error_px)
+            if box_postures is not None:  # one posture per person (its boxes' vote)
+                found = agree_postures(found, detected, box_postures, area, runtime)
             associations = gate_to_area(found, runtime, self.outside_area)
+            if len(associations) < len(found):
+                self.outside = [a for a in found if not a.inside]
         associated = time.perf_counter()
         origins = [
             Origin(

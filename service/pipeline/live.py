@@ -272,6 +272,7 @@ class Pipeline:
             snapshot=snapshot,
             runtime=runtime,
             timings_ms={"detect": (t1 - t0) * 1e3, **self.chain.timings_ms},
+            outside=self.chain.outside,
         )
         for listener in self._listeners:
             listener(result)

@@ -12,9 +12,10 @@ foot pixel looks). Per box, ``ratio`` = box height / expected height at its bott
 ``aspect`` = width / height:
 
 - **standing**: ratio ≥ ``SEATED_RATIO``; left as it is;
-- **lying**: aspect ≥ ``LYING_ASPECT`` with ratio below ``SEATED_RATIO``, or ratio below
-  ``LYING_RATIO``: the body lies on the floor, so the box centre is on the floor near the hips;
-  the standing box there replaces it;
+- **lying**: ratio below ``LYING_RATIO``, or a wide box (aspect ≥ ``LYING_ASPECT``) below
+  ``LYING_WIDE_RATIO``, or a flat one (aspect ≥ ``LYING_FLAT_ASPECT``) below ``SEATED_RATIO``:
+  the body lies on the floor, so the box centre is on the floor near the hips; the standing box
+  there replaces it;
 - **sitting** (crouching too: both are a short, wider box): the head is ``SEATED_TOP`` of a
   standing person's height above the floor, so the feet of a standing person with the same head
   pixel are found by a fixed-point search on the height model, and that standing box replaces
@@ -54,6 +55,10 @@ SEATED_ASPECT = 0.45  # ... and at least this wide per unit height (an occluded 
 # visible upper half is short too, but narrow)
 LYING_RATIO = 0.45
 LYING_ASPECT = 1.0
+LYING_WIDE_RATIO = 0.6  # a wide box is lying only if this short: a seated person seen from the
+# side is as wide as tall (aspect up to ~1.3) at 0.6-0.7 of a standing height, a lying one
+# below 0.6 (the simulated lounge's ratios: bench/results/postures.md)
+LYING_FLAT_ASPECT = 1.5  # wider than any seated box measured
 SEATED_TOP = 0.64  # a seated head's top over the expected standing height (module docstring)
 BORDER_PX = 2.0  # a box this close to the image border may be cut off: not judged
 STANDING_ASPECT = 0.4  # width of the standing box that replaces a seated or lying one
@@ -84,7 +89,9 @@ class BoxPostures:
 def classify(ratio: np.ndarray, aspect: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Labels [N] and confidences [N] from height ratios and aspects (module docstring)."""
     ratio, aspect = np.asarray(ratio, float), np.asarray(aspect, float)
-    lying = (ratio < LYING_RATIO) | ((aspect >= LYING_ASPECT) & (ratio < SEATED_RATIO))
+    short = ratio < SEATED_RATIO
+    lying = (ratio < LYING_RATIO) | ((aspect >= LYING_ASPECT) & (ratio < LYING_WIDE_RATIO))
+    lying |= short & (aspect >= LYING_FLAT_ASPECT)
     standing = ~lying & ((ratio >= SEATED_RATIO) | (aspect < SEATED_ASPECT))
     labels = np.where(lying, LYING, np.where(standing, STANDING, SITTING)).astype(object)
     margin = np.where(
@@ -173,18 +180,6 @@ def normalise(
             dataclasses.replace(det, boxes=fixed.astype(np.float32)) if changed.any() else det
         )
     return out, BoxPostures(labels, confidence)
-
-
-def rows_as_standing(
-    boxes: np.ndarray, area: SetupArea | None, image_sizes: np.ndarray | None = None
-) -> np.ndarray:
-    """Rows of boxes [N, K, 4] (one person per row, NaN where unseen) with every camera's
-    seated and lying boxes replaced by standing ones: what the chain localizes."""
-    out = np.array(boxes, np.float64, copy=True)
-    for k in range(out.shape[1]):
-        size = None if image_sizes is None else image_sizes[k]
-        out[:, k] = camera_postures(out[:, k], area, k, size)[2]
-    return out
 
 
 class PostureSmoother:

@@ -53,6 +53,9 @@ def test_people_outside_the_set_up_area_are_dropped_by_default(runtime):
     chain = Chain(Tracker(fps_hint=10, **RECOMMENDED))
     associations, _ = chain(0.0, _frames(runtime, PEOPLE), runtime, [True, True], 0)
     assert [a.inside for a in associations] == [True]
+    # kept aside for the learning room only (service.learning.labels)
+    assert [np.round(a.world, 1).tolist() for a in chain.outside] == [[5.2, 2.5]]
+    assert not chain.outside[0].inside
     tracks = _run(chain, runtime, PEOPLE)
     assert len(tracks) == 1 and tracks[0].x == pytest.approx(2.0, abs=0.1)
 
