@@ -44,8 +44,7 @@ from bench.report import command_line
 from models.mom.runtime import MomRuntime
 from models.simulate import PRESETS, Scene, SceneConfig
 from models.simulate.postures import NAMES
-from models.simulate.presets import FACING, looping, seated
-from models.simulate.script import Segment
+from models.simulate.presets import DEMO_FALLS, FACING, fall_route, looping, seated
 from service.offline.stream_eval import MIN_VISIBLE_FRACTION, frame_detections, in_view
 from service.pipeline.chain import Chain
 from service.settings import DEMO_MODEL_DIR
@@ -58,26 +57,12 @@ MATCH_M = 1.0
 TARGETS = {"sitting": (0.25, 0.20), "lying": (0.40, 0.40)}  # per-frame median, streamed mean
 
 
-def fall_route(spots: list[tuple[tuple[float, float], float]], lie_s: float = 20.0,
-               stand_s: float = 3.0) -> list[Segment]:  # fmt: skip
-    """Walk to each (spot, heading) in turn, stand, fall there (0.8 s), lie ``lie_s`` and get up;
-    back to the first spot at the end."""
-    route: list[Segment] = []
-    points = [spot for spot, _ in spots]
-    for i, (spot, heading) in enumerate(spots):
-        route.append(Segment(spot, spot, stand_s))
-        route.append(Segment(spot, spot, lie_s, "lying", heading, ramp_s=0.8))
-        following = points[(i + 1) % len(points)]
-        route.append(Segment(spot, following, max(np.hypot(*np.subtract(following, spot)), 0.1)))
-    return route
-
-
 def scenes() -> dict[str, tuple[SceneConfig, str]]:
     """name -> (scene, model: ``usual`` or ``demo``)."""
     lounge = PRESETS["lounge"]
     demo = PRESETS["demo-lounge"]
     falls = fall_route([((2.5, 1.2), 0.0), ((4.2, 2.2), FACING["+y"]), ((1.2, 0.9), 0.0)])
-    demo_falls = fall_route([((3.0, 3.0), 0.0), ((6.5, 4.0), FACING["+y"]), ((4.0, 7.5), 0.5)])
+    demo_falls = fall_route(DEMO_FALLS)
     return {
         "lounge": (lounge, "usual"),
         "lounge-falls": (

@@ -129,18 +129,18 @@ def standing_boxes(
     return np.where(((labels == SITTING) | (labels == LYING))[:, None], replaced, out)
 
 
-def camera_postures(
+def box_postures(
     boxes: np.ndarray, area: SetupArea | None, camera: int, image_size: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Labels [M], confidences [M] and standing boxes [M, 4] of one camera's boxes [M, 4]
-    (NaN rows stay NaN and ``unknown``, as do boxes at the border of an image of
-    ``image_size`` (width, height); everything ``unknown`` without a height model)."""
+) -> tuple[np.ndarray, np.ndarray]:
+    """Labels [M] and confidences [M] of one camera's boxes [M, 4] (NaN rows stay ``unknown``,
+    as do boxes at the border of an image of ``image_size`` (width, height); everything
+    ``unknown`` without a height model)."""
     boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
     region = None if area is None or camera >= len(area.cameras) else area.cameras[camera]
     bottom = np.stack([0.5 * (boxes[:, 0] + boxes[:, 2]), boxes[:, 3]], 1)
     expected = None if region is None else region.expected_height(bottom)
-    if expected is None or area is None or not len(boxes):
-        return np.full(len(boxes), UNKNOWN, dtype=object), np.zeros(len(boxes)), boxes
+    if expected is None or not len(boxes):
+        return np.full(len(boxes), UNKNOWN, dtype=object), np.zeros(len(boxes))
     height = np.maximum(boxes[:, 3] - boxes[:, 1], 1e-6)
     labels, confidence = classify(height / expected, (boxes[:, 2] - boxes[:, 0]) / height)
     seen = np.isfinite(boxes).all(axis=1)
@@ -148,8 +148,17 @@ def camera_postures(
         w, h = float(image_size[0]), float(image_size[1])
         seen &= (boxes[:, 0] > BORDER_PX) & (boxes[:, 1] > BORDER_PX)
         seen &= (boxes[:, 2] < w - BORDER_PX) & (boxes[:, 3] < h - BORDER_PX)
-    labels = np.where(seen, labels, UNKNOWN)
-    confidence = np.where(seen, confidence, 0.0)
+    return np.where(seen, labels, UNKNOWN), np.where(seen, confidence, 0.0)
+
+
+def camera_postures(
+    boxes: np.ndarray, area: SetupArea | None, camera: int, image_size: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`box_postures` and the standing boxes [M, 4] that replace seated and lying ones."""
+    boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
+    labels, confidence = box_postures(boxes, area, camera, image_size)
+    if area is None:
+        return labels, confidence, boxes
     return labels, confidence, standing_boxes(boxes, labels, area, camera)
 
 

@@ -61,11 +61,11 @@ def test_people_outside_the_set_up_area_are_dropped_by_default(runtime):
 
 
 def test_flagged_people_are_tracked_and_marked_but_zones_and_counts_ignore_them(runtime):
-    from service.pipeline.live import _person
+    from service.pipeline.live import served_person
 
     chain = Chain(Tracker(fps_hint=10, **RECOMMENDED), outside_area="flag")
     tracks = _run(chain, runtime, PEOPLE)
-    people = sorted((_person(tr) for tr in tracks), key=lambda p: p["x"])
+    people = sorted((served_person(tr) for tr in tracks), key=lambda p: p["x"])
     assert len(people) == 2
     assert "outside" not in people[0] and people[1]["outside"] is True
     snapshot = Snapshot.build(1, 0.0, people)

@@ -11,7 +11,7 @@ import pytest
 
 from models.detector.base import Detections
 from models.mom.setup_area import CameraRegion, SetupArea
-from service.pipeline.live import _person
+from service.pipeline.live import served_person
 from service.stages import Association, Track
 from service.tracking import posture
 from service.tracking.posture import LYING, SITTING, STANDING, UNKNOWN, PostureSmoother
@@ -77,9 +77,9 @@ def test_one_odd_box_does_not_flip_a_track_posture() -> None:
 
 def test_snapshot_person_carries_the_posture_only_when_known() -> None:
     track = Track(3, 1.0, 2.0, 0.0, 0.0, 0.9, [0, 1], posture=(SITTING, 0.83))
-    person = _person(track)
+    person = served_person(track)
     assert person["posture"] == "sitting" and person["posture_confidence"] == 0.83
-    assert "posture" not in _person(Track(4, 1.0, 2.0, 0.0, 0.0, 0.9))
+    assert "posture" not in served_person(Track(4, 1.0, 2.0, 0.0, 0.0, 0.9))
     json.dumps(person)  # plain JSON
 
 
