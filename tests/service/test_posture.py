@@ -160,4 +160,4 @@ def test_a_replaced_box_is_not_carried_into_the_set_up_area() -> None:
     found = [fragment, seated, walker]
     _outside_as_detected(found, detected, _RowMap())  # type: ignore[arg-type]
     assert [a.inside for a in found] == [False, True, True]  # the walker is the gate's job
-    assert gate_to_area(found, _RowMap(), "drop") == [seated]  # type: ignore[arg-type]
+    assert gate_to_area(found, _RowMap(), "drop") == [seated]
