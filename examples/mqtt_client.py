@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Print every room's positions, zone changes and events from an MQTT broker.
+"""Print every room's positions, zone changes and events (zones, falls) from an MQTT broker.
 
 One daemon per room publishes under ``{base}/{room}/...``; this client subscribes with wildcards,
 so it sees all rooms of a building through one broker. Needs only ``paho-mqtt`` 2.x
@@ -46,6 +46,10 @@ def describe(topic: str, payload: bytes, base: str) -> str | None:
         return f"[{room}] zone {rest[6:]}: {z['count']}" + (f" ({ids})" if ids else "")
     if rest == "events":
         e = json.loads(text)
+        if "zone" not in e:  # fall, fall_cleared: where the person is, and the zones there
+            zones = f" in {', '.join(e['zones'])}" if e.get("zones") else ""
+            where = f" at ({e['x']:+.2f}, {e['y']:+.2f}){zones}" if "x" in e else ""
+            return f"[{room}] event {e['type']} #{e['id']}{where}"
         dwell = f" after {e['dwell_s']:.1f} s" if "dwell_s" in e else ""
         return f"[{room}] event {e['type']} {e['zone']} #{e['id']}{dwell}"
     if rest == "availability":

@@ -50,7 +50,7 @@ DEMO_ZONES = [
     {"name": "kitchen", "polygon": [[0.5, 0.5], [4.0, 0.5], [4.0, 4.0], [0.5, 4.0]]},
     {
         "name": "lounge",
-        "polygon": [[5.0, 5.0], [9.5, 5.0], [9.5, 9.5], [7.5, 9.5], [7.5, 7.0], [5.0, 7.0]],
+        "polygon": [[5.0, 5.0], [9.5, 5.0], [9.5, 9.5], [8.5, 9.5], [8.5, 8.5], [5.0, 8.5]],
     },
 ]
 DEMO_DETECTIONS: Literal["rendered", "simulated"] = "rendered"

@@ -40,7 +40,7 @@ from common.errors import MomlocError
 from models.detector.nanodet import NanoDetSettings
 from models.detector.ssdlite import SsdliteSettings
 from models.detector.yolov8 import Yolov8Settings
-from service.outputs.settings import MqttSettings, OscSettings, ZoneList
+from service.outputs.settings import FallSettings, MqttSettings, OscSettings, ZoneList
 from service.tracking.association import DEFAULT_MAX_ERROR_PX
 
 DEMO_MODEL_DIR = Path(__file__).resolve().parent.parent / "models" / "demo_model"
@@ -401,6 +401,9 @@ class Settings(BaseSettings):
     # -- outputs beyond the API: zones and MQTT (models in service.outputs.settings) --------------
     zones: ZoneList = Field(
         default_factory=list, description="Named floor polygons with occupancy and events."
+    )
+    falls: FallSettings = Field(
+        default_factory=FallSettings, description="The fall event (standing to lying, then down)."
     )
     mqtt: MqttSettings | None = Field(None, description="MQTT publisher; absent: off.")
     osc: OscSettings | None = Field(None, description="OSC bundles over UDP; absent: off.")

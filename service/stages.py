@@ -55,6 +55,7 @@ __all__ = [
     "Snapshot",
     "Stored",
     "Track",
+    "TrackAnchor",
     "TrackStage",
     "Unscheduled",
     "WithCovariance",
@@ -125,6 +126,19 @@ class Association:
     inside: bool = (
         True  # in the model's set-up area (service.pipeline.chain; models.mom.setup_area)
     )
+
+
+@dataclass(frozen=True)
+class TrackAnchor:
+    """A held track predicted to the time of the frame set being associated: where the
+    association expects a person it already tracks (``service.tracking.association``'s
+    track-driven step, fed by ``service.tracking.tracker.Tracker.anchors``).
+
+    ``xy`` [2] m and ``cov`` [2, 2] m²: the predicted floor position and its covariance.
+    """
+
+    xy: np.ndarray
+    cov: np.ndarray
 
 
 class Reprojecting(Protocol):
@@ -247,6 +261,7 @@ class AssociateStage(Protocol):
         /,
         *,
         max_error_px: float,
+        anchors: Sequence[TrackAnchor] = (),
     ) -> list[Association]: ...
 
 
@@ -271,7 +286,10 @@ class FrameResult:
     ``fused``: per camera, whether its frame took part in detection and association (False for
     no frame or a frame left out by the skew rule); ``timings_ms``: per stage wall time.
     ``runtime`` is the model that localized this set (None without one), so a listener judging
-    reprojection errors uses the same model the positions came from.
+    reprojection errors uses the same model the positions came from. ``outside``: the
+    associations beyond the model's set-up area that the chain kept out of tracking
+    (``tracking.outside_area: drop``; the learning room may still learn from them,
+    :mod:`service.learning.labels`).
     """
 
     frame_set: FrameSet
@@ -283,6 +301,7 @@ class FrameResult:
     snapshot: Snapshot
     runtime: LocalizationModel | None
     timings_ms: dict[str, float]
+    outside: list[Association] = field(default_factory=list)
 
     def track_ids(self) -> dict[tuple[int, int], int]:
         """``(camera, detection index) -> track id`` for the detections tracked in this set."""

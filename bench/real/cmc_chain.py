@@ -23,7 +23,7 @@ from models.data.detections_replay import DetectionsReplay
 from models.data.idf1 import identity_scores
 from models.data.stream_metrics import StreamFrame, StreamScorer
 from models.detector.base import Detections
-from service.stages import Association, LocalizationModel
+from service.stages import Association, LocalizationModel, TrackAnchor
 
 
 @dataclass
@@ -255,6 +255,7 @@ class TrueAssociation:
         /,
         *,
         max_error_px: float,
+        anchors: Sequence[TrackAnchor] = (),
     ) -> list[Association]:
         cameras = len(detections)
         owners = [

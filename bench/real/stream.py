@@ -24,14 +24,16 @@ from capture.rig import FrameSet
 from models.data.dataset import MomDataset
 from models.detector.base import Detections
 from models.mom.runtime import MomRuntime
+from service.stages import Unscheduled
 
 
 def _frame_index(frame_set: FrameSet) -> int:
     return int(next(f.seq for f in frame_set.frames if f is not None))
 
 
-class ReportStage:
-    """Detection stage answering each frame set with ``report(frame index)``."""
+class ReportStage(Unscheduled):
+    """Detection stage answering each frame set with ``report(frame index)`` (no schedule, no
+    worker thread: :class:`~service.stages.Unscheduled`)."""
 
     keypoints = False
 

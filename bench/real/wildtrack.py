@@ -286,9 +286,8 @@ def main(argv: list[str] | None = None) -> int:
             "",
             f"Wall time {time.monotonic() - started:.0f} s (both rigs, both set-ups). The "
             f"profile `{args.profile}` is what this tree holds under that name (bottom-edge σ "
-            f"{bottom_sigma(args.profile)} of the box height): until the rebuild of issue 23 "
-            "lands, `nanodet`'s is the figure measured against MultiviewX's cylinder boxes, "
-            "which the issue found to be a geometric offset, not detector noise. "
+            f"{bottom_sigma(args.profile)} of the box height; `nanodet` is rebuilt from "
+            "tight-box evidence, issue 23, with no row from MultiviewX's cylinder boxes). "
             "`--profile ideal` separates the chain from the detector noise.",
             "",
         ]

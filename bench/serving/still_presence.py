@@ -31,9 +31,12 @@ from typing import Any
 import numpy as np
 
 from bench.report import command_line
+from models.mom.runtime import MomRuntime
 from models.simulate import PRESETS, Scene
 from models.simulate.presets import seated
+from service.offline.stream_eval import frame_detections
 from service.outputs.zones import Zone, ZoneTracker
+from service.pipeline.chain import Chain
 from service.stages import Origin
 from service.tracking.tracker import RECOMMENDED, Tracker
 
@@ -66,10 +69,15 @@ def still_presence(
     options: dict[str, Any],
     dropouts: np.ndarray | None = None,
     warmup_s: float = 5.0,
+    runtime: MomRuntime | None = None,
 ) -> dict[str, float]:
     """Drive a tracker and a sofa zone over ``frames`` of ``scene`` (module docstring), with
-    ``dropouts`` ([N, 2] start, end s: :func:`blackouts`) on top of the detector's misses."""
+    ``dropouts`` ([N, 2] start, end s: :func:`blackouts`) on top of the detector's misses.
+    With ``runtime``: the daemon's whole chain (:class:`service.pipeline.chain.Chain`: postures,
+    association, the model's positions) on the detector's reports instead of true positions
+    plus noise."""
     tracker = Tracker(fps_hint=scene.fps, **options)
+    chain = None if runtime is None else Chain(tracker)
     zones = ZoneTracker([Zone.create("sofa", SOFA_ZONE)])
     rng = np.random.default_rng([scene.seed, 99])
     dropouts = np.zeros((0, 2)) if dropouts is None else dropouts
@@ -82,14 +90,22 @@ def still_presence(
         cameras = np.flatnonzero(np.isfinite(obs.boxes[0]).all(axis=1)).tolist()
         if ((dropouts[:, 0] <= t) & (t < dropouts[:, 1])).any():
             cameras = []
-        positions = np.zeros((0, 2))
         if cameras:
-            positions = obs.world[:1, :2] + rng.normal(0.0, NOISE_M, (1, 2))
             gap = 0.0
         else:
             gap += 1.0 / scene.fps
             longest = max(longest, gap)
-        tracks = tracker.update(t, positions, [Origin(cameras=tuple(cameras))] * len(positions))
+        if chain is not None and runtime is not None:
+            if not cameras:  # the blackout: no camera reports the person (false boxes stay)
+                obs = dataclasses.replace(obs, boxes=np.full_like(obs.boxes, np.nan))
+            detections = frame_detections(obs, rng)
+            _, tracks = chain(t, detections, runtime, [True] * runtime.num_cameras, i)
+        else:
+            positions = np.zeros((0, 2))
+            if cameras:
+                positions = obs.world[:1, :2] + rng.normal(0.0, NOISE_M, (1, 2))
+            origins = [Origin(cameras=tuple(cameras))] * len(positions)
+            tracks = tracker.update(t, positions, origins)
         people = [{"id": tr.id, "x": tr.x, "y": tr.y} for tr in tracks]
         happened = zones.update(t, people)
         if t < warmup_s:
@@ -146,11 +162,19 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="also the walking scenes' MOTA per variant (indoor-2cam, 3 people)",
     )
+    parser.add_argument(
+        "--chain",
+        action="store_true",
+        help="also each variant through the daemon's chain (the lounge's usual model, "
+        "bench.serving.postures) instead of true positions plus noise",
+    )
     parser.add_argument("--out", type=Path, default=RESULTS / "still_presence.md")
     args = parser.parse_args(argv)
     frames = int(args.minutes * 60 * args.fps)
     lines = [
-        "# Still presence: one person seated for an hour",
+        "# Still presence: one person seated for an hour"
+        if args.minutes == 60
+        else f"# Still presence: one person seated for {args.minutes:g} minutes",
         "",
         f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC, {platform.node()} ({platform.machine()}), "
         f"`{command_line('bench.serving.still_presence', argv)}`: {args.minutes:g} simulated "
@@ -158,17 +182,23 @@ def main(argv: list[str] | None = None) -> int:
         f"{args.dropouts_per_hour:g} dropouts an hour of 1-{args.longest_dropout:g} s where no "
         "camera reports the person. Target: the zone occupied ≥ 99.5 % of the time, 1 id.",
         "",
-        "| tracker | zone count right % | ids | enter/leave events | longest dropout s |",
-        "|---|---|---|---|---|",
+        "| tracker | positions | zone count right % | ids | enter/leave events "
+        "| longest dropout s |",
+        "|---|---|---|---|---|---|",
     ]
+    holes = blackouts(args.minutes * 60, args.dropouts_per_hour, args.longest_dropout, args.seed)
+    runtimes: dict[str, MomRuntime | None] = {"true + 5 cm noise": None}
+    if args.chain:
+        from bench.serving.postures import usual_model
+
+        runtimes["daemon chain, usual model"] = usual_model(False)
     for name, options in VARIANTS.items():
-        holes = blackouts(
-            args.minutes * 60, args.dropouts_per_hour, args.longest_dropout, args.seed
-        )
-        r = still_presence(sitter_scene(args.minutes, args.fps, args.seed), frames, options, holes)
-        lines.append(f"| {name} | {r['occupied_pct']:.2f} | {r['ids']:.0f} | {r['events']:.0f} "
-                     f"| {r['longest_dropout_s']:.1f} |")  # fmt: skip
-        print(lines[-1], flush=True)
+        for source, runtime in runtimes.items():
+            scene = sitter_scene(args.minutes, args.fps, args.seed)
+            r = still_presence(scene, frames, options, holes, runtime=runtime)
+            lines.append(f"| {name} | {source} | {r['occupied_pct']:.2f} | {r['ids']:.0f} "
+                         f"| {r['events']:.0f} | {r['longest_dropout_s']:.1f} |")  # fmt: skip
+            print(lines[-1], flush=True)
     if args.walking:
         lines += ["", "Walking (indoor-2cam, 3 people, seeds 7 8 × 600 frames):", "",
                   *walking_mota()]  # fmt: skip

@@ -88,6 +88,7 @@ class RoomRun:
             snapshot=Snapshot.build(i + 1, t, []),
             runtime=self.runtime,
             timings_ms={},
+            outside=self.chain.outside,
         )
         if self.watch is not None:
             self.watch(result)

@@ -32,7 +32,6 @@ from service.learning.healer import MIN_POSITIONS, Healer
 from service.offline.stream_eval import scene_config
 from service.stages import LocalizationModel
 
-PRESET = "indoor-2cam"
 CAMERA = 1
 
 
@@ -48,8 +47,9 @@ def heal_run(
     bump_s: float,
     max_s: float,
     min_positions: int = MIN_POSITIONS,
+    preset: str = "indoor-2cam",
 ) -> dict[str, Any]:
-    config = scene_config(PRESET, 3, profile)
+    config = scene_config(preset, 3, profile)
     fps = config.fps
     config = dataclasses.replace(config, perturbations=(bump(int(bump_s * fps)),))
     data_dir = work / f"heal-{seed}"
@@ -83,20 +83,46 @@ def per_frame(model: LocalizationModel, data: Any) -> float:
 def run(args: argparse.Namespace) -> Path:
     seeds = args.seeds[:1] if args.quick else args.seeds
     frames = 300 if args.quick else 900
-    before = simulate(PRESET, frames, TEST_SEED, detector_profile=args.profile).dataset
+    preset = args.preset
+    before = simulate(preset, frames, TEST_SEED, detector_profile=args.profile).dataset
     after = simulate(
-        PRESET, frames, TEST_SEED, detector_profile=args.profile, perturbation=bump(0)
+        preset, frames, TEST_SEED, detector_profile=args.profile, perturbation=bump(0)
     ).dataset
-    rows = []
+    rows: list[tuple[Any, ...]] = []
+    name = "self_healing_quick.md" if args.quick else "self_healing.md"
+    path = args.out or RESULTS / name
+
+    def save() -> None:
+        table = markdown_table(
+            ("seed", "alert after s", "repaired after s", "error before bump m", "after bump m",
+             "repaired m", "repaired / before", "what health says"),
+            rows,
+        )  # fmt: skip
+        path.write_text(
+            "# The room that learns: a bumped camera repairs itself\n\n"
+            f"{machine_line()}\n\n"
+            f"{preset}, detector profile `{args.profile}`, a model set up on 9 floor marks × "
+            f"{args.seconds:g} s; 3 people walk; camera {CAMERA} bumped (roll 3°, shift 10 px) "
+            f"{args.bump_s:g} s into the run (scene time); repaired from {args.positions} "
+            "positions (`learning.heal_min_positions`). Times are scene seconds after the bump; "
+            f"errors are per-frame means on a dense test room ({before.n} person instances, seed "
+            f"{TEST_SEED}) seen by the unbumped and by the bumped cameras. With two cameras the "
+            "repair re-learns from the other camera's single views (refined with their "
+            "covariances), with more from the others' positions (`service/learning/heal.py`). "
+            "Code: `bench/setup/self_healing.py`.\n\n"
+            f"{table}\n"
+        )
+
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
-        marks = collect_marks("3x3", args.seconds, args.profile, work / "marks9.npz")
+        marks = collect_marks("3x3", args.seconds, args.profile, work / "marks9.npz", preset)
         start = train(marks, work / "model")
         e_before, e_bumped = per_frame(start, before), per_frame(start, after)
         for seed in seeds:
             got = heal_run(
-                seed, work / "model", work, args.profile, args.bump_s, args.max_s, args.positions
-            )
+                seed, work / "model", work, args.profile, args.bump_s, args.max_s,
+                args.positions, preset,
+            )  # fmt: skip
             repaired = got["model"] if got["repaired_s"] is not None else None
             e_repaired = None if repaired is None else per_frame(repaired, after)
             message = got["status"][-1]["message"] if got["status"] else "no repair started"
@@ -113,26 +139,7 @@ def run(args: argparse.Namespace) -> Path:
                     message,
                 )
             )
-    table = markdown_table(
-        ("seed", "alert after s", "repaired after s", "error before bump m", "after bump m",
-         "repaired m", "repaired / before", "what health says"),
-        rows,
-    )  # fmt: skip
-    name = "self_healing_quick.md" if args.quick else "self_healing.md"
-    path = args.out or RESULTS / name
-    path.write_text(
-        "# The room that learns: a bumped camera repairs itself\n\n"
-        f"{machine_line()}\n\n"
-        f"indoor-2cam, detector profile `{args.profile}`, a model set up on 9 floor marks × "
-        f"{args.seconds:g} s; 3 people walk; camera {CAMERA} bumped (roll 3°, shift 10 px) "
-        f"{args.bump_s:g} s into the run (scene time); repaired from {args.positions} positions "
-        "(`learning.heal_min_positions`). Times are scene seconds after the bump; "
-        f"errors are per-frame means on a dense test room ({before.n} person instances, seed "
-        f"{TEST_SEED}) seen by the unbumped and by the bumped cameras. With two cameras the "
-        "repair re-learns from the other camera's single views (`service/learning/heal.py`). "
-        "Code: `bench/setup/self_healing.py`.\n\n"
-        f"{table}\n"
-    )
+            save()
     return path
 
 
@@ -144,6 +151,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="one seed")
     parser.add_argument("--profile", default="nanodet")
+    parser.add_argument("--preset", default="indoor-2cam", help="indoor-2cam or indoor-4cam")
     parser.add_argument("--seconds", type=float, default=20.0, help="per floor mark")
     parser.add_argument("--bump-s", type=float, default=60.0)
     parser.add_argument("--max-s", type=float, default=300.0, help="give up after this long")

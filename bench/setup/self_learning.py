@@ -1,6 +1,6 @@
 """The room that learns, measured (writes bench/results/self_learning.md).
 
-``python -m bench.setup.self_learning [--quick]``
+``python -m bench.setup.self_learning [--quick] [--minutes 2 5 10] [--no-baselines]``
 
 (a) **Self-improvement** (indoor-2cam, detector ``--profile``, default nanodet): a model set up
 on 4 floor marks (2 × 2, one simulated person following the ``momloc collect`` plan) serves a
@@ -16,6 +16,9 @@ and on dense ground truth of the same room.
 
 Never worse: every gate decision is also judged against the truth (the candidate's and the
 served model's per-frame error on the dense test room): a served candidate must not be worse.
+``--never-worse N`` runs N more seeded rooms (one decision each after ``--minutes``, shorter
+training: the point is the gate, not the best model) and writes
+bench/results/self_learning_never_worse.md.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ import argparse
 import shutil
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -36,16 +40,19 @@ from models.mom.runtime import MomRuntime
 from models.mom.training.train import train_model
 from models.simulate import simulate
 from service.learning.improve import ImproveOptions, Improver
+from service.learning.labels import BEYOND_TRACK
 from service.offline.stream_eval import run_stream, scene_config
 from service.stages import LocalizationModel
 
 PRESET = "indoor-2cam"
 TEST_SEED, DENSE_SEED, STREAM_SEED = 12, 13, 7
 TRAIN_BUDGET_S = 90.0
+NEVER_WORSE_BUDGET_S = 30.0
+NEVER_WORSE_SEEDS = 100  # the never-worse rooms are seeds 101, 102, ...
 
 
-def train(data: MomDataset, out: Path) -> MomRuntime:
-    train_model(data, out, progress=False, tuning={"time_budget_s": TRAIN_BUDGET_S})
+def train(data: MomDataset, out: Path, budget_s: float = TRAIN_BUDGET_S) -> MomRuntime:
+    train_model(data, out, progress=False, tuning={"time_budget_s": budget_s})
     return MomRuntime.load(out)
 
 
@@ -84,17 +91,32 @@ def improvement_run(
     judge: Judge,
     minutes: list[float],
     profile: str,
+    budget_s: float = TRAIN_BUDGET_S,
+    streamed: bool = True,
+    trained: Path | None = None,
+    rows: list[list[str]] | None = None,
+    decisions: list[dict[str, Any]] | None = None,
+    save: Callable[[], None] = lambda: None,
 ) -> tuple[list[list[str]], list[dict[str, Any]]]:
-    """One room: 4-mark model, people walk, an improvement run at each of ``minutes``."""
+    """One room: 4-mark model (``trained``: a copy of that one), people walk, an improvement
+    run at each of ``minutes``; appends to ``rows`` and ``decisions`` and calls ``save`` after
+    each (a long run keeps what it measured so far)."""
     data_dir = work / f"room-{seed}"
     data_dir.mkdir()
     shutil.copyfile(marks, data_dir / "marks.npz")
-    start = train(MomDataset.load(marks), data_dir / "model")
+    if trained is None:
+        start = train(MomDataset.load(marks), data_dir / "model", budget_s)
+    else:
+        shutil.copytree(trained, data_dir / "model")
+        start = MomRuntime.load(data_dir / "model")
     room = RoomRun(scene_config(PRESET, 3, profile), seed, start, data_dir)
-    options = ImproveOptions(nice_by=10, time_budget_s=TRAIN_BUDGET_S)
+    options = ImproveOptions(nice_by=10, time_budget_s=budget_s)
     improver = Improver(data_dir, room.labeler, room, marks=data_dir / "marks.npz", options=options)
-    rows = [judge.row(f"seed {seed}: 4 marks, start", start)]
-    decisions = []
+    rows = [] if rows is None else rows
+    decisions = [] if decisions is None else decisions
+    if streamed:
+        rows.append(judge.row(f"seed {seed}: 4 marks, start", start))
+        save()
     for minute in minutes:
         target = int(minute * 60 * room.scene.fps)
         started = time.monotonic()
@@ -109,44 +131,29 @@ def improvement_run(
         assert candidate is not None
         truth = {"current": judge.per_frame(current), "candidate": judge.per_frame(candidate)}
         decisions.append({"seed": seed, "minute": minute, "serve": verdict.serve, **truth})
-        labels = room.labeler.store.count if room.labeler.store else 0
+        store = room.labeler.store
+        stored = store.load() if store is not None else None
+        labels = 0 if stored is None else stored.n
+        beyond = 0 if stored is None else int((stored.track == BEYOND_TRACK).sum())
         served = "new model" if verdict.serve else "kept"
         print(f"seed {seed} {minute:g} min ({walked:.0f} s): {labels} labels; {verdict.reason}")
-        rows.append(
-            judge.row(
-                f"seed {seed}: + {minute:g} min walking ({labels} labels)",
-                room.runtime,
-                f"{served}: {verdict.reason.split(': ', 1)[-1]}",
+        if streamed:
+            rows.append(
+                judge.row(
+                    f"seed {seed}: + {minute:g} min walking ({labels} labels, {beyond} beyond "
+                    "the set-up area)",
+                    room.runtime,
+                    f"{served}: {verdict.reason.split(': ', 1)[-1]}",
+                )
             )
-        )
+        save()
     return rows, decisions
 
 
-def run(args: argparse.Namespace) -> Path:
-    quick = args.quick
-    minutes = [1.0, 2.0] if quick else [2.0, 5.0, 10.0]
-    seeds = args.seeds[:1] if quick else args.seeds
-    judge = Judge(args.profile, 300 if quick else 900, 300 if quick else 600)
-    rows, decisions = [], []
-    with tempfile.TemporaryDirectory() as tmp:
-        work = Path(tmp)
-        marks4 = work / "marks4.npz"
-        collect_marks("2x2", args.seconds, args.profile, marks4)
-        nine = collect_marks("3x3", args.seconds, args.profile, work / "marks9.npz")
-        dense = simulate(PRESET, 600 if quick else 3000, DENSE_SEED, detector_profile=args.profile)
-        rows.append(judge.row("9 marks", train(nine, work / "nine")))
-        rows.append(judge.row("dense labels", train(dense.dataset, work / "dense")))
-        print(rows[-2], rows[-1], flush=True)
-        for seed in seeds:
-            got, decided = improvement_run(seed, marks4, work, judge, minutes, args.profile)
-            rows += got
-            decisions += decided
+def gate_table(decisions: list[dict[str, Any]]) -> str:
+    """Every gate decision against the truth, and how many served candidates were worse."""
     worse = [d for d in decisions if d["serve"] and d["candidate"] > d["current"]]
     table = markdown_table(
-        ("model", "policy", "per-frame mean m", "streamed mean m", "recall %", "MOTA %", "gate"),
-        rows,
-    )
-    gate_table = markdown_table(
         ("seed", "minute", "served", "in service: per-frame m", "candidate: per-frame m"),
         [
             (d["seed"], f"{d['minute']:g}", "yes" if d["serve"] else "no",
@@ -154,32 +161,115 @@ def run(args: argparse.Namespace) -> Path:
             for d in decisions
         ],
     )  # fmt: skip
-    name = "self_learning_quick.md" if quick else "self_learning.md"
-    path = RESULTS / name
-    path.write_text(
-        "# The room that learns: self-improvement from people walking\n\n"
-        f"{machine_line()}\n\n"
-        f"indoor-2cam, detector profile `{args.profile}`; floor marks × {args.seconds:g} s "
-        f"collected by the set-up plan; 3 people walk (seeds {', '.join(map(str, seeds))}); "
-        f"each training run capped at {TRAIN_BUDGET_S:g} s. Per-frame: dense test room "
-        f"(simulate seed {TEST_SEED}, {judge.test.n} person instances, true association); "
-        f"streamed: the daemon's chain on {judge.stream_frames} frames of 3 people (seed "
-        f"{STREAM_SEED}), matched mean at 0.5 m. Code: `bench/setup/self_learning.py`.\n\n"
+    return (
         f"{table}\n\n"
-        "## Never worse: every gate decision against the truth\n\n"
-        f"{gate_table}\n\n"
         f"Served candidates worse than the model they replaced (per-frame, truth): {len(worse)} "
         f"of {sum(d['serve'] for d in decisions)} served, {len(decisions)} decisions.\n"
     )
+
+
+def never_worse(args: argparse.Namespace) -> Path:
+    """``--never-worse N``: N seeded rooms, one gate decision each (module docstring)."""
+    judge = Judge(args.profile, 300, 0)
+    decisions: list[dict[str, Any]] = []
+    seeds = [NEVER_WORSE_SEEDS + i + 1 for i in range(args.never_worse)]
+    path = RESULTS / "self_learning_never_worse.md"
+
+    def save() -> None:
+        path.write_text(
+            "# The room that learns: the gate never serves a worse model\n\n"
+            f"{machine_line()}\n\n"
+            f"indoor-2cam, detector profile `{args.profile}`; a model set up on 4 floor marks "
+            f"× {args.seconds:g} s serves {len(seeds)} rooms of 3 people walking (seeds "
+            f"{seeds[0]}–{seeds[-1]}; {len(decisions)} done); after {args.minutes[0]:g} minutes "
+            f"one self-improvement run (training capped at {NEVER_WORSE_BUDGET_S:g} s) and its "
+            "gate decision, judged against the truth: per-frame error on a dense test room "
+            f"(simulate seed {TEST_SEED}, {judge.test.n} person instances). Code: "
+            f"`bench/setup/self_learning.py --never-worse`.\n\n{gate_table(decisions)}"
+        )
+
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        marks4 = work / "marks4.npz"
+        collect_marks("2x2", args.seconds, args.profile, marks4)
+        trained = work / "start"
+        train(MomDataset.load(marks4), trained, NEVER_WORSE_BUDGET_S)
+        for seed in seeds:
+            improvement_run(
+                seed, marks4, work, judge, args.minutes[:1], args.profile,
+                NEVER_WORSE_BUDGET_S, streamed=False, trained=trained,
+                decisions=decisions, save=save,
+            )  # fmt: skip
+            shutil.rmtree(work / f"room-{seed}", ignore_errors=True)
+    return path
+
+
+def run(args: argparse.Namespace) -> Path:
+    if args.never_worse:
+        return never_worse(args)
+    quick = args.quick
+    seeds = args.seeds[:1] if quick else args.seeds
+    judge = Judge(args.profile, 300 if quick else 900, 300 if quick else 600)
+    rows: list[list[str]] = []
+    decisions: list[dict[str, Any]] = []
+    path = RESULTS / "self_learning.md"
+    baselines = (
+        "The 9-mark and dense-label models were not retrained in this run (`--no-baselines`): "
+        "see the run before it for theirs.\n\n"
+        if args.no_baselines
+        else ""
+    )
+
+    def save() -> None:
+        table = markdown_table(
+            ("model", "policy", "per-frame mean m", "streamed mean m", "recall %", "MOTA %",
+             "gate"),
+            rows,
+        )  # fmt: skip
+        path.write_text(
+            "# The room that learns: self-improvement from people walking\n\n"
+            f"{machine_line()}\n\n"
+            f"indoor-2cam, detector profile `{args.profile}`; floor marks × {args.seconds:g} s "
+            f"collected by the set-up plan; 3 people walk (seeds {', '.join(map(str, seeds))}); "
+            f"each training run capped at {args.budget:g} s. Per-frame: dense test room "
+            f"(simulate seed {TEST_SEED}, {judge.test.n} person instances, true association); "
+            f"streamed: the daemon's chain on {judge.stream_frames} frames of 3 people (seed "
+            f"{STREAM_SEED}), matched mean at 0.5 m. Code: `bench/setup/self_learning.py`.\n\n"
+            f"{baselines}{table}\n\n"
+            "## Never worse: every gate decision against the truth\n\n"
+            f"{gate_table(decisions)}"
+        )
+
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        marks4 = work / "marks4.npz"
+        collect_marks("2x2", args.seconds, args.profile, marks4)
+        if not args.no_baselines:
+            nine = collect_marks("3x3", args.seconds, args.profile, work / "marks9.npz")
+            frames = 600 if quick else 3000
+            dense = simulate(PRESET, frames, DENSE_SEED, detector_profile=args.profile)
+            rows.append(judge.row("9 marks", train(nine, work / "nine", args.budget)))
+            dense_model = train(dense.dataset, work / "dense", args.budget)
+            rows.append(judge.row("dense labels", dense_model))
+            save()
+        for seed in seeds:
+            improvement_run(
+                seed, marks4, work, judge, args.minutes, args.profile, args.budget,
+                rows=rows, decisions=decisions, save=save,
+            )  # fmt: skip
     return path
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="one seed, 1 and 2 minutes")
+    parser.add_argument("--quick", action="store_true", help="one seed, a smaller test room")
+    parser.add_argument("--no-baselines", action="store_true", help="no 9-mark/dense models")
+    parser.add_argument("--budget", type=float, default=TRAIN_BUDGET_S, help="s per training")
     parser.add_argument("--profile", default="nanodet")
     parser.add_argument("--seconds", type=float, default=20.0, help="per floor mark")
     parser.add_argument("--seeds", type=int, nargs="+", default=[21, 22])
+    parser.add_argument("--minutes", type=float, nargs="+", default=[2.0, 5.0, 10.0])
+    parser.add_argument("--never-worse", type=int, default=0, metavar="N", help="N gate rooms")
     print(run(parser.parse_args()))
 
 

@@ -41,11 +41,12 @@ Serving: numpy only; ``to_json``/``from_json`` round-trip through ``model.json``
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from common.errors import MomlocError
+from common.row_memo import RowMemo
 from models.data.dataset import MomDataset
 from models.geometry.calibrated_baseline import box_points, truncated
 from models.geometry.homography import apply_homography, homography_jacobian
@@ -125,12 +126,10 @@ def _cut_marks(
 
     A detector's box of a person cut by the border ends a few pixels inside it in many frames
     (its edge error: the nanodet profile's bottom edge is 10 % of the box height), so the rows
-    that look whole are the same cut person, and the mark's median pixel is wrong. Measured on
-    the synthetic 3x3 set-up (nanodet, 6 s per mark): feet below the image at a mark gave a
-    median bottom edge 4-15 px above the border, which the 2 px test of a single box misses.
-    Dense data (more than ``MAX_MARKS`` floor positions) is left to the per-box 2 px test: the
-    margin there, even only on positions with 5 or more rows (people standing), cost the stream
-    regression gate 1.7-1.9 MOTA points (51.6 → 49.7-49.9 %) and 0.2-0.9 cm of jitter.
+    that look whole are the same cut person, and the mark's median pixel is wrong; a 2 px test of
+    a single box misses it. Dense data (more than ``MAX_MARKS`` floor positions) is left to the
+    per-box 2 px test: the margin cost the stream regression gate there. Figures:
+    ``bench/results/design_measurements.md`` (cut marks).
     """
     keys = np.round(world / DISTINCT_M).astype(np.int64)
     _, mark = np.unique(keys, axis=0, return_inverse=True)
@@ -209,6 +208,11 @@ class FloorPrior:
     cut_inflation: float = 25.0
     height_spread: float = HEIGHT_SPREAD
     notes: tuple[str, ...] = ()  # why a camera or a point was left out
+    # Per camera, the view of each box seen lately: a view depends on its own camera's box
+    # alone, and the chain asks for each box many times per frame set (common.row_memo).
+    _seen: dict[int, RowMemo[tuple[np.ndarray, np.ndarray]]] = field(
+        default_factory=dict, init=False, compare=False, repr=False
+    )
 
     @property
     def num_cameras(self) -> int:
@@ -297,9 +301,31 @@ class FloorPrior:
         info = np.zeros((n, self.num_cameras, 2, 2))
         for k, cam in enumerate(self.cameras):
             if cam is not None:
-                kp = None if keypoints is None else np.asarray(keypoints)[:, k]
-                est[:, k], info[:, k] = self._camera_view(cam, boxes[:, k], kp, self.image_size[k])
+                kp = None if keypoints is None else np.asarray(keypoints, np.float64)[:, k]
+                est[:, k], info[:, k] = self._remembered_view(k, cam, boxes[:, k], kp)
         return est, info
+
+    def _remembered_view(
+        self, k: int, cam: CameraPrior, boxes: np.ndarray, keypoints: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_camera_view` of camera ``k``'s rows, each distinct row computed once."""
+        if len(boxes) == 0:
+            return np.zeros((0, 2)), np.zeros((0, 2, 2))
+        keys = [
+            row.tobytes() if keypoints is None else row.tobytes() + keypoints[i].tobytes()
+            for i, row in enumerate(boxes)
+        ]
+
+        def compute(rows: list[int]) -> list[tuple[np.ndarray, np.ndarray]]:
+            kp = None if keypoints is None else keypoints[rows]
+            est, info = self._camera_view(cam, boxes[rows], kp, self.image_size[k])
+            return list(zip(est, info, strict=True))
+
+        memo = self._seen.get(k)
+        if memo is None:
+            memo = self._seen[k] = RowMemo()
+        views = memo.rows(keys, compute)
+        return np.stack([v[0] for v in views]), np.stack([v[1] for v in views])
 
     def _camera_view(
         self, cam: CameraPrior, boxes: np.ndarray, keypoints: np.ndarray | None, size: np.ndarray

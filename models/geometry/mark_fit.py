@@ -138,14 +138,10 @@ def consensus(
     Why: at a mark, the box a camera reports may not be the person's. A static false positive
     (a coat on a chair) is the only box while the person is out of that camera's view, and a
     person whose feet are below the image gives a box whose noisy bottom edge ends a few pixels
-    inside the border, so it looks whole. Measured on the synthetic 3x3 set-up with the nanodet
-    profile: 3 of 18 mark × camera medians were such boxes (100-530 px from the person's foot
-    pixel); the soft-L1 refinement alone cannot reject them with 9 points for 8 unknowns, and the
-    floor prior ended 2.5 m (median) off over the room. With 6 s per mark 4 of 9 marks of a
-    camera were such boxes, and 9 points leave a 4-point map so much freedom that a set with two
-    wrong points tied the right one on the pixels alone; the height check broke the tie (the
-    floor prior over the room: mean 1.62 -> 0.49 m, ``tests/models/test_prior_policy.py``'s
-    recording).
+    inside the border, so it looks whole. The soft-L1 refinement alone cannot reject such boxes
+    with 9 points for 8 unknowns, and with two wrong points a 4-point map ties the right one on
+    the pixels alone: the height check breaks the tie. Figures:
+    ``bench/results/design_measurements.md`` (mark selection).
     """
     m = len(world)
     everything = np.ones(m, dtype=bool)

@@ -23,6 +23,7 @@ import numpy as np
 
 from common.errors import MomlocError, shorten
 from common.onnx_session import open_session
+from common.row_memo import RowMemo
 from models.geometry.floor_prior import FloorPrior
 from models.mom.prior_policy import POLICY_WEIGHTS, VIEW_CLASSES, blend, row_weights
 from models.mom.sampling import InferenceSampler, SamplerConfig, draws_from_json, unit_mean
@@ -63,6 +64,9 @@ class MomRuntime:
         area = meta.get("setup_area")
         # where the model was set up (models.mom.setup_area); None for models trained before it
         self.setup_area = SetupArea.from_json(area) if area else None
+        # Each row's position depends on that row alone (the serving draws are fixed), and the
+        # chain localizes the same rows many times per frame set (common.row_memo).
+        self._localized: RowMemo[np.ndarray] = RowMemo()
         bounds = meta.get("world_bounds")
         # the floor area the training positions cover ((xmin, ymin), (xmax, ymax)) metres, for
         # the map's default extent; None for models written before export stored it
@@ -204,6 +208,20 @@ class MomRuntime:
         and maps it into its training area.
         """
         boxes = self._check_boxes(boxes)
+        if len(boxes) == 0:
+            return np.zeros((0, 2), dtype=np.float32)
+        kp = None if keypoints is None else np.asarray(keypoints, dtype=np.float32)
+        keys = [
+            row.tobytes() if kp is None else row.tobytes() + kp[i].tobytes()
+            for i, row in enumerate(boxes)
+        ]
+
+        def compute(rows: list[int]) -> list[np.ndarray]:
+            return list(self._localize_rows(boxes[rows], None if kp is None else kp[rows]))
+
+        return np.stack(self._localized.rows(keys, compute)).astype(np.float32)
+
+    def _localize_rows(self, boxes: np.ndarray, keypoints: np.ndarray | None) -> np.ndarray:
         if self.floor_prior is None or (self.setup_area is None and max(self.prior_weights) == 0):
             return self.encode(boxes, keypoints)  # no geometry to serve: not computed
         prior_keypoints = keypoints if self.observation == "keypoints" else None
@@ -284,8 +302,9 @@ class MomRuntime:
     def reproject(self, world: np.ndarray) -> np.ndarray:
         """Pixels [B, K, 2] of the body's mean point for floor positions [B, 2] (decoder P̄_k)."""
         world = np.asarray(world, dtype=np.float64).reshape(-1, 2)
-        homogeneous = np.c_[world, np.zeros(len(world)), np.ones(len(world))]
-        projected = np.einsum("kij,bj->bki", self.decoder, homogeneous)
+        # On the floor (z = 0): P (x, y, 0, 1) = P[:, :2] (x, y) + P[:, 3]. Called thousands of
+        # times a second on a few points, so no homogeneous array is built.
+        projected = np.einsum("kij,bj->bki", self.decoder[:, :, :2], world) + self.decoder[:, :, 3]
         denominator = projected[..., 2:]
         denominator = np.where(np.abs(denominator) < 1e-9, 1e-9, denominator)
         return (projected[..., :2] / denominator).astype(np.float32)

@@ -17,6 +17,7 @@ cmc-room        7.67×3.41  4        1920×1024  3 (+4)  the CMC lab (Ong et al.
 lounge          5 × 4      2        640×480    2       living-room + sofa, coffee table
 office-desks    8 × 6      3        640×480    3       office-3cam + two desks with chairs
 demo-lounge     10 × 10    2        640×480    3 (+1)  indoor-2cam + a sofa in the demo zone
+demo-fall       10 × 10    2        640×480    0 (+1)  indoor-2cam + someone who falls
 ==============  =========  =======  =========  ======  ===================================
 
 The furnished presets (:mod:`models.simulate.furniture`, :mod:`models.simulate.postures`) have
@@ -25,7 +26,9 @@ hides their shins from both cameras) while another walks, stands at the window, 
 something up and sits in the armchair; in ``office-desks`` two work seated at desks (a desk hides
 the legs from the cameras in front of it) while a third walks between them; ``demo-lounge`` is
 the demo's room (the demo model's cameras) with a sofa in its ``lounge`` zone and one more
-person sitting on it. The scripts loop for an hour.
+person sitting on it; in ``demo-fall`` one person in the demo's room walks, stands, falls (a
+0.8 s drop), lies 20 s and gets up, at three places in turn (:func:`fall_route`). The scripts
+loop for an hour.
 
 ``cmc-room`` copies the real CMC room at 4 fps: its people are labelled in the authors'
 tracking area (x 2.03-6.30 m, the whole depth) and four more walk outside it where the real
@@ -116,6 +119,19 @@ def _walk(a: tuple[float, float], b: tuple[float, float], speed: float = 1.0) ->
     return Segment(a, b, max(math.dist(a, b) / speed, 0.1))
 
 
+def fall_route(spots: list[tuple[tuple[float, float], float]], lie_s: float = 20.0,
+               stand_s: float = 3.0, drop_s: float = 0.8) -> list[Segment]:  # fmt: skip
+    """Walk to each (spot, heading) in turn, stand ``stand_s``, fall there (the body morphs
+    into lying over ``drop_s``), lie ``lie_s`` and get up; back to the first spot at the end."""
+    route: list[Segment] = []
+    points = [spot for spot, _ in spots]
+    for i, (spot, heading) in enumerate(spots):
+        route.append(Segment(spot, spot, stand_s))
+        route.append(Segment(spot, spot, lie_s, "lying", heading, ramp_s=drop_s))
+        route.append(_walk(spot, points[(i + 1) % len(points)]))
+    return route
+
+
 _LIVING = room_config("lounge", 5.0, 4.0, 2, people=1, hfov_deg=75.0, distortion=(-0.08, 0.01),
                       heights=(2.0, 1.9))  # fmt: skip
 _LOUNGE_ROUTE = [
@@ -136,6 +152,7 @@ _OFFICE_ROUTE = [
     _walk((1.2, 4.8), (1.0, 1.0)),
 ]
 _DEMO = room_config("demo-lounge", 10.0, 10.0, 2, people=3)
+DEMO_FALLS = [((3.0, 3.0), 0.0), ((6.5, 4.0), FACING["+y"]), ((4.0, 7.5), 0.5)]
 
 PRESETS: dict[str, SceneConfig] = {
     "indoor-2cam": room_config("indoor-2cam", 10.0, 10.0, 2, people=3),
@@ -218,6 +235,9 @@ PRESETS: dict[str, SceneConfig] = {
         _DEMO,
         furniture=(*sofa(6.0, 7.3, 8.0, "-y"), *table(6.3, 5.6, 7.7, 6.0)),
         scripts=(seated((7.0, 6.85), "-y"),),
+    ),
+    "demo-fall": dataclasses.replace(
+        _DEMO, name="demo-fall", people=0, scripts=(looping(fall_route(DEMO_FALLS)),)
     ),
 }
 

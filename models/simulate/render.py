@@ -8,9 +8,7 @@ so sizes follow the pinhole perspective point by point and the painted person fi
 the simulator reports (the box is the union of the ``skeleton.RADII`` spheres; the drawn radii
 below are a little slimmer where those spheres are bulky, never larger).
 
-What the figures have (``bench/detector/render_recall.py``: recall of clear people at IoU >= 0.5 by
-height on 4 presets, ``bench/results/render_recall.md``; the previous renderer in
-``render_recall_before.md``):
+What the figures have:
 
 - **proportions** on the COCO-17 skeleton the simulator animates: the shirt ends at the hip
   joints (it used to reach mid-thigh, which made legs look short), shoulders slope below the
@@ -21,23 +19,17 @@ height on 4 presets, ``bench/results/render_recall.md``; the previous renderer i
   the image per person; every part is three nested hulls (shadow side, mid tone, lit side)
   offset toward the light, far-side limbs darker, a soft outline and a floor shadow.
 
-Measured, 2026-12-01: NanoDet finds 95 % / 99 % / 89 % of clear people < 100 / 100-200 / > 200 px
-tall (97 % overall; precision 0.94) in the furnished rooms, against 99 / 100 / 87 % for the
-previous figures in plain rooms; SSDLite 13 / 50 / 44 % (was 31 / 65 / 53 %): the furniture and
-patterned floors make the scene harder, not the people easier to miss. The > 200 px misses are
-people close below a high camera (steep view, head and shoulders foreshortened), found with
-scores 0.2-0.4 at IoU 0.8-0.9. Tried on those 258 large people, each within ±2 points of the
-89 % (noise of the measurement): flat colours instead of bands, thinner arms or legs, a smaller
-head, a narrower chest, a 3×3 blur, sensor noise, other clothes; none was kept for that reason.
-
-Cost: the background once per camera (``room.render_background``, 0.2-0.45 s), then 4-5 CPU-ms
-per 640×480 frame with 2-3 people and ~8 ms with 4 (2-core host under load). Python overhead per
-part dominates (the fills are ~0.5 ms of it); inner bands are drawn without anti-aliasing.
+Recall of the shipped detectors on these figures by person height, and what was tried on the
+people it misses: ``bench/results/render_recall.md`` (``bench/detector/render_recall.py``; the
+previous renderer in ``render_recall_before.md``). Cost: the background once per camera, then a
+few CPU-ms per frame and person, Python overhead per part dominating (inner bands are drawn
+without anti-aliasing): ``bench/results/demo_cost.md``.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
 
 import cv2
@@ -89,6 +81,37 @@ class Look:
             "skin": self.skin,
             "front": self.shirt,
         }[part]
+
+    @functools.cached_property
+    def shades(self) -> dict[tuple[str, bool], Shade]:
+        """Every part's paint colours, near-side and far-side (darker): computed once per person,
+        since per-band colour arithmetic in Python was a third of a frame's drawing cost."""
+        return {
+            (part, far): Shade.of(self.colour(part) * (0.8 if far else 1.0))
+            for part in _PART_NAMES
+            for far in (False, True)
+        }
+
+
+@dataclass(frozen=True)
+class Shade:
+    """The colours a part is painted with: one per nested band, the single tone of a part too
+    small for bands, and its outline (BGR lists, as OpenCV takes them)."""
+
+    bands: tuple[list[float], ...]
+    flat: list[float]
+    outline: list[float]
+
+    @classmethod
+    def of(cls, colour: np.ndarray) -> Shade:
+        def tone(gain: float, add: float) -> list[float]:
+            return np.minimum(colour * gain + add, 255.0).tolist()
+
+        return cls(
+            bands=tuple(tone(gain, add) for _, _, gain, add in _BANDS),
+            flat=tone(0.9, 0.0),
+            outline=(colour * 0.5).tolist(),
+        )
 
 
 def appearance(rng: np.random.Generator, people: int) -> list[Look]:
@@ -156,6 +179,8 @@ _CIRCLE = np.stack([np.cos(np.linspace(0, 2 * np.pi, 12, endpoint=False)),
                     np.sin(np.linspace(0, 2 * np.pi, 12, endpoint=False))], 1)  # fmt: skip
 # Nested hulls of a part: (offset toward the light, radius, brightness, added), in units of r.
 _BANDS = ((0.0, 1.0, 0.7, 0.0), (0.22, 0.76, 1.0, 0.0), (0.45, 0.4, 1.16, 10.0))
+_SHAPE_POINTS = [list(idx) for _, idx, _, _ in _SHAPES]
+_FRONT = [X["front_top"], X["front_bottom"]]
 
 
 def with_extra_points(points: np.ndarray, heights: np.ndarray) -> np.ndarray:
@@ -263,34 +288,31 @@ def _paint_person(image: np.ndarray, rings: list[np.ndarray], r: np.ndarray, d: 
                   look: Look) -> None:  # fmt: skip
     part_depth = np.where(_PART_MASK, d[_PART_IDX], 0.0).sum(1) / _PART_MASK.sum(1)
     part_size = np.where(_PART_MASK, r[_PART_IDX], 0.0).max(1)
-    far = _PART_SIDED & (d[_PART_IDX[:, 0]] > d[P["chest"]] + 0.02)
+    far = (_PART_SIDED & (d[_PART_IDX[:, 0]] > d[P["chest"]] + 0.02)).tolist()
     facing = d[P["nose"]] < d[HEAD]
-    colours = {part: look.colour(part).tolist() for part in _PART_NAMES}
+    shades = look.shades
     for s in np.lexsort((-part_depth, _PART_LAYER)).tolist():
-        _, idx, part, _ = _SHAPES[s]
-        gain = 0.8 if far[s] else 1.0
-        _shaded(image, rings, list(idx), float(part_size[s]), [c * gain for c in colours[part]])
+        part = _SHAPES[s][2]
+        _shaded(image, rings, _SHAPE_POINTS[s], float(part_size[s]), shades[part, far[s]])
         if part == "torso" and look.jacket is not None and facing:
-            front = [X["front_top"], X["front_bottom"]]
-            _shaded(image, rings, front, float(r[front].max()), look.shirt.tolist(), bands=1)
+            _shaded(image, rings, _FRONT, float(r[_FRONT].max()), shades["front", False], 1)
 
 
 def _shaded(image: np.ndarray, rings: list[np.ndarray], idx: list[int], size: float,
-            colour: list[float], bands: int = 3) -> None:  # fmt: skip
+            shade: Shade, bands: int = 3) -> None:  # fmt: skip
     """A part as nested convex hulls (shadow side, mid tone, lit side) and a soft outline.
 
     ``size`` is the part's largest radius in pixels: small parts get fewer bands, since
     sub-pixel bands cost time and are invisible."""
     n = 1 if size < 2.0 else 2 if size < 4.0 else bands
     for band in range(n):
-        _, _, gain, add = _BANDS[band] if n > 1 else (0, 0, 0.9, 0.0)
         poly = cv2.convexHull(rings[band][idx].reshape(-1, 2))
         # Only the silhouette is anti-aliased: band edges inside it cost 3x as much with AA and
         # are soft anyway (neighbouring tones).
-        cv2.fillConvexPoly(image, poly, [min(c * gain + add, 255.0) for c in colour],
+        cv2.fillConvexPoly(image, poly, shade.bands[band] if n > 1 else shade.flat,
                            cv2.LINE_AA if band == 0 else cv2.LINE_8, 4)  # fmt: skip
         if band == 0 and size > 2.5:
-            cv2.polylines(image, [poly], True, [c * 0.5 for c in colour], 1, cv2.LINE_AA, 4)
+            cv2.polylines(image, [poly], True, shade.outline, 1, cv2.LINE_AA, 4)
 
 
 def _disc(image: np.ndarray, centre: np.ndarray, radius: float, colour: np.ndarray) -> None:

@@ -184,6 +184,9 @@ class Scene:
             )
         self._blocks: OrderedDict[int, dict[str, np.ndarray]] = OrderedDict()
         self._renderer: Renderer | None = None
+        # The body points of the last rendered frame: every camera of a frame set draws the same
+        # bodies, so they are posed once per frame, not once per camera.
+        self._posed: tuple[int, np.ndarray] | None = None
         # Camera workers of a live demo may share one scene: the walker cache and block cache
         # are filled lazily, so those fills are serialised.
         self._lock = threading.RLock()
@@ -253,7 +256,9 @@ class Scene:
                     self.config.furniture,
                 )  # fmt: skip
             camera = self.cameras_at(frame_index)[camera_index]
-            points = self.body_points(frame_index)
+            if self._posed is None or self._posed[0] != frame_index:
+                self._posed = (frame_index, self.body_points(frame_index))
+            points = self._posed[1]
             background = self._renderer.background(camera)
         return self._renderer.draw(background, camera, points, self._everyone().heights)
 

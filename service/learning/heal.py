@@ -19,6 +19,18 @@ height, so the nearest box within ``GATE_HEIGHTS`` box heights is taken when it 
 that near (a second one within twice that: skipped, it could be either) and nobody else is
 within ``min_separation_m`` on the floor.
 
+Fitting to positions that are themselves uncertain: a map fitted straight to the references
+takes their errors as if they were the camera's (a fit with error in the *given* variable is
+biased towards a flatter map), and with two cameras those errors are large along the other
+camera's line of sight. But each reference comes with its covariance, small across that line of
+sight, and the moved camera's own box says where along it the person stood, once its map is
+roughly right. So :func:`_refit` alternates ``REFINE_ROUNDS`` times: fuse each reference with
+the moved camera's own single view under the current maps (inverse-covariance weights), then
+refit the maps to the fused positions (errors-in-variables by alternation, as bundle adjustment
+does with one camera known). Across the reference's line of sight the reference keeps the
+fused position where it was; along it the moved camera's box, seen from another direction,
+places it.
+
 What a repair can reach, and the gate: the refitted map is only as good as the positions it was
 fitted to. With four cameras those are multi-view positions (~0.1 m); with two, the unmoved
 camera's single views, long along its line of sight (0.3-0.5 m std). The repair is checked on
@@ -37,7 +49,7 @@ self-improvement run (:mod:`service.learning.improve`) retrains it on post-bump 
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -50,6 +62,7 @@ from service.learning.labels import LabelRules
 from service.stages import FrameResult
 
 GATE_HEIGHTS = 0.75
+REFINE_ROUNDS = 6
 TOLERANCE = 1.25
 HELD_OUT_EVERY = 5
 MAX_REFERENCE_STD_M = 0.6
@@ -58,16 +71,19 @@ RAYLEIGH_MEDIAN = float(np.sqrt(2 * np.log(2)))  # median distance / per-axis st
 
 @dataclass
 class HealSamples:
-    """Pairs of a reference position (other cameras) and camera ``m``'s box."""
+    """Pairs of a reference position (other cameras) and camera ``m``'s box; ``cov`` the
+    references' covariances [2, 2] (empty: unknown, the maps are fitted to the positions as
+    they are)."""
 
     t: list[float]
     world: list[np.ndarray]
     std: list[float]
     box: list[np.ndarray]
+    cov: list[np.ndarray] = field(default_factory=list)
 
     @classmethod
     def empty(cls) -> HealSamples:
-        return cls([], [], [], [])
+        return cls([], [], [], [], [])
 
     @property
     def n(self) -> int:
@@ -124,6 +140,7 @@ def heal_samples(
         into.world.append(xy[i])
         into.std.append(float(std[i]))
         into.box.append(boxes_m[best])
+        into.cov.append(cov[i])
         added += 1
     return added
 
@@ -153,7 +170,11 @@ def repair(meta: dict[str, Any], camera: int, samples: HealSamples, single_m: fl
         raise MomlocError("the model has no floor geometry to repair")
     prior = FloorPrior.from_json(entry)
     decoder = np.asarray(meta["decoder"]["matrices"], np.float64)
-    fixed, decoder[camera] = _refit(prior, camera, world[~held], box[~held], decoder[camera], meta)
+    cov = np.asarray(samples.cov, np.float64) if len(samples.cov) == samples.n else None
+    fixed, decoder[camera] = _refit(
+        prior, camera, world[~held], None if cov is None else cov[~held], box[~held],
+        decoder[camera], meta,
+    )  # fmt: skip
     error = _lone_error(fixed, camera, world[held], box[held])
     reference = float(np.median(np.asarray(samples.std)[held]))
     out = copy.deepcopy(meta)
@@ -182,20 +203,39 @@ def _refit(
     prior: FloorPrior,
     camera: int,
     world: np.ndarray,
+    cov: np.ndarray | None,
     box: np.ndarray,
     matrix: np.ndarray,
     meta: dict[str, Any],
 ) -> tuple[FloorPrior, np.ndarray]:
-    """The camera's maps fitted afresh on the references, and its decoder matrix."""
+    """The camera's maps fitted afresh on the references (refined with their covariances
+    ``cov``, module docstring), and its decoder matrix."""
     boxes = np.full((len(world), prior.num_cameras, 4), np.nan)
     boxes[:, camera] = box
+    refitted = _with_camera(prior, camera, world, boxes)
+    if cov is not None:
+        reference_info = np.linalg.inv(cov + np.eye(2) * 1e-6)
+        fused = world
+        for _ in range(REFINE_ROUNDS):
+            own, own_cov = refitted.predict_covariance(boxes)
+            ok = np.isfinite(own).all(axis=1) & np.isfinite(own_cov).all(axis=(1, 2))
+            own_info = np.linalg.inv(np.where(ok[:, None, None], own_cov, np.eye(2)))
+            own_info = np.where(ok[:, None, None], own_info, 0.0)
+            eta = reference_info @ world[..., None] + own_info @ np.nan_to_num(own)[..., None]
+            fused = np.linalg.solve(reference_info + own_info, eta)[..., 0]
+            refitted = _with_camera(prior, camera, fused, boxes)
+        world = fused
+    return refitted, _decoder_matrix(world, box, matrix, meta)
+
+
+def _with_camera(
+    prior: FloorPrior, camera: int, world: np.ndarray, boxes: np.ndarray
+) -> FloorPrior:
+    """``prior`` with ``camera``'s maps fitted on ``world`` and its ``boxes``."""
     fitted = FloorPrior.fit_arrays(world, boxes, prior.image_size, points="both")
     cameras = list(prior.cameras)
     cameras[camera] = fitted.cameras[camera]
-    refitted = FloorPrior(
-        tuple(cameras), prior.image_size, prior.cut_inflation, prior.height_spread
-    )
-    return refitted, _decoder_matrix(world, box, matrix, meta)
+    return FloorPrior(tuple(cameras), prior.image_size, prior.cut_inflation, prior.height_spread)
 
 
 def _decoder_matrix(

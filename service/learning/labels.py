@@ -22,6 +22,21 @@ that *could* be wrong, at the price of fewer labels (a walking room gives thousa
 - at most one label per track every ``min_interval_s``: consecutive frames are near copies, and
   a person standing still would otherwise fill the store with one position.
 
+**Beyond the set-up area.** The chain keeps people outside the area the model was set up on out of
+tracking (``tracking.outside_area``, :mod:`service.pipeline.chain`), yet people walk everywhere,
+and the floor beyond the marks is exactly where a model set up on a few marks is weakest. Learning
+only from tracked people confined the labels to the marks' hull (the first measured room,
+``bench/results/self_learning_before.md``: no improvement was ever served). So the untracked
+associations beyond the area (``FrameResult.outside``) may give labels too, under the same rules
+(two or more cameras agreeing with a small covariance, low cost, alone, no overlap) with the
+track's two replaced by ones that need no track: the moment is *confirmed* when the previous frame
+set (at most ``BEYOND_GAP_S`` earlier) had an association beyond the area within ``BEYOND_STEP_M``
+of it (a ghost pairing of two people's boxes rarely repeats at the same place), and the rate rule
+holds per place (no other label beyond the area within ``min_separation_m`` in the last
+``min_interval_s``). Their labels carry track ``-1``. A model the room serves after learning from
+them is set up on their positions too, so its area grows with them (:mod:`models.mom.setup_area`
+fits the area on every training row).
+
 Every rejection is counted by reason (``/v1/health`` ``learning.rejected``), so a room that
 learns nothing says why.
 """
@@ -36,6 +51,9 @@ import numpy as np
 from service.stages import Association, FrameResult
 
 KEYPOINT_JOINTS = 17  # COCO-17
+BEYOND_STEP_M = 0.3  # a person moves less between two frame sets (1.5 m/s at 5 fps)
+BEYOND_GAP_S = 0.5  # frame sets further apart do not confirm each other
+BEYOND_TRACK = -1  # the track id of labels from beyond the set-up area
 
 
 @dataclass(frozen=True)
@@ -109,17 +127,31 @@ class Selection:
     rejected: Counter[str] = field(default_factory=Counter)
 
 
+@dataclass
+class BeyondMemory:
+    """What the rules for moments beyond the set-up area keep between frame sets (module
+    docstring): the previous frame set's positions beyond the area, and the recent labels
+    there (time, position)."""
+
+    previous_t: float = -np.inf
+    previous: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    labelled: list[tuple[float, np.ndarray]] = field(default_factory=list)
+
+
 def select_labels(
     result: FrameResult,
     rules: LabelRules,
     moved: set[int],
     last_label: dict[int, float],
+    beyond: BeyondMemory | None = None,
 ) -> Selection:
     """The self-labels of one frame set (module docstring); updates ``last_label`` (track id ->
-    time of its last label) for the rate rule."""
+    time of its last label) for the rate rule, and ``beyond`` for the moments beyond the set-up
+    area (None: those give no labels)."""
     rejected: Counter[str] = Counter()
     rows: list[tuple[int, Association]] = []
-    positions = np.array([np.asarray(a.world, float)[:2] for a in result.associations])
+    everyone = [*result.associations, *(result.outside if beyond is not None else [])]
+    positions = np.array([np.asarray(a.world, float)[:2] for a in everyone]).reshape(-1, 2)
     for track in result.tracks:
         if track.coasting or track.frame != result.snapshot.seq or track.association is None:
             rejected["coasting"] += 1
@@ -136,9 +168,48 @@ def select_labels(
             continue
         last_label[track.id] = result.t_capture
         rows.append((int(track.id), a))
+    if beyond is not None:
+        rows += _beyond(result, rules, moved, positions, beyond, rejected)
     if not rows:
         return Selection(None, rejected)
     return Selection(_batch(rows, result), rejected)
+
+
+def _beyond(
+    result: FrameResult,
+    rules: LabelRules,
+    moved: set[int],
+    positions: np.ndarray,
+    memory: BeyondMemory,
+    rejected: Counter[str],
+) -> list[tuple[int, Association]]:
+    """Labels from the untracked associations beyond the set-up area (module docstring)."""
+    t = result.t_capture
+    first = len(result.associations)  # their index in ``positions``
+    here = positions[first:]
+    recent = t - memory.previous_t <= BEYOND_GAP_S
+    memory.labelled = [(s, xy) for s, xy in memory.labelled if t - s < rules.min_interval_s]
+    rows = []
+    for i, a in enumerate(result.outside):
+        reason = _reject(a, first + i, positions, result, rules, moved, inside_only=False)
+        xy = here[i]
+        if reason is None and not (
+            recent
+            and len(memory.previous)
+            and np.linalg.norm(memory.previous - xy, axis=1).min() <= BEYOND_STEP_M
+        ):
+            reason = "unconfirmed"
+        if reason is None and any(
+            np.linalg.norm(xy - seen) < rules.min_separation_m for _, seen in memory.labelled
+        ):
+            reason = "rate"
+        if reason is not None:
+            rejected[f"beyond_{reason}"] += 1
+            continue
+        memory.labelled.append((t, xy))
+        rows.append((BEYOND_TRACK, a))
+    memory.previous_t, memory.previous = t, here.copy()
+    return rows
 
 
 def _reject(
@@ -148,12 +219,14 @@ def _reject(
     result: FrameResult,
     rules: LabelRules,
     moved: set[int],
+    *,
+    inside_only: bool = True,
 ) -> str | None:
-    if len(a.cameras) < rules.min_views:
+    if len(a.cameras) < max(rules.min_views, 1 if inside_only else 2):
         return "views"
     if moved & set(a.cameras):
         return "camera_moved"
-    if not a.inside:
+    if inside_only and not a.inside:
         return "outside_area"
     if a.covariance is None or not np.all(np.isfinite(a.covariance)):
         return "no_covariance"

@@ -23,7 +23,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from service.learning.labels import LabelRules, select_labels
+from service.learning.labels import BeyondMemory, LabelRules, select_labels
 from service.learning.store import DEFAULT_MAX_BYTES, SelfLabelStore, room_folder, room_key
 from service.stages import FrameResult, LocalizationModel
 
@@ -56,6 +56,7 @@ class SelfLabeler:
         self.store: SelfLabelStore | None = None
         self.room: str | None = None
         self._last_label: dict[int, float] = {}
+        self._beyond = BeyondMemory()
         self.rejected: Counter[str] = Counter()
         self.dropped = 0
         self.frames = 0
@@ -93,7 +94,7 @@ class SelfLabeler:
         if store is None:
             return
         moved = self._moved()
-        selection = select_labels(result, self.rules, moved, self._last_label)
+        selection = select_labels(result, self.rules, moved, self._last_label, self._beyond)
         with self._lock:
             self.frames += 1
             self.rejected.update(selection.rejected)
@@ -119,7 +120,7 @@ class SelfLabeler:
                     flush_s=self.flush_s,
                 )
                 self.room = room
-                self._last_label = {}
+                self._last_label, self._beyond = {}, BeyondMemory()
             self._runtime = runtime
             return self.store
 

@@ -7,7 +7,10 @@ message replaces that config. Per daemon (room) we announce one device ``MoM <ro
 - per zone a ``binary_sensor`` (``device_class: occupancy``; ON while the zone's count > 0) and a
   ``sensor`` (people in the zone), both reading the retained ``{base}/{room}/zones/{zone}`` topic;
 - one ``sensor`` with the number of people in the room, read from the retained health topic
-  (positions at 10/s would flood HA's recorder).
+  (positions at 10/s would flood HA's recorder);
+- unless falls are off, one ``binary_sensor`` ``fall`` (``device_class: safety``: ON means
+  unsafe) reading the retained ``{base}/{room}/fall`` topic, ON while someone in the room has an
+  active fall (:mod:`service.outputs.falls`), with the ids as an attribute.
 
 Every entity uses ``{base}/{room}/availability``, so HA greys the room out when the daemon stops
 or dies (last will). Ids (``unique_id``, ``node_id``, ``object_id``) use only ``[A-Za-z0-9_-]``,
@@ -55,8 +58,11 @@ def config_topic(settings: MqttSettings, component: str, object_id: str) -> str:
     return f"{settings.home_assistant.prefix}/{component}/{node_id(settings)}/{object_id}/config"
 
 
-def discovery_configs(settings: MqttSettings, zones: Sequence[str]) -> list[tuple[str, dict]]:
-    """``(config topic, config)`` for every entity of the room."""
+def discovery_configs(
+    settings: MqttSettings, zones: Sequence[str], falls: bool = True
+) -> list[tuple[str, dict]]:
+    """``(config topic, config)`` for every entity of the room (``falls``: with the fall
+    sensor)."""
     configs: list[tuple[str, dict[str, Any]]] = []
     for zone in zones:
         state_topic = settings.topic("zones", zone)
@@ -92,16 +98,33 @@ def discovery_configs(settings: MqttSettings, zones: Sequence[str]) -> list[tupl
         "icon": "mdi:account-group",
     }
     configs.append((config_topic(settings, "sensor", "people"), people))
+    if falls:
+        fall = {
+            **_common(settings, "fall"),
+            "name": "fall",
+            "state_topic": settings.topic("fall"),
+            "value_template": "{{ 'ON' if value_json.active else 'OFF' }}",
+            "payload_on": "ON",
+            "payload_off": "OFF",
+            "device_class": "safety",
+            "json_attributes_topic": settings.topic("fall"),
+            "json_attributes_template": "{{ {'ids': value_json.ids} | tojson }}",
+        }
+        configs.append((config_topic(settings, "binary_sensor", "fall"), fall))
     return configs
 
 
-def discovery_messages(settings: MqttSettings, zones: Sequence[str]) -> list[tuple[str, str]]:
+def discovery_messages(
+    settings: MqttSettings, zones: Sequence[str], falls: bool = True
+) -> list[tuple[str, str]]:
     """Retained messages that announce the room (empty list when discovery is off)."""
     if not settings.home_assistant.discovery:
         return []
-    return [(topic, json.dumps(cfg)) for topic, cfg in discovery_configs(settings, zones)]
+    configs = discovery_configs(settings, zones, falls)
+    return [(topic, json.dumps(cfg)) for topic, cfg in configs]
 
 
 def removal_messages(settings: MqttSettings, zones: Sequence[str]) -> list[tuple[str, str]]:
-    """Empty retained payloads on every config topic: HA deletes the entities."""
-    return [(topic, "") for topic, _ in discovery_configs(settings, zones)]
+    """Empty retained payloads on every config topic (the fall sensor's too, which may have been
+    announced before falls were turned off): HA deletes the entities."""
+    return [(topic, "") for topic, _ in discovery_configs(settings, zones, falls=True)]

@@ -14,8 +14,11 @@ topic                               QoS   retained  payload
 ``{base}/{room}/positions``         0     no        snapshot JSON v1 (``service.pipeline.hub``), <=
 rate/s
 ``{base}/{room}/zones/{zone}``      1     yes       ``{"zone", "count", "ids", "t"}``, on change
-``{base}/{room}/events``            1     no        enter/leave JSON (``service.outputs.zones``), in
-order
+``{base}/{room}/events``            1     no        enter/leave JSON (``service.outputs.zones``),
+                                                    fall/fall_cleared (``service.outputs.falls``),
+                                                    in order
+``{base}/{room}/fall``              1     yes       ``{"active", "ids", "t"}``, on change (not
+                                                    with ``falls.enabled: false``)
 ``{base}/{room}/availability``      1     yes       ``online`` on connect; ``offline`` as last
                                                     will and on clean shutdown
 ``{base}/{room}/health``            0     yes       health summary every ``health_interval_s``
@@ -30,8 +33,8 @@ stops reading would grow memory forever: we therefore count the messages paho ha
 ``max_unsent``, drop new positions instead of handing them over. QoS 1 messages are bounded by
 paho's ``max_queued_messages_set``. While the broker is away, positions are dropped (a stale
 position is worthless), zone states and events wait, and paho reconnects with back-off; on every
-(re)connect we publish ``online``, the discovery configs and every zone's occupancy again, so a
-broker restarted without persistence is whole again.
+(re)connect we publish ``online``, the discovery configs, every zone's occupancy and the fall
+state again, so a broker restarted without persistence is whole again.
 """
 
 from __future__ import annotations
@@ -70,13 +73,16 @@ class MqttPublisher(ThreadedPublisher):
         health: HealthSource | None = None,
         occupancy: Callable[[], list[dict[str, Any]]] | None = None,
         discovery: Callable[[], list[tuple[str, str]]] | None = None,
+        fall_state: Callable[[], dict[str, Any] | None] | None = None,
     ) -> None:
         super().__init__()
         self.settings = settings
         self._health = health
         self._occupancy = occupancy
         self._discovery = discovery
+        self._fall_state = fall_state
         self._zones: dict[str, dict[str, Any]] = {}
+        self._fall: dict[str, Any] | None = None  # the fall state to send (on change)
         self._events: deque[str] = deque(maxlen=settings.max_pending_events)
         self._lock = threading.Lock()
         self._unsent: list[Any] = []  # MQTTMessageInfo of QoS 0 messages paho has not written
@@ -90,6 +96,7 @@ class MqttPublisher(ThreadedPublisher):
             "positions_dropped_offline": 0,
             "positions_dropped_backpressure": 0,
             "zone_messages": 0,
+            "fall_messages": 0,
             "events_sent": 0,
             "events_dropped": 0,
             "health_sent": 0,
@@ -97,12 +104,16 @@ class MqttPublisher(ThreadedPublisher):
 
     @classmethod
     def from_settings(cls, settings: MqttSettings, context: OutputContext) -> MqttPublisher:
-        """With Home Assistant discovery of the zones (``service.outputs.ha_discovery``)."""
+        """With Home Assistant discovery of the zones and the fall sensor
+        (``service.outputs.ha_discovery``)."""
         return cls(
             settings,
             health=context.health,
             occupancy=context.occupancy,
-            discovery=lambda: discovery_messages(settings, context.zone_names),
+            discovery=lambda: discovery_messages(
+                settings, context.zone_names, context.fall_state() is not None
+            ),
+            fall_state=context.fall_state,
         )
 
     # -- topics ----------------------------------------------------------------------------------
@@ -159,12 +170,15 @@ class MqttPublisher(ThreadedPublisher):
         super().offer(snapshot if self.settings.include_outside else snapshot.inside_only())
 
     def on_zone_events(self, events: list[dict[str, Any]], occupancy: list[dict[str, Any]]) -> None:
-        changed = {e["zone"] for e in events}
+        changed = {e["zone"] for e in events if "zone" in e}
         with self._lock:
             for item in occupancy:
                 if item["zone"] in changed:
                     self._zones[item["zone"]] = item
             for event in events:
+                if "falls" in event:  # a fall event carries the room's fall state after it
+                    self._fall = {"active": bool(event["falls"]), "ids": event["falls"],
+                                  "t": event["t"]}  # fmt: skip
                 if len(self._events) == self._events.maxlen:
                     self.counters["events_dropped"] += 1
                 self._events.append(json.dumps(event, separators=(",", ":")))
@@ -194,6 +208,7 @@ class MqttPublisher(ThreadedPublisher):
         with self._lock:  # every zone again: the broker may have lost its retained messages
             for item in self._occupancy() if self._occupancy else []:
                 self._zones[item["zone"]] = item
+            self._fall = self._fall_state() if self._fall_state else None
         self._next_health = 0.0
         self._wake.set()
 
@@ -256,12 +271,16 @@ class MqttPublisher(ThreadedPublisher):
         client = self._client
         with self._lock:
             zones, self._zones = self._zones, {}
+            fall, self._fall = self._fall, None
             events = list(self._events)
             self._events.clear()
         for name, item in zones.items():
             payload = {"count": item["count"], "ids": item["ids"], "t": item.get("t")}
             client.publish(self.topic("zones", name), json.dumps(payload), qos=1, retain=True)
             self.counters["zone_messages"] += 1
+        if fall is not None:
+            client.publish(self.topic("fall"), json.dumps(fall), qos=1, retain=True)
+            self.counters["fall_messages"] += 1
         for i, text in enumerate(events):
             info = client.publish(self.topic("events"), text, qos=1)
             if info.rc != 0:  # paho's queue is full or the link just dropped: keep the rest

@@ -62,6 +62,8 @@ class OutputContext:
     health: Callable[[], dict[str, Any]]  # the small health summary (``wiring.health_summary``)
     occupancy: Callable[[], list[dict[str, Any]]]  # people per zone now
     zone_names: list[str]
+    # the room's fall state now (``ZoneMonitor.fall_state``); None: falls are off
+    fall_state: Callable[[], dict[str, Any] | None] = lambda: None
 
 
 class ThreadedPublisher(ABC):

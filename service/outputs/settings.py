@@ -28,6 +28,7 @@ from typing import Annotated
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, SecretStr, field_validator
 
+from service.outputs.falls import FallRules
 from service.outputs.zones import DEFAULT_HOLD_S, validate_polygon
 
 _STRICT = ConfigDict(extra="forbid")
@@ -72,8 +73,52 @@ def _unique_names(zones: list[ZoneSettings]) -> list[ZoneSettings]:
 ZoneList = Annotated[list[ZoneSettings], AfterValidator(_unique_names)]
 
 
+_FALL = FallRules()
+
+
+class FallSettings(BaseModel):
+    """The ``fall`` event: standing to lying quickly, then lying (``service.outputs.falls``)."""
+
+    model_config = _STRICT
+    enabled: bool = Field(
+        True,
+        description="Report falls (needs postures: a model with a set-up area height model); "
+        "with MQTT and Home Assistant discovery, a 'fall' binary_sensor for the room.",
+    )
+    max_drop_s: float = Field(
+        _FALL.max_drop_s,
+        gt=0,
+        le=10,
+        description="A fall starts when a person reads lying at most this long after standing.",
+    )
+    lying_s: float = Field(
+        _FALL.lying_s,
+        ge=0,
+        le=600,
+        description="... and is reported once they have stayed down this long (seconds).",
+    )
+    clear_s: float = Field(
+        _FALL.clear_s,
+        gt=0,
+        le=60,
+        description="Standing this long clears a fall (sitting or standing this long drops one "
+        "not yet reported).",
+    )
+    lost_s: float = Field(
+        _FALL.lost_s,
+        gt=0,
+        le=3600,
+        description="A fall whose person is no longer tracked for this long is cleared "
+        "(reason 'lost').",
+    )
+
+    def rules(self) -> FallRules:
+        return FallRules(self.max_drop_s, self.lying_s, self.clear_s, self.lost_s)
+
+
 class HomeAssistantSettings(BaseModel):
-    """Home Assistant MQTT discovery: per zone an occupancy binary_sensor and a count sensor."""
+    """Home Assistant MQTT discovery: per zone an occupancy binary_sensor and a count sensor,
+    per room a people sensor and a fall binary_sensor."""
 
     model_config = _STRICT
     discovery: bool = Field(

@@ -15,6 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from service.outputs.falls import FallDetector
 from service.outputs.ha_discovery import removal_messages
 from service.outputs.mqtt import MqttPublisher
 from service.outputs.osc import OscPublisher
@@ -81,15 +82,18 @@ def health_summary(daemon: Any) -> dict[str, Any]:
 
 
 def build_outputs(settings: Any, daemon: Any) -> Outputs:
-    """Zone monitor (always; zero zones is fine) and each publisher whose settings are set."""
+    """Zone monitor (always; zero zones is fine) with the fall detector unless falls are off,
+    and each publisher whose settings are set."""
     zones = [Zone.create(z.name, z.polygon, z.hold_s) for z in settings.zones]
-    monitor = ZoneMonitor(zones)
+    falls = FallDetector(settings.falls.rules(), zones) if settings.falls.enabled else None
+    monitor = ZoneMonitor(zones, falls=falls)
     daemon.hub.add_publisher(monitor)
     outputs = Outputs(monitor)
     context = OutputContext(
         health=lambda: health_summary(daemon),
         occupancy=monitor.occupancy,
         zone_names=[z.name for z in zones],
+        fall_state=monitor.fall_state,
     )
     for kind in PUBLISHERS:
         section = getattr(settings, kind.settings_key)
@@ -119,8 +123,15 @@ def output_metrics(outputs: Outputs | None) -> list[Any]:
     families = [
         people,
         occupied,
-        CounterMetricFamily("momloc_zone_events", "Enter/leave events", outputs.zones.event_count),
+        CounterMetricFamily(
+            "momloc_zone_events", "Zone and fall events", outputs.zones.event_count
+        ),
     ]
+    fall_state = outputs.zones.fall_state()
+    if fall_state is not None:
+        families.append(
+            GaugeMetricFamily("momloc_falls", "People with an active fall", len(fall_state["ids"]))
+        )
     for name, publisher in outputs.publishers.items():
         for key, (text, value) in publisher.gauges_exported().items():
             families.append(GaugeMetricFamily(f"momloc_{name}_{key}", text, value))

@@ -1,14 +1,17 @@
-"""Zones in the running daemon: the tracker fed by the hub, events fanned out to clients and MQTT.
+"""Zones and falls in the running daemon: fed by the hub, events fanned out to clients and MQTT.
 
 :class:`ZoneMonitor` is a :class:`service.outputs.publisher.Publisher`: the hub hands it every
 snapshot on the pipeline thread, where it runs :class:`service.outputs.zones.ZoneTracker` (a few
-point-in-polygon tests per person and zone: microseconds) and passes confirmed events on:
+point-in-polygon tests per person and zone: microseconds) and, unless falls are off,
+:class:`service.outputs.falls.FallDetector`, gives their events one ``seq`` (one events stream)
+and passes them on:
 
 - to :class:`EventHub`, which fans them out to ``WS /v1/events`` clients. Unlike positions,
   events cannot be skipped (a missed leave would leave a room occupied forever), so each client
   gets a bounded queue; a client that falls ``max_queue`` events behind loses the oldest ones and
   the loss is counted (``dropped``), so memory stays bounded and nobody waits;
-- to listeners (the MQTT publisher) as ``on_zone_events(events, occupancy)``, which must not block.
+- to listeners (the MQTT publisher) as ``on_zone_events(events, occupancy)``, which must not block
+  (fall events carry the room's fall state, ``falls``: the ids with an active fall).
 
 A recent-events ring lets ``GET /v1/zones`` show what just happened without a WebSocket.
 """
@@ -24,6 +27,7 @@ from collections import deque
 from collections.abc import Sequence
 from typing import Any, Protocol, runtime_checkable
 
+from service.outputs.falls import FallDetector
 from service.outputs.zones import Zone, ZoneTracker
 from service.snapshot import Snapshot
 
@@ -103,8 +107,14 @@ class ZoneMonitor:
 
     name = "zones"
 
-    def __init__(self, zones: Sequence[Zone], events: EventHub | None = None) -> None:
+    def __init__(
+        self,
+        zones: Sequence[Zone],
+        events: EventHub | None = None,
+        falls: FallDetector | None = None,
+    ) -> None:
         self.tracker = ZoneTracker(zones)
+        self.falls = falls
         self.events = events or EventHub()
         self._listeners: list[ZoneListener] = []
         self._lock = threading.Lock()  # occupancy is read by REST/metrics threads
@@ -122,8 +132,13 @@ class ZoneMonitor:
     def offer(self, snapshot: Snapshot) -> None:
         if snapshot.seq <= 0:
             return
+        people = snapshot.inside_only().people
         with self._lock:
-            events = self.tracker.update(snapshot.t, snapshot.inside_only().people)
+            events = self.tracker.update(snapshot.t, people)
+            if self.falls is not None:
+                for event in self.falls.update(snapshot.t, people):
+                    self.tracker.seq += 1  # one numbering for the whole events stream
+                    events.append({"v": event["v"], "seq": self.tracker.seq, **event})
             if not events:
                 return
             self.recent.extend(events)
@@ -140,22 +155,34 @@ class ZoneMonitor:
         with self._lock:
             return self.tracker.occupancy()
 
+    def fall_state(self) -> dict[str, Any] | None:
+        """``{"active", "ids", "t"}`` of the room's falls; None when falls are off."""
+        if self.falls is None:
+            return None
+        with self._lock:
+            return self.falls.state()
+
     def describe(self) -> dict[str, Any]:
-        """``GET /v1/zones``: polygons, occupancy and the last events."""
+        """``GET /v1/zones``: polygons, occupancy, the fall state and the last events."""
         with self._lock:
             occupancy = {o["zone"]: o for o in self.tracker.occupancy()}
             recent = list(self.recent)[-20:]
             t = self.tracker.last_t
-        return {
+        described: dict[str, Any] = {
             "v": 1,
             "t": t,
             "zones": [{**z.as_dict(), **occupancy[z.name]} for z in self.zones],
             "recent_events": recent,
         }
+        falls = self.fall_state()
+        if falls is not None:
+            described["falls"] = falls
+        return described
 
     def stats(self) -> dict[str, Any]:
         return {
             "zones": len(self.zones),
             "events": self.event_count,
             "event_clients": self.events.subscriber_count,
+            "falls": (self.fall_state() or {}).get("ids", []),
         }

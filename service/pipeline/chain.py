@@ -12,12 +12,16 @@ Per frame set (time ``t``, one :class:`~models.detector.base.Detections` per cam
    same place would give (the model was set up on standing people), and every box gets a
    posture that the track carries, smoothed, into the snapshot (:mod:`service.tracking.posture`;
    ``postures=False``: boxes as detected);
-1. **associate** the boxes of all cameras into people (:mod:`service.tracking.association`); each
-   association says whether it lies in the model's set-up area (:mod:`models.mom.setup_area`);
+1. **associate** the boxes of all cameras into people (:mod:`service.tracking.association`), with
+   the tracker's served tracks predicted to ``t`` as anchors (a tracked person's fragments fold
+   into one association; ``track_anchors=False``: the boxes alone); each association says
+   whether it lies in the model's set-up area (:mod:`models.mom.setup_area`);
 2. **the set-up area**: ``outside_area="drop"`` (default) keeps people outside the area the model
    was set up on out of tracking and out of every output: the model was never taught there and
    zones, counts and automations are drawn inside. ``"flag"`` tracks them too and serves them
-   with ``outside: true`` (the map shows them; zones and MQTT leave them out unless asked);
+   with ``outside: true`` (the map shows them; zones and MQTT leave them out unless asked).
+   The dropped ones stay readable as :attr:`Chain.outside` until the next call: the learning
+   room learns from people beyond the area (:mod:`service.learning.labels`);
 3. **correct** single-view positions by their track's lone-view offset
    (:mod:`service.tracking.view_bias`) and **track** with each position's covariance and the
    cameras' coverage (:mod:`service.tracking.measurements`, :mod:`service.tracking.tracker`).
@@ -42,6 +46,7 @@ from service.stages import (
     LocalizationModel,
     Origin,
     Track,
+    TrackAnchor,
     TrackStage,
 )
 from service.tracking.association import DEFAULT_MAX_ERROR_PX
@@ -49,6 +54,7 @@ from service.tracking.association import associate as associate_people
 from service.tracking.measurements import coverage_function, measurement_covariances
 from service.tracking.posture import BoxPostures, PostureSmoother
 from service.tracking.posture import normalise as normalise_postures
+from service.tracking.posture_agreement import agree as agree_postures
 from service.tracking.view_bias import ViewBias
 
 OutsideArea = Literal["drop", "flag"]
@@ -68,6 +74,7 @@ class Chain:
         use_covariance: bool = True,
         view_bias: ViewBias | Literal[True] | None = True,
         postures: bool = True,
+        track_anchors: bool = True,
     ) -> None:
         if outside_area not in OUTSIDE_AREA_POLICIES:
             raise ValueError(f"outside_area {outside_area!r}: expected one of drop, flag")
@@ -79,10 +86,13 @@ class Chain:
         # lone-view offsets (service.tracking.view_bias); None: single views are not corrected
         self.view_bias: ViewBias | None = ViewBias() if view_bias is True else view_bias
         self.timings_ms: dict[str, float] = {}  # of the last call, per step
+        self.outside: list[Association] = []  # of the last call: dropped beyond the set-up area
         # seated and lying boxes read as standing ones, and each track's posture
         # (service.tracking.posture); False: boxes as detected, no posture
         self.postures = postures
         self.posture_smoother = PostureSmoother()
+        # the tracks claim their boxes before the rest is clustered (service.tracking.association)
+        self.track_anchors = track_anchors
 
     def new_model(self) -> None:
         """Forget what was learned about the former model's localizer (lone-view offsets)."""
@@ -102,14 +112,21 @@ class Chain:
         the tracker still ages its tracks."""
         started = time.perf_counter()
         associations: list[Association] = []
+        self.outside = []
         box_postures: BoxPostures | None = None
         if runtime is not None:
+            detected, area = detections, getattr(runtime, "setup_area", None)
             if self.postures:
-                detections, box_postures = normalise_postures(
-                    detections, getattr(runtime, "setup_area", None), runtime.image_sizes
-                )
-            found = self.associate(detections, runtime, max_error_px=self.max_error_px)
+                detections, box_postures = normalise_postures(detections, area, runtime.image_sizes)
+            found = self.associate(
+                detections, runtime, max_error_px=self.max_error_px, anchors=self._anchors(t)
+            )
+            if box_postures is not None:  # one posture per person (its boxes' vote)
+                found = agree_postures(found, detected, box_postures, area, runtime)
+                _outside_as_detected(found, detected, runtime)
             associations = gate_to_area(found, runtime, self.outside_area)
+            if len(associations) < len(found):
+                self.outside = [a for a in found if not a.inside]
         associated = time.perf_counter()
         origins = [
             Origin(
@@ -147,6 +164,13 @@ class Chain:
         }
         return associations, tracks
 
+    def _anchors(self, t: float) -> list[TrackAnchor]:
+        """The tracker's served tracks predicted to ``t`` (``Tracker.anchors``), which claim
+        their boxes in the association before the rest is clustered; none when switched off
+        or from a tracker that cannot predict."""
+        anchors = getattr(self.tracker, "anchors", None)
+        return list(anchors(t)) if self.track_anchors and callable(anchors) else []
+
     def _smooth_postures(
         self, t: float, tracks: list[Track], postures: list[tuple[str, float]]
     ) -> None:
@@ -168,18 +192,56 @@ class Chain:
         return [track.id for track, _ in hidden()] if callable(hidden) else []
 
 
+def _outside_as_detected(
+    associations: list[Association], detected: Sequence[Detections], runtime: LocalizationModel
+) -> None:
+    """Mark outside the set-up area every association whose boxes the posture step replaced
+    and whose boxes *as detected* lie outside it.
+
+    Why: a box cut by a person in front, or a detector's fragment of a body, is short like a
+    seated person's, and its standing replacement reaches down to a floor point nearer the
+    camera; on the real CMC room such boxes of people beyond the area were carried into it and
+    served (``bench/results/real_cmc_chain_tuning.md``). A person really seated in the area is
+    in it as detected too: their box bottom is the feet or a table, a little nearer the camera
+    than their hips, and the area has a margin.
+    """
+    replaced = [a for a in associations if a.inside and _replaced(a, detected)]
+    if not replaced:
+        return
+    boxes = np.stack([_as_detected(a, detected) for a in replaced])
+    world = np.asarray(runtime.localize(boxes), float)
+    for a, flag in zip(replaced, runtime.inside(boxes, world).tolist(), strict=True):
+        a.inside = bool(flag)
+
+
+def _as_detected(association: Association, detected: Sequence[Detections]) -> np.ndarray:
+    """The association's boxes [K, 4] as the detector returned them."""
+    boxes = np.array(association.boxes, dtype=np.float32, copy=True)
+    for k, i in enumerate(association.detection_index):
+        if i is not None:
+            boxes[k] = detected[k].boxes[i]
+    return boxes
+
+
+def _replaced(association: Association, detected: Sequence[Detections]) -> bool:
+    return not np.array_equal(
+        _as_detected(association, detected), association.boxes.astype(np.float32), equal_nan=True
+    )
+
+
 def gate_to_area(
     associations: list[Association], runtime: AreaAware, outside_area: OutsideArea
 ) -> list[Association]:
-    """Mark each association inside or outside the model's set-up area; drop the outside ones
-    unless they are to be served flagged (``outside_area="flag"``)."""
+    """Mark each association inside or outside the model's set-up area (one already marked
+    outside stays so); drop the outside ones unless they are to be served flagged
+    (``outside_area="flag"``)."""
     if not associations:
         return associations
     boxes = np.stack([a.boxes for a in associations])
     world = np.stack([np.asarray(a.world, float)[:2] for a in associations])
     inside = np.asarray(runtime.inside(boxes, world), dtype=bool)
     for a, flag in zip(associations, inside.tolist(), strict=True):
-        a.inside = bool(flag)
+        a.inside = a.inside and bool(flag)
     if outside_area == "flag":
         return associations
     return [a for a in associations if a.inside]

@@ -258,7 +258,7 @@ class Pipeline:
         associations, tracks = self.chain(
             t_used, detections, runtime if problem is None else None, delivered, self._seq
         )
-        snapshot = Snapshot.build(self._seq, t_used, [_person(tr) for tr in tracks])
+        snapshot = Snapshot.build(self._seq, t_used, [served_person(tr) for tr in tracks])
         if runtime is not None:  # set-up mode (no model) publishes no positions at all
             self.hub.publish(snapshot)
         self.frames_processed += 1
@@ -272,6 +272,7 @@ class Pipeline:
             snapshot=snapshot,
             runtime=runtime,
             timings_ms={"detect": (t1 - t0) * 1e3, **self.chain.timings_ms},
+            outside=self.chain.outside,
         )
         for listener in self._listeners:
             listener(result)
@@ -374,7 +375,8 @@ POSTURES: dict[str, Literal["standing", "sitting", "lying"]] = {
 }
 
 
-def _person(track: Track) -> Person:
+def served_person(track: Track) -> Person:
+    """A track as the snapshot serves it (the fall bench feeds the same dicts to its detector)."""
     person: Person = {
         "id": int(track.id),
         "x": round(float(track.x), 4),

@@ -54,6 +54,18 @@ the cameras' lines of sight meet, which the 2 m view gap cannot tell in a crowd.
 room (10 people, ``bench/results/real_cmc_chain_tuning.md``) it cut mixed clusters and lifted
 per-frame MODA; a tighter χ² refused true merges (more duplicates), a looser one let mixes through.
 
+Track-driven step (``anchors``: the tracker's served tracks predicted to this frame set,
+``Tracker.anchors``, handed over by ``service.pipeline.chain``): the boxes alone split one
+person into two clusters whenever a box is cut or shifted in a crowd (the floor gate refuses the
+merge) or the detector gives a person a second, fragment box. The tracker then saw two people and
+needed a shadow merge of close tracks, which also merged real neighbours (on the real CMC room
+it was the largest loss of identities with the true association). So after clustering, each
+anchor takes the cluster that best continues it, and a leftover cluster whose nearest anchor
+took another one is that person's fragment: folded into the main cluster (boxes of cameras it
+lacks, when the whole tuple passes the reprojection gate) or dropped. The figures, the rejected
+variants (the anchors claiming each camera's boxes before clustering mixed neighbours and lost
+people) are in ``bench/results/real_cmc_chain_tuning.md``.
+
 The model's ``covariance(boxes)`` (``MomRuntime``: the floor prior's GLS covariance; NaN without
 one) also gives each association the covariance of its position, which the tracker takes as that
 measurement's noise (long along a lone camera's line of sight).
@@ -73,6 +85,7 @@ from service.stages import (
     Association,
     FloorViewing,
     LocalizationModel,
+    TrackAnchor,
     WithCovariance,
 )
 
@@ -83,6 +96,7 @@ REFERENCE_HEIGHT_PX = 200.0  # errors are judged as if every box were this tall
 MIN_HEIGHT_PX = 20.0
 DEFAULT_MAX_VIEW_GAP_M = 2.0
 DEFAULT_MAX_FLOOR_CHI2 = 25.0  # module docstring: the real CMC room
+DEFAULT_ANCHOR_CHI2 = 9.0  # module docstring: track-driven association
 FLOOR_INFO_SCALE = 3.0  # the floor prior's std is ~3x overconfident (service.tracking.measurements)
 _BLOCKED = 1e9
 
@@ -127,6 +141,15 @@ class _FloorFit:
             self._info[(k, j)] = info[row, k] / FLOOR_INFO_SCALE**2
             self._eta[(k, j)] = self._info[(k, j)] @ est[row, k]
 
+    def fused_place(self, cluster: dict[int, int]) -> tuple[np.ndarray, np.ndarray] | None:
+        """A cluster's fused floor position [2] and covariance [2, 2] (``None`` where its
+        cameras' maps do not fix a point)."""
+        info, eta = self._fused(cluster)
+        if not np.isfinite(info).all() or np.linalg.det(info) <= 1e-12:
+            return None
+        cov = np.linalg.inv(info)
+        return cov @ eta, cov
+
     def chi2(self, pairs: Sequence[tuple[dict[int, int], dict[int, int]]]) -> np.ndarray | None:
         """Merge cost per pair of clusters (one batched solve); NaN where either side has no
         floor information (a camera without a fitted map)."""
@@ -158,8 +181,11 @@ def associate(
     max_error_px: float = DEFAULT_MAX_ERROR_PX,
     max_view_gap_m: float = DEFAULT_MAX_VIEW_GAP_M,
     max_floor_chi2: float = DEFAULT_MAX_FLOOR_CHI2,
+    anchors: Sequence[TrackAnchor] = (),
+    anchor_chi2: float = DEFAULT_ANCHOR_CHI2,
 ) -> list[Association]:
-    """Group the detections of all cameras into people (see the module docstring)."""
+    """Group the detections of all cameras into people (see the module docstring);
+    ``anchors``: the tracker's predicted tracks, whose leftover fragments are folded in."""
     num_cameras = int(runtime.num_cameras)
     if len(detections_per_camera) != num_cameras:
         raise MomlocError(
@@ -174,6 +200,7 @@ def associate(
         clusters = _match_two(detections, seen_cameras, runtime, gate, floor)
     else:
         clusters = _merge_greedy(detections, runtime, gate, floor)
+    clusters = _absorb(clusters, detections, anchors, floor, anchor_chi2, runtime, gate)
 
     if not clusters:
         return []
@@ -248,6 +275,71 @@ def _match_two(
                 cluster[k] = j
                 clusters.append(cluster)
     return clusters
+
+
+def _absorb(
+    clusters: list[list[int | None]],
+    detections: _Views,
+    anchors: Sequence[TrackAnchor],
+    floor: _FloorFit,
+    max_chi2: float,
+    runtime: LocalizationModel,
+    limits: _Gate,
+) -> list[list[int | None]]:
+    """Fold the fragments of tracked people into their main cluster.
+
+    Each anchor (a tracked person's prediction) takes the cluster that best continues it (an
+    optimal assignment on the Mahalanobis distance of the cluster's fused floor position to the
+    prediction, both covariances, gated at ``max_chi2``). A cluster left over whose nearest
+    anchor within the gate took another cluster is that person's fragment (a box the floor gate
+    kept apart, a second box of theirs, a view the greedy order left alone): its boxes in the
+    cameras the main cluster lacks join it when the whole tuple passes the reprojection gate
+    (its boxes in cameras the main cluster has are dropped: each camera gives a person one
+    box); a fragment with no camera of its own is dropped. Clusters near no anchor are left as
+    they are (new people). Unchanged without anchors or floor geometry."""
+    if not anchors or not floor.ok or max_chi2 <= 0 or not clusters:
+        return clusters
+    as_dict = [{k: j for k, j in enumerate(c) if j is not None} for c in clusters]
+    fused = [floor.fused_place(c) for c in as_dict]
+    xy = np.stack([np.asarray(a.xy, np.float64) for a in anchors])
+    cov = np.stack([np.asarray(a.cov, np.float64) for a in anchors])
+    d2 = np.full((len(anchors), len(clusters)), np.inf)
+    for i, place in enumerate(fused):
+        if place is not None:
+            nu = place[0][None] - xy
+            d2[:, i] = np.einsum("ai,aij,aj->a", nu, np.linalg.inv(cov + place[1][None]), nu)
+    gated = np.where(d2 <= max_chi2, d2, _BLOCKED)
+    rows, cols = linear_sum_assignment(gated)
+    main = {int(a): int(c) for a, c in zip(rows, cols, strict=True) if gated[a, c] < _BLOCKED}
+    taken = set(main.values())
+    fragments = sorted(
+        (float(d2[:, i].min()), i, int(d2[:, i].argmin()))
+        for i in range(len(clusters))
+        if i not in taken and np.isfinite(d2[:, i]).any() and d2[:, i].min() <= max_chi2
+    )
+    gone: set[int] = set()
+    for _, i, anchor in fragments:
+        if anchor not in main:
+            continue
+        whole = as_dict[main[anchor]]
+        extra = {k: j for k, j in as_dict[i].items() if k not in whole}
+        if not extra:
+            gone.add(i)
+            continue
+        merged = {**whole, **extra}
+        _, _, _, worst = _evaluate(detections.stack([merged]), runtime)
+        if worst[0] <= limits.max_error_px:
+            as_dict[main[anchor]] = merged
+            gone.add(i)
+    out = []
+    for i, cluster in enumerate(as_dict):
+        if i in gone:
+            continue
+        row: list[int | None] = [None] * len(detections)
+        for k, j in cluster.items():
+            row[k] = j
+        out.append(row)
+    return out
 
 
 def _merge_greedy(

@@ -18,16 +18,11 @@ Covariance policy, per association:
    direction is degenerate: ``None`` (the tracker's isotropic ``measurement_std_m``).
 
 Why along / across: a lone box fixes the bearing well (its horizontal position) and the range
-badly (box size and bottom edge). Measured with the shipped demo model's encoder on the nanodet
-profile (indoor-2cam, 3 people, seed 1000, 1,500 frames; 2,040 single-view rows): RMS error
-0.57 m along the line of sight and 0.08 m across it; 1,555 rows seen by two cameras: 0.10 m RMS
-per axis. The constants are those figures rounded up (an overconfident measurement locks the
-track). For comparison the floor prior's GLS covariance on the same rows claims a median
-0.13 m along and 0.03 m across for single views, 0.03-0.04 m for two: it ranks rows well but is
-about 3× overconfident on these boxes. Still, where the model has one it beats these defaults
-on the stream bench (its model, indoor-2cam, 3 people, nanodet, seed 7 × 600 frames): MOTA 66.2
-against 63.9 %, matched mean 0.174 against 0.178 m (standing jitter 3.58 against 3.18 cm); with
-the defaults' two-view std at 0.06 m: 62.1 %. So the defaults are only the fallback.
+badly (box size and bottom edge). The constants are the measured single- and two-view errors
+rounded up (an overconfident measurement locks the track); the floor prior's own covariance,
+where a model has one, ranks rows well but is overconfident, and still beats these defaults on
+the stream bench, so the defaults are only the fallback. Figures:
+``bench/results/design_measurements.md`` (measurement noise defaults).
 
 Rejected: an isotropic default for single views (the tracker's former 0.12 m): a single view
 then pulls a track along its poorly known range as hard as across it, and a second camera

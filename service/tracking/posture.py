@@ -12,9 +12,10 @@ foot pixel looks). Per box, ``ratio`` = box height / expected height at its bott
 ``aspect`` = width / height:
 
 - **standing**: ratio ≥ ``SEATED_RATIO``; left as it is;
-- **lying**: aspect ≥ ``LYING_ASPECT`` with ratio below ``SEATED_RATIO``, or ratio below
-  ``LYING_RATIO``: the body lies on the floor, so the box centre is on the floor near the hips;
-  the standing box there replaces it;
+- **lying**: ratio below ``LYING_RATIO``, or a wide box (aspect ≥ ``LYING_ASPECT``) below
+  ``LYING_WIDE_RATIO``, or a flat one (aspect ≥ ``LYING_FLAT_ASPECT``) below ``SEATED_RATIO``:
+  the body lies on the floor, so the box centre is on the floor near the hips; the standing box
+  there replaces it;
 - **sitting** (crouching too: both are a short, wider box): the head is ``SEATED_TOP`` of a
   standing person's height above the floor, so the feet of a standing person with the same head
   pixel are found by a fixed-point search on the height model, and that standing box replaces
@@ -54,6 +55,10 @@ SEATED_ASPECT = 0.45  # ... and at least this wide per unit height (an occluded 
 # visible upper half is short too, but narrow)
 LYING_RATIO = 0.45
 LYING_ASPECT = 1.0
+LYING_WIDE_RATIO = 0.6  # a wide box is lying only if this short: a seated person seen from the
+# side is as wide as tall (aspect up to ~1.3) at 0.6-0.7 of a standing height, a lying one
+# below 0.6 (the simulated lounge's ratios: bench/results/postures.md)
+LYING_FLAT_ASPECT = 1.5  # wider than any seated box measured
 SEATED_TOP = 0.64  # a seated head's top over the expected standing height (module docstring)
 BORDER_PX = 2.0  # a box this close to the image border may be cut off: not judged
 STANDING_ASPECT = 0.4  # width of the standing box that replaces a seated or lying one
@@ -84,7 +89,9 @@ class BoxPostures:
 def classify(ratio: np.ndarray, aspect: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Labels [N] and confidences [N] from height ratios and aspects (module docstring)."""
     ratio, aspect = np.asarray(ratio, float), np.asarray(aspect, float)
-    lying = (ratio < LYING_RATIO) | ((aspect >= LYING_ASPECT) & (ratio < SEATED_RATIO))
+    short = ratio < SEATED_RATIO
+    lying = (ratio < LYING_RATIO) | ((aspect >= LYING_ASPECT) & (ratio < LYING_WIDE_RATIO))
+    lying |= short & (aspect >= LYING_FLAT_ASPECT)
     standing = ~lying & ((ratio >= SEATED_RATIO) | (aspect < SEATED_ASPECT))
     labels = np.where(lying, LYING, np.where(standing, STANDING, SITTING)).astype(object)
     margin = np.where(
@@ -122,18 +129,18 @@ def standing_boxes(
     return np.where(((labels == SITTING) | (labels == LYING))[:, None], replaced, out)
 
 
-def camera_postures(
+def box_postures(
     boxes: np.ndarray, area: SetupArea | None, camera: int, image_size: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Labels [M], confidences [M] and standing boxes [M, 4] of one camera's boxes [M, 4]
-    (NaN rows stay NaN and ``unknown``, as do boxes at the border of an image of
-    ``image_size`` (width, height); everything ``unknown`` without a height model)."""
+) -> tuple[np.ndarray, np.ndarray]:
+    """Labels [M] and confidences [M] of one camera's boxes [M, 4] (NaN rows stay ``unknown``,
+    as do boxes at the border of an image of ``image_size`` (width, height); everything
+    ``unknown`` without a height model)."""
     boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
     region = None if area is None or camera >= len(area.cameras) else area.cameras[camera]
     bottom = np.stack([0.5 * (boxes[:, 0] + boxes[:, 2]), boxes[:, 3]], 1)
     expected = None if region is None else region.expected_height(bottom)
-    if expected is None or area is None or not len(boxes):
-        return np.full(len(boxes), UNKNOWN, dtype=object), np.zeros(len(boxes)), boxes
+    if expected is None or not len(boxes):
+        return np.full(len(boxes), UNKNOWN, dtype=object), np.zeros(len(boxes))
     height = np.maximum(boxes[:, 3] - boxes[:, 1], 1e-6)
     labels, confidence = classify(height / expected, (boxes[:, 2] - boxes[:, 0]) / height)
     seen = np.isfinite(boxes).all(axis=1)
@@ -141,8 +148,17 @@ def camera_postures(
         w, h = float(image_size[0]), float(image_size[1])
         seen &= (boxes[:, 0] > BORDER_PX) & (boxes[:, 1] > BORDER_PX)
         seen &= (boxes[:, 2] < w - BORDER_PX) & (boxes[:, 3] < h - BORDER_PX)
-    labels = np.where(seen, labels, UNKNOWN)
-    confidence = np.where(seen, confidence, 0.0)
+    return np.where(seen, labels, UNKNOWN), np.where(seen, confidence, 0.0)
+
+
+def camera_postures(
+    boxes: np.ndarray, area: SetupArea | None, camera: int, image_size: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`box_postures` and the standing boxes [M, 4] that replace seated and lying ones."""
+    boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
+    labels, confidence = box_postures(boxes, area, camera, image_size)
+    if area is None:
+        return labels, confidence, boxes
     return labels, confidence, standing_boxes(boxes, labels, area, camera)
 
 
@@ -164,18 +180,6 @@ def normalise(
             dataclasses.replace(det, boxes=fixed.astype(np.float32)) if changed.any() else det
         )
     return out, BoxPostures(labels, confidence)
-
-
-def rows_as_standing(
-    boxes: np.ndarray, area: SetupArea | None, image_sizes: np.ndarray | None = None
-) -> np.ndarray:
-    """Rows of boxes [N, K, 4] (one person per row, NaN where unseen) with every camera's
-    seated and lying boxes replaced by standing ones: what the chain localizes."""
-    out = np.array(boxes, np.float64, copy=True)
-    for k in range(out.shape[1]):
-        size = None if image_sizes is None else image_sizes[k]
-        out[:, k] = camera_postures(out[:, k], area, k, size)[2]
-    return out
 
 
 class PostureSmoother:

@@ -105,6 +105,7 @@ Example::
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -112,7 +113,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from service.stages import Origin, Track
+from service.stages import Origin, Track, TrackAnchor
 from service.tracking.image_continuity import ImageContinuity, ViewMemory
 from service.tracking.motion import ConstantVelocity, StandOrWalk
 
@@ -328,6 +329,19 @@ class Tracker:
             for tr in sorted(self._tracks, key=lambda s: s.id)
             if tr.confirmed and not self._ghost(tr) and self._servable(tr)
         ]
+
+    def anchors(self, t: float) -> list[TrackAnchor]:
+        """The reportable tracks predicted to time ``t`` (their state is not changed): where
+        the association expects the people it already tracks (``service.tracking.association``)."""
+        now = self._time if self._time is not None else float(t)
+        out = []
+        for tr in self._tracks:
+            if not (tr.confirmed and not self._ghost(tr) and self._servable(tr)):
+                continue
+            motion = copy.deepcopy(tr.motion)
+            motion.predict(max(0.0, float(t) - now))
+            out.append(TrackAnchor(motion.mean[:2].copy(), motion.cov[:2, :2].copy()))
+        return out
 
     def hidden(self) -> list[tuple[Track, str]]:
         """The tracks held but not reported, each with why: ``"tentative"`` (not confirmed

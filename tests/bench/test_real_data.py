@@ -184,3 +184,25 @@ def test_each_bench_skips_with_one_line_without_its_data(
     printed = capsys.readouterr().out.strip().splitlines()
     assert len(printed) == 1 and "not found" in printed[0]
     assert not out.exists()
+
+
+def test_report_stage_answers_by_frame_and_can_be_closed() -> None:
+    """The offline pipeline stops its detect stage (``close``) and reads its counters
+    (``stats``); the real-data streams crashed at their end when the stage had neither."""
+    from bench.real.stream import ReportStage
+    from capture.rig import FrameSet
+    from capture.worker import Frame
+    from models.detector.base import Detections
+
+    asked: list[int] = []
+
+    def report(frame: int) -> list[Detections]:
+        asked.append(frame)
+        return [Detections.empty()]
+
+    stage = ReportStage(report)
+    frame = Frame(camera=0, image=None, timestamp=3.5, seq=7)
+    found = stage(FrameSet(frames=[frame], skew=0.0, stale=[False]))
+    assert asked == [7] and len(found) == 1
+    stage.close()
+    assert callable(stage.stats)

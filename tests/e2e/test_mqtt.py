@@ -340,6 +340,7 @@ def test_home_assistant_discovery_announces_the_room_and_removes_it_on_request(m
                 f"{prefix}/sensor/momloc_{room}/west_count/config",
                 f"{prefix}/sensor/momloc_{room}/east_count/config",
                 f"{prefix}/sensor/momloc_{room}/people/config",
+                f"{prefix}/binary_sensor/momloc_{room}/fall/config",
             }
             sub.wait_for(lambda s: expected <= {m.topic for m in s.messages}, what="configs")
             late = Subscriber(mosquitto.port, f"{prefix}/#")  # as HA after its own restart
@@ -353,7 +354,7 @@ def test_home_assistant_discovery_announces_the_room_and_removes_it_on_request(m
             removed = httpx.post(
                 server.http + "/v1/mqtt/discovery/remove", json={}, timeout=10
             ).json()
-            assert removed == {"removed": 5}
+            assert removed == {"removed": 6}
             sub.wait_for(
                 lambda s: all(s.on(t) and s.on(t)[-1].payload == b"" for t in expected),
                 what="empty configs",

@@ -37,3 +37,15 @@ def test_one_client_sees_every_room_through_one_broker(mosquitto):
     assert any(re.match(r"\[kitchen\] zone (west|east): \d", line) for line in lines), lines
     assert "[hall] availability online" in lines or "[kitchen] availability online" in lines
     assert not [line for line in lines if "unreadable" in line]
+
+
+def test_fall_events_print_where_the_person_is():
+    sys.path.insert(0, str(EXAMPLE.parent))
+    try:
+        from mqtt_client import describe  # type: ignore[import-not-found]
+    finally:
+        sys.path.remove(str(EXAMPLE.parent))
+    fall = b'{"v": 1, "seq": 9, "type": "fall", "id": 3, "t": 5.0, "since": 1.0, "x": 2.5, '
+    fall += b'"y": -1.25, "zones": ["kitchen"], "falls": [3]}'
+    line = describe("momloc/flat/events", fall, "momloc")
+    assert line == "[flat] event fall #3 at (+2.50, -1.25) in kitchen"

@@ -7,7 +7,11 @@ import pytest
 
 from common.errors import MomlocError
 from service.stages import Association
-from service.tracking.association import associate
+from service.tracking.association import (
+    DEFAULT_MAX_ERROR_PX,
+    DEFAULT_MAX_VIEW_GAP_M,
+    associate,
+)
 from tests.service.mom_doubles import ModelDouble, OracleRuntime, person_boxes, room_cameras
 
 
@@ -109,8 +113,11 @@ def test_inconsistent_boxes_stay_separate_people() -> None:
     detections = [boxes[:1, 0], boxes[1:, 1]]
     runtime = OracleRuntime(projections)
 
-    def cameras(**gates: float) -> list[list[int]]:
-        return sorted(a.cameras for a in associate(detections, runtime, **gates))
+    def cameras(
+        max_error_px: float = DEFAULT_MAX_ERROR_PX, max_view_gap_m: float = DEFAULT_MAX_VIEW_GAP_M
+    ) -> list[list[int]]:
+        found = associate(detections, runtime, max_error_px, max_view_gap_m)
+        return sorted(a.cameras for a in found)
 
     assert cameras() == [[0], [1]]
     assert cameras(max_error_px=1e6) == [[0], [1]]  # the single views disagree by 4.2 m
@@ -336,3 +343,52 @@ def _index(association: Association, camera: int) -> int:
     index = association.detection_index[camera]
     assert index is not None
     return index
+
+
+class FloorOracle(OracleRuntime):
+    """An oracle with per-camera floor maps: each box alone on the floor, known to
+    ``ACROSS_M`` across its camera's line of sight and ``ALONG_M`` along it."""
+
+    ACROSS_M, ALONG_M = 0.02, 0.6
+
+    def floor_views(self, boxes, keypoints=None):
+        boxes = np.asarray(boxes, np.float64)
+        est = np.full((*boxes.shape[:2], 2), np.nan)
+        info = np.zeros((*boxes.shape[:2], 2, 2))
+        for b, k in zip(*np.nonzero(np.isfinite(boxes).all(axis=2)), strict=True):
+            alone = np.full_like(boxes[:1], np.nan)
+            alone[0, k] = boxes[b, k]
+            est[b, k] = self.localize(alone)[0]
+            centre = np.linalg.svd(self.projections[k])[2][-1]
+            sight = est[b, k] - centre[:2] / centre[3]
+            along = sight / np.linalg.norm(sight)
+            turn = np.column_stack([along, [-along[1], along[0]]])
+            info[b, k] = np.linalg.inv(turn @ np.diag([self.ALONG_M, self.ACROSS_M]) ** 2 @ turn.T)
+        return est, info
+
+
+def test_tracked_people_absorb_their_fragments() -> None:
+    """Track-driven association: a person whose third camera's box is off sideways (a cut box:
+    the floor maps disagree beyond the merge gate) is split into two clusters by the boxes
+    alone; with their track's prediction the lone box joins the main cluster. A neighbour's
+    track keeps its own cluster, and an anchor near no box changes nothing."""
+    from service.stages import TrackAnchor
+
+    runtime = FloorOracle(room_cameras(3))
+    world = np.array([[3.0, 3.0], [4.6, 3.0]])
+    boxes = person_boxes(runtime.projections, world)
+    boxes[0, 2, [0, 2]] += 60.0  # camera 2 sees person 0's box shifted sideways
+    detections = [boxes[:, k].astype(np.float32) for k in range(3)]
+
+    alone = associate(detections, runtime)
+    assert sorted(len(a.cameras) for a in alone) == [1, 2, 3]  # person 0 split in two
+
+    anchors = [TrackAnchor(xy, np.eye(2) * 0.3**2) for xy in world]
+    tracked = associate(detections, runtime, anchors=anchors)
+    assert len(tracked) == 2
+    for a in tracked:
+        assert a.cameras == [0, 1, 2]
+        assert len({a.detection_index[k] for k in range(3)}) == 1  # one person's boxes
+    nowhere = [TrackAnchor(np.array([0.5, 5.5]), np.eye(2) * 0.01)]
+    far = associate(detections, runtime, anchors=nowhere)
+    assert [a.detection_index for a in far] == [a.detection_index for a in alone]

@@ -53,16 +53,19 @@ def test_people_outside_the_set_up_area_are_dropped_by_default(runtime):
     chain = Chain(Tracker(fps_hint=10, **RECOMMENDED))
     associations, _ = chain(0.0, _frames(runtime, PEOPLE), runtime, [True, True], 0)
     assert [a.inside for a in associations] == [True]
+    # kept aside for the learning room only (service.learning.labels)
+    assert [np.round(a.world, 1).tolist() for a in chain.outside] == [[5.2, 2.5]]
+    assert not chain.outside[0].inside
     tracks = _run(chain, runtime, PEOPLE)
     assert len(tracks) == 1 and tracks[0].x == pytest.approx(2.0, abs=0.1)
 
 
 def test_flagged_people_are_tracked_and_marked_but_zones_and_counts_ignore_them(runtime):
-    from service.pipeline.live import _person
+    from service.pipeline.live import served_person
 
     chain = Chain(Tracker(fps_hint=10, **RECOMMENDED), outside_area="flag")
     tracks = _run(chain, runtime, PEOPLE)
-    people = sorted((_person(tr) for tr in tracks), key=lambda p: p["x"])
+    people = sorted((served_person(tr) for tr in tracks), key=lambda p: p["x"])
     assert len(people) == 2
     assert "outside" not in people[0] and people[1]["outside"] is True
     snapshot = Snapshot.build(1, 0.0, people)
@@ -86,3 +89,21 @@ def test_a_snapshot_without_outside_people_is_its_own_inside_view():
 def test_unknown_outside_policy_is_refused():
     with pytest.raises(ValueError, match="outside_area"):
         Chain(Tracker(), outside_area="hide")  # type: ignore[arg-type]
+
+
+def test_a_tracked_person_is_one_association_despite_a_cut_box():
+    """The chain hands the tracker's predictions to the association: a person whose third
+    camera's box is off sideways in every frame (the floor maps disagree) is split in two by
+    the boxes alone, and one association once their track is served."""
+    from tests.service.test_association import FloorOracle
+
+    runtime = FloorOracle(room_cameras(3))
+    boxes = person_boxes(runtime.projections, np.array([[3.0, 3.0]]))
+    boxes[0, 2, [0, 2]] += 60.0
+    frames = [Detections(boxes[:, k].astype(np.float32), np.ones(1, np.float32)) for k in range(3)]
+    delivered = [True] * 3
+    for anchored in (False, True):
+        chain = Chain(Tracker(fps_hint=10, **RECOMMENDED), track_anchors=anchored)
+        counts = [len(chain(i / 10, frames, runtime, delivered, i)[0]) for i in range(20)]
+        assert counts[:3] == [2, 2, 2]  # no track served yet: split
+        assert set(counts[10:]) == ({1} if anchored else {2})

@@ -40,7 +40,7 @@ DEVICE_KEYS = {
     "configuration_url", "connections", "hw_version", "identifiers", "manufacturer", "model",
     "model_id", "name", "serial_number", "suggested_area", "sw_version", "via_device",
 }  # fmt: skip
-BINARY_DEVICE_CLASSES = {"occupancy", "presence", "motion"}  # the ones that fit (documented)
+BINARY_DEVICE_CLASSES = {"occupancy", "presence", "motion", "safety"}  # those that fit (documented)
 STATE_CLASSES = {"measurement", "total", "total_increasing"}
 TOPIC = re.compile(r"^homeassistant/(binary_sensor|sensor)/[A-Za-z0-9_-]+/[A-Za-z0-9_-]+/config$")
 
@@ -55,7 +55,7 @@ def _render(template: str, payload: dict) -> str:
 
 def test_configs_use_only_documented_keys_and_valid_topics():
     configs = discovery_configs(_settings(), ["sofa", "desk"])
-    assert len(configs) == 2 * 2 + 1
+    assert len(configs) == 2 * 2 + 2  # per zone two, the room's people and fall sensors
     unique_ids = set()
     for topic, config in configs:
         match = TOPIC.match(topic)
@@ -94,6 +94,20 @@ def test_templates_render_the_zone_and_health_payloads_as_ha_would():
     assert _render(count["value_template"], zone_payload) == "2"
     assert people["state_topic"] == "momloc/living-room/health"
     assert _render(people["value_template"], {"people": 4, "status": "ok"}) == "4"
+
+
+def test_the_fall_sensor_is_on_while_a_fall_is_active_and_can_be_left_out():
+    by_id = {c["unique_id"]: c for _, c in discovery_configs(_settings(), ["sofa"])}
+    fall = by_id["momloc_living-room_fall"]
+    assert fall["device_class"] == "safety" and fall["state_topic"] == "momloc/living-room/fall"
+    active = {"active": True, "ids": [3], "t": 5.0}
+    assert _render(fall["value_template"], active) == fall["payload_on"]
+    assert _render(fall["value_template"], {"active": False, "ids": [], "t": None}) == "OFF"
+    assert json.loads(_render(fall["json_attributes_template"], active)) == {"ids": [3]}
+    without = [c["unique_id"] for _, c in discovery_configs(_settings(), ["sofa"], falls=False)]
+    assert "momloc_living-room_fall" not in without and len(without) == len(by_id) - 1
+    # removal covers the fall sensor even when falls are off now (announced by an earlier run)
+    assert any(t.endswith("/fall/config") for t, _ in removal_messages(_settings(), ["sofa"]))
 
 
 def test_discovery_is_opt_in_and_removal_empties_every_config():

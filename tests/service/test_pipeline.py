@@ -78,7 +78,7 @@ def boxes_stage(frame_set: FrameSet) -> list[Detections]:
     return [Detections(b, np.ones(1, np.float32)) for b in (box, box + 10)]
 
 
-def fake_associate(detections, runtime, max_error_px):
+def fake_associate(detections, runtime, max_error_px, anchors=()):
     a = Association(
         boxes=np.stack([d.boxes[0] for d in detections]),
         cameras=[0, 1],
@@ -266,7 +266,7 @@ def keypoint_stage(frame_set: FrameSet) -> list[Detections]:
 def test_keypoints_reach_association_and_box_only_detectors_refuse_keypoint_models(tmp_path):
     seen = []
 
-    def associate(detections, runtime, max_error_px):
+    def associate(detections, runtime, max_error_px, anchors=()):
         seen.append([d.keypoints for d in detections])
         (a,) = fake_associate(detections, runtime, max_error_px)
         a.keypoints = np.stack([d.keypoints[0] for d in detections])
@@ -317,7 +317,7 @@ def test_skew_rule_leaves_stale_frames_out_of_fusion():
         return [Detections.empty() for _ in frame_set.frames]
 
     pipeline, _ = make(detect=detect)
-    pipeline.chain.associate = lambda detections, runtime, max_error_px: []
+    pipeline.chain.associate = lambda detections, runtime, max_error_px, anchors=(): []
     image = np.zeros((480, 640, 3), np.uint8)
     frames: list[Frame | None] = [
         Frame(camera=0, image=image, timestamp=10.0, seq=5),  # 120 ms late

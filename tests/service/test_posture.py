@@ -1,5 +1,6 @@
 """Posture from the box shape (service.tracking.posture): labels, the standing box that replaces
-a seated or lying one, the track's smoothed posture, and the snapshot's optional field."""
+a seated or lying one, one posture per associated person (service.tracking.posture_agreement),
+the track's smoothed posture, and the snapshot's optional field."""
 
 from __future__ import annotations
 
@@ -10,10 +11,11 @@ import pytest
 
 from models.detector.base import Detections
 from models.mom.setup_area import CameraRegion, SetupArea
-from service.pipeline.live import _person
-from service.stages import Track
+from service.pipeline.live import served_person
+from service.stages import Association, Track
 from service.tracking import posture
 from service.tracking.posture import LYING, SITTING, STANDING, UNKNOWN, PostureSmoother
+from service.tracking.posture_agreement import agree, agreed_rows
 
 STANDING_PX = 200.0  # a person standing anywhere looks 200 px tall to this camera
 
@@ -26,12 +28,13 @@ def _area() -> SetupArea:
 
 
 def test_box_shape_gives_the_posture() -> None:
-    ratio = np.array([1.0, 0.65, 0.65, 0.4, 0.6, 0.6])
-    aspect = np.array([0.4, 0.7, 0.3, 0.9, 1.6, 0.8])
+    ratio = np.array([1.0, 0.65, 0.65, 0.4, 0.6, 0.6, 0.66, 0.55])
+    aspect = np.array([0.4, 0.7, 0.3, 0.9, 1.6, 0.8, 1.1, 1.05])
     labels, confidence = posture.classify(ratio, aspect)
     # an upright box; a short wide one (seated); short but narrow (an occluded walker's upper
-    # half): left standing; very short; low and wide; short and fairly wide
-    assert labels.tolist() == [STANDING, SITTING, STANDING, LYING, LYING, SITTING]
+    # half): left standing; very short; low and flat; short and fairly wide; a seated person
+    # seen from the side (as wide as tall, not that short); lying along the line of sight
+    assert labels.tolist() == [STANDING, SITTING, STANDING, LYING, LYING, SITTING, SITTING, LYING]
     assert ((confidence >= 0.5) & (confidence <= 1.0)).all()
 
 
@@ -74,7 +77,87 @@ def test_one_odd_box_does_not_flip_a_track_posture() -> None:
 
 def test_snapshot_person_carries_the_posture_only_when_known() -> None:
     track = Track(3, 1.0, 2.0, 0.0, 0.0, 0.9, [0, 1], posture=(SITTING, 0.83))
-    person = _person(track)
+    person = served_person(track)
     assert person["posture"] == "sitting" and person["posture_confidence"] == 0.83
-    assert "posture" not in _person(Track(4, 1.0, 2.0, 0.0, 0.0, 0.9))
+    assert "posture" not in served_person(Track(4, 1.0, 2.0, 0.0, 0.0, 0.9))
     json.dumps(person)  # plain JSON
+
+
+class _BoxBottoms:
+    """A localizer double: a row's position is the mean of its boxes' bottom edges (pixels),
+    enough to see which boxes it was given."""
+
+    observation = "bbox"
+
+    def localize(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
+        bottom = np.nanmean(np.asarray(boxes)[..., 3], axis=1)
+        return np.stack([bottom, bottom], axis=1)
+
+    def covariance(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
+        return np.tile(np.eye(2), (len(boxes), 1, 1))
+
+
+def test_a_seated_person_short_in_one_view_is_read_seated_in_both() -> None:
+    """Per box, the view of a seated person that looks 0.8 of a standing height reads as
+    standing; once associated with a clearly seated view, it is converted as seated too and
+    the person localized again. A seated box paired with a standing person's box is no person:
+    the pair is split into two single views."""
+    area = SetupArea(_area().floor, 0.5, (_area().cameras[0], _area().cameras[0]))
+    seated = [300.0, 100.0, 380.0, 230.0]  # 0.65 of a standing height, wide: sitting
+    short = [100.0, 100.0, 190.0, 260.0]  # 0.8, as wide as a walker in stride: "standing"
+    tall = [100.0, 100.0, 180.0, 300.0]  # a standing person's height
+    runtime = _BoxBottoms()
+    results = []
+    for other in (short, tall):
+        detected = [
+            Detections(np.array([seated], np.float32), np.ones(1, np.float32)),
+            Detections(np.array([other], np.float32), np.ones(1, np.float32)),
+        ]
+        normalised, postures = posture.normalise(detected, area, np.array([[640, 480]] * 2))
+        assert postures.labels[1].tolist() == [STANDING]
+        boxes = np.stack([normalised[0].boxes[0], normalised[1].boxes[0]]).astype(float)
+        found = Association(boxes, [0, 1], runtime.localize(boxes[None])[0], 0.1, [0, 0])
+        results.append(agree([found], detected, postures, area, runtime))
+    (agreed,) = results[0]  # the head stays: the feet go SEATED_TOP standing heights below it
+    assert agreed.boxes[1, 3] == pytest.approx(100.0 + posture.SEATED_TOP * STANDING_PX)
+    assert agreed.world[0] == pytest.approx(agreed.boxes[:, 3].mean())
+    low, high = results[1]
+    assert (low.cameras, low.detection_index) == ([0], [0, None])
+    assert (high.cameras, high.detection_index) == ([1], [None, 0])
+    assert low.world[0] == pytest.approx(boxes[0, 3]) and high.world[0] == pytest.approx(300.0)
+    rows = agreed_rows(np.array([[seated, short]]), area, np.array([[640, 480]] * 2))
+    assert rows[0, 1, 3] == pytest.approx(100.0 + posture.SEATED_TOP * STANDING_PX)
+
+
+class _RowMap:
+    """A model whose floor x is a box's bottom / 100 and whose set-up area is x < 3 m."""
+
+    def localize(self, boxes: np.ndarray) -> np.ndarray:
+        bottom = np.nanmax(np.asarray(boxes, float)[:, :, 3], axis=1)
+        return np.stack([bottom / 100.0, np.zeros(len(bottom))], 1)
+
+    def inside(self, boxes: np.ndarray, world: np.ndarray) -> np.ndarray:
+        return np.asarray(world)[:, 0] < 3.0
+
+
+def test_a_replaced_box_is_not_carried_into_the_set_up_area() -> None:
+    """A short box beyond the area (a fragment, or a person cut by someone in front) reads as
+    seated; its standing replacement reaches nearer the camera, into the area. The chain judges
+    such a person by the boxes as detected (real CMC room: bench/results/real_cmc_chain_tuning.md);
+    a seated person inside the area, and boxes left as detected, keep their mark."""
+    from service.pipeline.chain import _outside_as_detected, gate_to_area
+
+    detected = [Detections(np.array([[0, 200, 80, 350], [0, 100, 80, 250]], np.float32),
+                           np.ones(2, np.float32))]  # fmt: skip
+
+    def person(box: list[float], index: int) -> Association:
+        boxes = np.array([box], np.float32)
+        return Association(boxes, [0], _RowMap().localize(boxes[None])[0], 0.0, [index])
+
+    fragment = person([0, 120, 80, 280], 0)  # replaced: 2.8 m, inside; as detected 3.5 m
+    seated = person([0, 40, 80, 200], 1)  # replaced: 2.0 m; as detected 2.5 m, inside too
+    walker = person([0, 200, 80, 350], 0)  # as detected, beyond the area
+    found = [fragment, seated, walker]
+    _outside_as_detected(found, detected, _RowMap())  # type: ignore[arg-type]
+    assert [a.inside for a in found] == [False, True, True]  # the walker is the gate's job
+    assert gate_to_area(found, _RowMap(), "drop") == [seated]  # type: ignore[arg-type]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import json
 
+from service.outputs.falls import FallDetector, FallRules
 from service.outputs.mqtt import MqttPublisher
 from service.outputs.publisher import LatestSlot
 from service.outputs.settings import MqttSettings
@@ -75,6 +76,30 @@ def test_zone_monitor_turns_snapshots_into_events_and_occupancy():
     assert described["zones"][0]["name"] == "sofa" and described["zones"][0]["count"] == 0
     assert [e["type"] for e in described["recent_events"]] == ["enter", "leave"]
     assert described["recent_events"][1]["dwell_s"] == 1.0
+
+
+def test_zone_and_fall_events_share_one_numbering_and_listeners_get_the_fall_state():
+    zone = Zone.create("sofa", SQUARE, hold_s=0.5)
+    monitor = ZoneMonitor([zone], falls=FallDetector(FallRules(lying_s=2.0), [zone]))
+    calls = []
+
+    class Listener:
+        def on_zone_events(self, events, occupancy):
+            calls.extend(events)
+
+    monitor.add_listener(Listener())
+    for i in range(60):  # stands in the zone for 1 s, then lies there
+        someone = person(4, 1.0, 1.0)
+        someone["posture"] = "standing" if i < 30 else "lying"
+        monitor.offer(snap(i + 1, 100 + i / 30, [someone]))
+    assert [(e["type"], e["seq"]) for e in calls] == [("enter", 1)]
+    for i in range(60, 120):
+        monitor.offer(snap(i + 1, 100 + i / 30, [{**person(4, 1.0, 1.0), "posture": "lying"}]))
+    assert [(e["type"], e["seq"]) for e in calls] == [("enter", 1), ("fall", 2)]
+    assert calls[1]["zones"] == ["sofa"] and calls[1]["falls"] == [4]
+    assert monitor.describe()["falls"] == {"active": True, "ids": [4], "t": calls[1]["t"]}
+    assert monitor.stats()["falls"] == [4]
+    assert "falls" not in ZoneMonitor([zone]).describe()  # falls off: no fall state
 
 
 def test_event_clients_have_bounded_queues_and_count_what_they_lose():

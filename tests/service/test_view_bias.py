@@ -152,7 +152,7 @@ def test_the_pipeline_serves_the_corrected_position():
     def nobody(frame_set: FrameSet) -> list[Detections]:
         return [Detections.empty()] * 2
 
-    def associate(detections, model, max_error_px=0.0):
+    def associate(detections, model, max_error_px=0.0, anchors=()):
         seq = frame_set_seq[0]
         return [person(truth, [0, 1] if seq < both else [0], runtime)]
 

@@ -1,7 +1,8 @@
 """Zone and MQTT routes.
 
-- ``GET  /v1/zones`` polygons, current occupancy (count, ids) and the last events.
-- ``WS   /v1/events`` one enter/leave event JSON per message (schema in ``service.outputs.zones``);
+- ``GET  /v1/zones`` polygons, current occupancy (count, ids), the fall state and the last events.
+- ``WS   /v1/events`` one enter/leave or fall event JSON per message (schemas in
+  ``service.outputs.zones``, ``service.outputs.falls``);
   a client that falls 1000 events behind loses the oldest (see ``service.outputs.zone_monitor``).
 - ``POST /v1/mqtt/discovery/remove`` ``{}`` deletes this room's Home Assistant entities.
 
@@ -29,7 +30,9 @@ def zones_router(daemon: Daemon, token: TokenCheck) -> APIRouter:
     router = APIRouter(responses=error_responses(400, 401, 403, 409, 413, 415, 422, 503))
     secured = token.secured
 
-    @router.get("/v1/zones", dependencies=secured, summary="Zones: polygons, occupancy, events")
+    @router.get(
+        "/v1/zones", dependencies=secured, summary="Zones: polygons, occupancy, falls, events"
+    )
     def zones() -> dict[str, Any]:
         if outputs is None:
             return {"v": 1, "t": None, "zones": [], "recent_events": []}

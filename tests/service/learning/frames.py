@@ -45,13 +45,18 @@ class Person:
 
 
 def frame_result(
-    people: list[Person], t: float = 100.0, seq: int = 5, model: Any = None
+    people: list[Person],
+    t: float = 100.0,
+    seq: int = 5,
+    model: Any = None,
+    beyond: list[Person] = (),  # type: ignore[assignment]
 ) -> FrameResult:
-    """One frame set where each person is an association and a track measured now."""
+    """One frame set where each person is an association and a track measured now, and each
+    of ``beyond`` an untracked association beyond the set-up area."""
     cameras = 2
     per_camera: list[list[list[float]]] = [[] for _ in range(cameras)]
     associations, tracks = [], []
-    for i, p in enumerate(people):
+    for i, p in enumerate([*people, *beyond]):
         index: list[int | None] = []
         for k in range(cameras):
             box = p.boxes[k]
@@ -71,6 +76,9 @@ def frame_result(
                 covariance=np.eye(2) * p.std_m**2,
             )
         )
+        if i >= len(people):
+            associations[-1].inside = False
+            continue
         frame = seq if not p.coasting else seq - 3
         track = Track(p.track, p.x, p.y, 0, 0, 1.0, [], p.coasting, 2.0, frame, association=i)
         tracks.append(track)
@@ -87,9 +95,10 @@ def frame_result(
         t_capture=t,
         fused=[True, True],
         detections=detections,
-        associations=associations,
+        associations=associations[: len(people)],
         tracks=tracks,
         snapshot=Snapshot.build(seq, t, []),
         runtime=FakeModel() if model is None else model,
         timings_ms={},
+        outside=associations[len(people) :],
     )

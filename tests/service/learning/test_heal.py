@@ -140,3 +140,32 @@ def test_a_failing_repair_is_not_served_and_collection_goes_on(tmp_path: Path) -
     assert serving.reloaded == [] and not (tmp_path / "model").exists()
     assert session.state == "collecting" and session.need == 600
     assert session.samples.n == 0 and "collecting more positions" in (session.message or "")
+
+
+def test_references_long_along_a_line_of_sight_are_refined_with_their_covariance() -> None:
+    """Two cameras: the references are the other camera's single views, 0.5 m std along its
+    line of sight and 5 cm across; their covariances let the moved camera's own boxes place
+    them along it (service.learning.heal, errors-in-variables)."""
+    meta = json.loads((DEMO_MODEL_DIR / "model.json").read_text())
+    camera0 = np.asarray(make_scene("indoor-2cam", seed=3).cameras[0].position)[:2]
+    world, boxes = camera_views(3, range(0, 1500, 5))
+    sight = (world - camera0) / np.linalg.norm(world - camera0, axis=1, keepdims=True)
+    across = np.c_[-sight[:, 1], sight[:, 0]]
+    rng = np.random.default_rng(0)
+    along_m, across_m = rng.normal(0, 0.5, len(world)), rng.normal(0, 0.05, len(world))
+    reference = world + along_m[:, None] * sight + across_m[:, None] * across
+    cov = 0.25 * sight[:, :, None] * sight[:, None] + 0.0025 * across[:, :, None] * across[:, None]
+    test_world, test_boxes = camera_views(4, range(0, 600, 7))
+    errors = {}
+    for name, covariances in (("plain", []), ("refined", list(cov))):
+        t = list(np.arange(len(world), dtype=float))
+        samples = HealSamples(t, list(reference), [0.5] * len(world), list(boxes), covariances)
+        fixed = repair(meta, 1, samples, single_m=0.15)
+        after = FloorPrior.from_json(fixed.meta["floor_prior"]["prior"])
+        errors[name] = lone_error(after, test_world, test_boxes)
+    unbumped = lone_error(
+        FloorPrior.from_json(meta["floor_prior"]["prior"]),
+        *camera_views(4, range(0, 600, 7), bumped=False),
+    )
+    assert errors["refined"] < 0.8 * errors["plain"], errors
+    assert errors["refined"] < 1.3 * unbumped, (errors, unbumped)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from service.learning.labels import LabelRules, select_labels
+from service.learning.labels import BEYOND_TRACK, BeyondMemory, LabelRules, select_labels
 from tests.service.learning.frames import Person, frame_result
 
 A = [100.0, 100.0, 160.0, 300.0]
@@ -64,3 +64,37 @@ def test_one_label_per_person_per_interval() -> None:
         result = select_labels(frame_result([Person(2, 3, [A, B])], t=t), RULES, set(), last)
         kept.append(result.labels is not None)
     assert kept == [True, False, False, True]
+
+
+def test_a_person_beyond_the_set_up_area_is_learned_once_two_frame_sets_agree() -> None:
+    memory = BeyondMemory()
+    kept, why = [], []
+    for t, x in ((100.0, 6.0), (100.2, 6.1), (100.4, 6.2), (100.8, 7.5), (101.0, 7.6)):
+        frame = frame_result([], t=t, beyond=[Person(x, 3, [A, B], track=0)])
+        result = select_labels(frame, RULES, set(), {}, memory)
+        kept.append(None if result.labels is None else result.labels.track.tolist())
+        why.append(dict(result.rejected))
+    # confirmed by the next frame set at about the same place; one label per place and interval
+    assert kept == [None, [BEYOND_TRACK], None, None, [BEYOND_TRACK]]
+    assert why == [{"beyond_unconfirmed": 1}, {}, {"beyond_rate": 1}, {"beyond_unconfirmed": 1}, {}]
+
+
+def test_beyond_the_area_one_view_or_a_doubtful_moment_gives_no_label() -> None:
+    cases = {
+        "beyond_views": Person(6, 3, [A, None]),
+        "beyond_covariance": Person(6, 3, [A, B], std_m=0.4),
+        "beyond_cost": Person(6, 3, [A, B], cost=80.0),
+    }
+    for reason, person in cases.items():
+        memory = BeyondMemory()
+        for t in (100.0, 100.2):
+            result = select_labels(frame_result([], t=t, beyond=[person]), RULES, set(), {}, memory)
+        assert result.labels is None and result.rejected == {reason: 1}, reason
+
+
+def test_people_beyond_the_area_are_ignored_without_a_memory_and_crowd_the_tracked() -> None:
+    frame = frame_result([Person(2, 3, [A, B])], beyond=[Person(2.5, 3, [C, D], track=0)])
+    assert select_labels(frame, RULES, set(), {}).rejected == {}
+    assert select_labels(frame, RULES, set(), {}).labels is not None
+    crowded = select_labels(frame, RULES, set(), {}, BeyondMemory())
+    assert crowded.labels is None and crowded.rejected == {"crowded": 1, "beyond_crowded": 1}

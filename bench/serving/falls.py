@@ -1,0 +1,425 @@
+"""Falls: how many simulated falls the daemon reports in time, and how many it reports that are
+none (writes bench/results/falls.md).
+
+What runs is what serves: the simulator's boxes (nanodet profile, no rendering: the fast path)
+turned into tracks with postures, each frame's tracks into the snapshot's people
+(:func:`service.pipeline.live.served_person`), fed to :class:`service.outputs.falls.FallDetector`
+with the default :class:`~service.outputs.falls.FallRules`, on frame timestamps (no clock).
+Tracks come from the serving chain (``chain``: :class:`service.pipeline.chain.Chain` with
+postures, association and ``Tracker(**RECOMMENDED)``, on a model trained the usual way on
+walking and standing people of the room's cameras, whose set-up area gives the postures) or,
+for the many hours the false-fall rate needs, from the true association (``truth``: each
+person's own boxes judged by the same posture code, their true position + ``NOISE_M`` fed to
+the same tracker: several times faster; false boxes and association errors left out).
+
+- **Falls** (``--fall-seeds`` per room): one person walks to three random spots of free floor
+  (seeded), stands 3 s, falls (the body goes from standing to lying in a random 0.5-1.2 s)
+  facing a random way, lies ``LIE_S`` and gets up, while someone sits on the room's first
+  seat. A fall counts as reported in time when a ``fall`` event for a track within ``MATCH_M``
+  of the faller comes at most ``IN_TIME_S`` after the earliest moment the rule allows (the body
+  on the floor + ``lying_s``): the target is ≥ 95 %.
+- **False falls** (``--daily-hours`` of scene per room): three people live in the room: walk to
+  random free spots, stand, crouch to pick something up (2-8 s, a 0.6-1.2 s crouch), sit down on
+  a seat of their own (chairs, sofa, desk chairs: 20-300 s, a 0.7-1.5 s sit; a third person in
+  the office, which has two seats, never sits) and get up, in random order (seeded). Every
+  ``fall`` event is a false one; the figure is false falls per 24 person-hours (target ≤ 1).
+
+Rooms: ``lounge`` (5 × 4 m, two wide-angle webcams, sofa, coffee table, armchair) and
+``office-desks`` (8 × 6 m, three cameras, two desks with chairs).
+
+Usage::
+
+    python -m bench.serving.falls [--fall-seeds 8] [--daily-hours 4] [--jobs 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import concurrent.futures
+import dataclasses
+import functools
+import math
+import platform
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench.report import command_line
+from models.mom.runtime import MomRuntime
+from models.mom.setup_area import SetupArea
+from models.simulate import PRESETS, Scene, SceneConfig
+from models.simulate.presets import FACING
+from models.simulate.script import Segment
+from service.offline.stream_eval import frame_detections
+from service.outputs.falls import FALL, FallDetector, FallRules
+from service.pipeline.chain import Chain
+from service.pipeline.live import served_person
+from service.stages import Origin
+from service.tracking.posture import BoxPostures, PostureSmoother, box_postures
+from service.tracking.tracker import RECOMMENDED, Tracker
+
+RESULTS = Path(__file__).resolve().parents[1] / "results"
+MATCH_M = 1.0
+IN_TIME_S = 3.0
+LIE_S = 20.0
+STAND_S = 3.0
+NOISE_M = 0.05  # position noise of the true-association runs (the localizer is measured elsewhere)
+
+
+@dataclass(frozen=True)
+class Room:
+    """A furnished preset: free floor rectangles (x0, y0, x1, y1) and seats (point, facing);
+    ``cameras``: the preset of the same cameras the model is set up on; ``trained``: a model
+    trained on it is at hand (``train_cached``, shared with the posture bench), else only its
+    set-up area is fitted and the room runs with the true association."""
+
+    preset: str
+    cameras: str
+    free: tuple[tuple[float, float, float, float], ...]
+    seats: tuple[tuple[tuple[float, float], str], ...]
+    trained: bool = True
+
+
+ROOMS = {
+    "lounge": Room(
+        "lounge",
+        "living-room",
+        free=((0.7, 0.6, 4.4, 1.9), (3.7, 1.9, 4.4, 3.3)),
+        seats=(((2.5, 3.5), "-y"), ((0.8, 2.0), "+x"), ((2.0, 3.5), "-y"), ((3.0, 3.5), "-y")),
+    ),
+    "office-desks": Room(
+        "office-desks",
+        "office-3cam",
+        free=((0.8, 0.7, 7.2, 1.9), (6.3, 1.9, 7.2, 5.3), (0.8, 4.3, 7.2, 5.3)),
+        seats=(((2.7, 3.7), "-y"), ((5.3, 2.3), "+y")),
+        trained=False,  # training it took 25 min on the loaded vm: the set-up area only
+    ),
+}
+
+
+def _spot(room: Room, rng: np.random.Generator) -> tuple[float, float]:
+    areas = np.array([(x1 - x0) * (y1 - y0) for x0, y0, x1, y1 in room.free])
+    x0, y0, x1, y1 = room.free[rng.choice(len(areas), p=areas / areas.sum())]
+    return float(rng.uniform(x0, x1)), float(rng.uniform(y0, y1))
+
+
+def _walk(a: tuple[float, float], b: tuple[float, float], rng: np.random.Generator) -> Segment:
+    return Segment(a, b, max(math.dist(a, b) / rng.uniform(0.7, 1.3), 0.1))
+
+
+@dataclass(frozen=True)
+class Fall:
+    """One scripted fall: where, and when the body reaches the floor (scene seconds)."""
+
+    where: tuple[float, float]
+    floor_t: float
+
+
+Script = tuple[list[Segment], list[Fall]]
+
+
+def fall_script(room: Room, rng: np.random.Generator, count: int = 3) -> Script:
+    """Walk to ``count`` random free spots, stand, fall, lie :data:`LIE_S`, get up."""
+    route: list[Segment] = []
+    falls: list[Fall] = []
+    here = _spot(room, rng)
+    t = 0.0
+    for _ in range(count):
+        there = _spot(room, rng)
+        route.append(_walk(here, there, rng))
+        route.append(Segment(there, there, STAND_S))
+        t += route[-2].seconds + STAND_S
+        drop = float(rng.uniform(0.5, 1.2))
+        route.append(Segment(there, there, LIE_S, "lying", float(rng.uniform(-np.pi, np.pi)),
+                             ramp_s=drop))  # fmt: skip
+        falls.append(Fall(there, t + drop))
+        t += LIE_S
+        here = there
+    route.append(_walk(here, _spot(room, rng), rng))
+    return route, falls
+
+
+def daily_script(room: Room, rng: np.random.Generator, seconds: float,
+                 seat: int | None) -> list[Segment]:  # fmt: skip
+    """Walk, stand, crouch and sit down on seat ``seat`` (None: never sits) in random order for
+    ``seconds``: a person living in the room (module docstring)."""
+    route: list[Segment] = []
+    here = _spot(room, rng)
+    total = 0.0
+    while total < seconds:
+        kind = rng.choice(["stand", "crouch", "sit"], p=[0.3, 0.4, 0.3])
+        if kind == "sit" and seat is not None:
+            point, facing = room.seats[seat]
+            route.append(_walk(here, point, rng))
+            route.append(Segment(point, point, float(rng.uniform(20, 300)), "sitting",
+                                 FACING[facing], ramp_s=float(rng.uniform(0.7, 1.5))))  # fmt: skip
+            here = point
+        else:
+            there = _spot(room, rng)
+            route.append(_walk(here, there, rng))
+            if kind == "crouch":
+                route.append(Segment(there, there, float(rng.uniform(2, 8)), "crouching",
+                                     float(rng.uniform(-np.pi, np.pi)),
+                                     ramp_s=float(rng.uniform(0.6, 1.2))))  # fmt: skip
+            else:
+                route.append(Segment(there, there, float(rng.uniform(3, 30))))
+            here = there
+        total = sum(s.seconds for s in route)
+    return route
+
+
+def room_scene(room: Room, scripts: tuple[tuple[Segment, ...], ...], fps: float,
+               seed: int) -> Scene:  # fmt: skip
+    config: SceneConfig = dataclasses.replace(PRESETS[room.preset], fps=fps, scripts=scripts)
+    return Scene(config, seed=seed)
+
+
+def chain_events(runtime: MomRuntime, scene: Scene, frames: int) -> list[dict[str, Any]]:
+    """The fall detector's events over ``frames`` frames through the serving chain."""
+    chain = Chain(Tracker(fps_hint=scene.fps, **RECOMMENDED))
+    detector = FallDetector(FallRules())
+    rng = np.random.default_rng([scene.seed, 55])
+    delivered = [True] * runtime.num_cameras
+    events: list[dict[str, Any]] = []
+    for i in range(frames):
+        t = i / scene.fps
+        _, tracks = chain(t, frame_detections(scene.observe(i), rng), runtime, delivered, i)
+        events += detector.update(t, [served_person(track) for track in tracks])
+    return events
+
+
+def truth_events(runtime: Model, scene: Scene, frames: int) -> list[dict[str, Any]]:
+    """The same with the true association: each person's own boxes give their posture (the
+    serving code: :func:`~service.tracking.posture.box_postures`,
+    :meth:`~service.tracking.posture.BoxPostures.of`, the chain's
+    :class:`~service.tracking.posture.PostureSmoother`) and their true position plus
+    ``NOISE_M`` feeds the tracker; false boxes and association errors left out. Without the
+    association and the localizer it runs several times faster than :func:`chain_events`:
+    what makes many person-hours affordable."""
+    tracker = Tracker(fps_hint=scene.fps, **RECOMMENDED)
+    smoother = PostureSmoother()
+    detector = FallDetector(FallRules())
+    rng = np.random.default_rng([scene.seed, 56])
+    area, sizes = runtime.setup_area, runtime.image_sizes
+    events: list[dict[str, Any]] = []
+    for i in range(frames):
+        t = i / scene.fps
+        obs = scene.observe(i)
+        seen = np.isfinite(obs.boxes).all(-1)  # [P, K]
+        rows = np.flatnonzero(seen.any(axis=1))
+        judged = [box_postures(obs.boxes[:, k], area, k, sizes[k])
+                  for k in range(obs.boxes.shape[1])]  # fmt: skip
+        postures = BoxPostures([j[0] for j in judged], [j[1] for j in judged])
+        origins = [Origin(cameras=tuple(int(k) for k in np.flatnonzero(seen[p])), association=j)
+                   for j, p in enumerate(rows)]  # fmt: skip
+        xy = obs.world[rows, :2] + rng.normal(0.0, NOISE_M, (len(rows), 2))
+        tracks = tracker.update(t, xy, origins)
+        for track in tracks:  # as Chain._smooth_postures: a coasting track keeps its posture
+            p = None if track.coasting or track.association is None else rows[track.association]
+            index = [int(p) if p is not None and seen[p, k] else None for k in range(len(judged))]
+            track.posture = (
+                smoother.update(track.id, t, *postures.of(index))
+                if p is not None
+                else smoother.current(track.id)
+            )
+        events += detector.update(t, [served_person(track) for track in tracks])
+    return events
+
+
+Runner = Callable[[Any, Scene, int], list[dict[str, Any]]]
+RUNNERS: dict[str, Runner] = {"chain": chain_events, "truth": truth_events}
+
+
+def falls_in_time(runtime: Model, room: Room, seeds: range, fps: float,
+                  run: Runner) -> dict[str, float]:  # fmt: skip
+    """Falls reported in time and false events (module docstring) over ``seeds``."""
+    rules = FallRules()
+    reported = in_time = total = wrong = 0
+    latencies: list[float] = []
+    for seed in seeds:
+        rng = np.random.default_rng([seed, 31])
+        route, falls = fall_script(room, rng)
+        seated = tuple((Segment(p, p, 3600.0, "sitting", FACING[f]),) for p, f in room.seats[:1])
+        scene = room_scene(room, (tuple(route), *seated), fps, seed)
+        frames = int(sum(s.seconds for s in route) * fps)
+        events = [e for e in run(runtime, scene, frames) if e["type"] == FALL]
+        used: set[int] = set()
+        for fall in falls:
+            total += 1
+            due = fall.floor_t + rules.lying_s
+            match = [
+                (k, e) for k, e in enumerate(events)
+                if k not in used and math.dist((e["x"], e["y"]), fall.where) <= MATCH_M
+                and fall.floor_t - rules.max_drop_s <= e["t"] <= fall.floor_t + LIE_S + 5.0
+            ]  # fmt: skip
+            if not match:
+                continue
+            k, event = match[0]
+            used.add(k)
+            reported += 1
+            latencies.append(event["t"] - due)
+            in_time += int(event["t"] - due <= IN_TIME_S)
+        wrong += len(events) - len(used)
+    lat = np.array(latencies) if latencies else np.array([np.nan])
+    return {"falls": total, "reported": reported, "in_time": in_time, "wrong": wrong,
+            "median_s": float(np.median(lat)), "max_s": float(np.max(lat))}  # fmt: skip
+
+
+def false_falls(runtime: Model, room: Room, hours: float, fps: float, seed: int,
+                run: Runner) -> dict[str, float]:  # fmt: skip
+    """Fall events while three people live in the room for ``hours`` of scene (in scenes of at
+    most an hour): each with a seat of their own (while there are seats), sitting down only
+    there."""
+    falls = 0
+    person_s = 0.0
+    chunks = max(1, math.ceil(hours))
+    seconds = hours * 3600.0 / chunks
+    for chunk in range(chunks):
+        rng = np.random.default_rng([seed, chunk, 41])
+        people = 3
+        scripts = tuple(
+            tuple(daily_script(room, rng, seconds, p if p < len(room.seats) else None))
+            for p in range(people)
+        )
+        scene = room_scene(room, scripts, fps, seed * 100 + chunk)
+        frames = int(seconds * fps)
+        falls += sum(1 for e in run(runtime, scene, frames) if e["type"] == FALL)
+        person_s += people * frames / fps
+    person_h = person_s / 3600.0
+    return {"person_h": person_h, "falls": falls, "per_24h": 24.0 * falls / max(person_h, 1e-9)}
+
+
+@dataclass(frozen=True)
+class SetupOnly:
+    """What the true-association runs read of a model: the set-up area (fitted the way training
+    fits it, on the same simulated set-up walk) and the image sizes."""
+
+    setup_area: SetupArea
+    image_sizes: np.ndarray
+    num_cameras: int
+
+    @classmethod
+    def simulated(cls, preset: str, frames: int = 3000, seed: int = 1000) -> SetupOnly:
+        """Fitted on ``frames`` simulated frames of ``preset``'s walkers (nanodet profile), as
+        ``train_cached`` would train on them."""
+        from bench.serving.stream_accuracy import scene_config
+        from models.simulate import simulate
+
+        data = simulate(scene_config(preset, profile=None), frames=frames, seed=seed)
+        sizes = np.array([c.image_size for c in data.scene.cameras])
+        return cls(SetupArea.fit(data.dataset.world, data.dataset.boxes), sizes, len(sizes))
+
+
+Model = MomRuntime | SetupOnly
+
+
+@functools.cache
+def room_model(room: str) -> Model:
+    from bench.serving.stream_accuracy import train_cached
+
+    if ROOMS[room].trained:
+        return MomRuntime.load(train_cached(ROOMS[room].cameras, None, 3000, 150))
+    return SetupOnly.simulated(ROOMS[room].cameras)
+
+
+def task(job: tuple[str, str, argparse.Namespace]) -> tuple[str, str, dict[str, float]]:
+    """One room's falls or daily-life part (a worker process of ``--jobs``)."""
+    name, part, args = job
+    runtime = room_model(name)
+    if part == "falls":
+        seeds = range(args.seed, args.seed + args.fall_seeds)
+        how = args.falls_with if isinstance(runtime, MomRuntime) else "truth"
+        return name, how, falls_in_time(runtime, ROOMS[name], seeds, args.fps, RUNNERS[how])
+    how = args.daily_with if isinstance(runtime, MomRuntime) else "truth"
+    return name, how, false_falls(runtime, ROOMS[name], args.daily_hours, args.daily_fps,
+                                  args.seed, RUNNERS[how])  # fmt: skip
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--fall-seeds", type=int, default=10, help="fall scenes per room")
+    parser.add_argument("--daily-hours", type=float, default=4.0, help="scene hours per room")
+    parser.add_argument("--fps", type=float, default=10.0, help="frame rate of the fall scenes")
+    parser.add_argument("--daily-fps", type=float, default=5.0, help="... of daily life")
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--rooms", nargs="*", default=list(ROOMS))
+    parser.add_argument(
+        "--falls-with",
+        choices=list(RUNNERS),
+        default="chain",
+        help="association of the fall scenes (truth: true boxes per person)",
+    )
+    parser.add_argument(
+        "--daily-with",
+        choices=list(RUNNERS),
+        default="truth",
+        help="association of the daily-life hours",
+    )
+    parser.add_argument("--jobs", type=int, default=1, help="worker processes")
+    parser.add_argument("--out", type=Path, default=RESULTS / "falls.md")
+    args = parser.parse_args(argv)
+    with concurrent.futures.ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
+        futures = []
+        for name in args.rooms:  # a room's model is trained (cached) here, once, while the
+            room_model(name)  # workers run the rooms before it
+            futures += [pool.submit(task, (name, part, args)) for part in ("daily", "falls")]
+        done = [f.result() for f in futures]
+    results = {
+        (name, part): (how, r)
+        for (name, how, r), part in zip(
+            done, [p for _ in args.rooms for p in ("daily", "falls")], strict=True
+        )
+    }
+    seeds = args.fall_seeds
+    rows = ["| room | tracks from | falls | reported | in time (≤ 3 s late) "
+            "| median / max lateness s | fall events matching no fall |",
+            "|---|---|---|---|---|---|---|"]  # fmt: skip
+    daily = ["| room | tracks from | simulated person-hours | false falls "
+             "| per 24 person-hours |", "|---|---|---|---|---|"]  # fmt: skip
+    for name in args.rooms:
+        how, r = results[name, "falls"]
+        rows.append(f"| {name} | {how} | {r['falls']:.0f} | {r['reported']:.0f} "
+                    f"| {r['in_time']:.0f} ({100.0 * r['in_time'] / max(r['falls'], 1):.1f} %) "
+                    f"| {r['median_s']:.1f} / {r['max_s']:.1f} | {r['wrong']:.0f} |")  # fmt: skip
+        how, f = results[name, "daily"]
+        daily.append(f"| {name} | {how} | {f['person_h']:.1f} | {f['falls']:.0f} "
+                     f"| {f['per_24h']:.2f} |")  # fmt: skip
+    total_h = sum(results[name, "daily"][1]["person_h"] for name in args.rooms)
+    total_falls = sum(results[name, "daily"][1]["falls"] for name in args.rooms)
+    daily.append(f"| all | | {total_h:.1f} | {total_falls:.0f} "
+                 f"| {24.0 * total_falls / max(total_h, 1e-9):.2f} |")  # fmt: skip
+    text = [
+        "# Falls: reported in time, and false falls",
+        "",
+        f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC, {platform.node()} ({platform.machine()}), "
+        f"`{command_line('bench.serving.falls', argv)}`: simulated boxes (nanodet profile) "
+        f"through the fall detector with its default rules ({FallRules()}). Targets: ≥ 95 % of "
+        f"falls reported at most {IN_TIME_S:g} s after the rule allows (on the floor + "
+        "lying_s); ≤ 1 false fall per 24 person-hours.",
+        "",
+        f"Falls: {seeds} scenes per room, three falls each, {LIE_S:g} s on the floor, "
+        f"{args.fps:g} fps. Tracks from the serving chain (postures, association, tracker, on "
+        "a model trained the usual way on the room's cameras) or the true association (each "
+        "person's own boxes, the same posture code and tracker, true position + 5 cm; the "
+        "office has no trained model at hand, only its fitted set-up area):",
+        "",
+        *rows,
+        "",
+        "Daily life: three people per room walking, standing, crouching to pick things up (2-8 s) "
+        "and sitting down on their seat (chairs, the sofa, desk chairs; 20-300 s) and getting up "
+        f"in random order, {args.daily_fps:g} fps:",
+        "",
+        *daily,
+        "",
+    ]
+    args.out.write_text("\n".join(text))
+    print("\n".join(text))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

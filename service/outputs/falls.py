@@ -1,0 +1,170 @@
+"""Falls: a tracked person who goes from standing to lying quickly and stays down.
+
+Pure logic, like :mod:`service.outputs.zones`: :class:`FallDetector` is fed one snapshot at a
+time (``update(t, people)``, the people with the ``posture`` the tracker estimates,
+:mod:`service.tracking.posture`) and returns the ``fall`` and ``fall_cleared`` events that
+snapshot confirmed. Time is the snapshot's capture time ``t``, never the wall clock, so a
+recording replays the same events and tests drive it with any clock they like.
+
+Rules (per track id; :class:`FallRules`, settings ``falls.*``)
+---------------------------------------------------------------
+1. **A quick drop**: the first ``lying`` posture no later than ``max_drop_s`` (2 s) after the
+   track last read ``standing`` starts a candidate. Lying down on purpose goes through sitting
+   for longer than that (onto a sofa, a bed, the floor), and a track that was never seen
+   standing (someone already lying when the daemon starts) is never a candidate.
+2. **Staying down**: the candidate becomes a ``fall`` on the first snapshot at least
+   ``lying_s`` (10 s) after it began in which the track reads lying (or unknown: no evidence
+   either way). Reading ``standing`` or ``sitting`` without a break for ``clear_s`` drops the
+   candidate: a crouch misread as lying for a moment, or someone who sat down fast, gets up or
+   stays seated. Shorter reads of sitting are allowed: a lying body seen lengthwise from a
+   camera reads short and narrow, i.e. seated, for a while.
+3. **Cleared**: an active fall ends with ``fall_cleared`` when the track reads standing for
+   ``clear_s`` without a break (``reason: stood_up``; sitting up on the floor is still a fall),
+   or when the track has been absent from the snapshots for ``lost_s`` (``reason: lost``: the
+   tracker gave the id up; a person lying still is served through detector dropouts for the
+   tracker's ``hold_still_s``, so this is rare and long).
+
+A track absent from a snapshot is neither evidence of getting up nor of staying down: its
+candidate waits (dropouts while lying do not reset it) and fires on the next snapshot with it.
+
+Rejected: a vertical speed of the head or the box top (needs a calibrated height per pixel
+and jitters with the detector's box), and requiring the person to be still while down (a
+fallen person may move, trying to get up).
+
+Event JSON (on ``WS /v1/events`` and MQTT ``{base}/{room}/events``, with the zone events; ``seq``
+is the events stream's, given by :class:`service.outputs.zone_monitor.ZoneMonitor`)::
+
+    {"v": 1, "seq": 9, "type": "fall", "id": 3, "t": 1732390031.2, "since": 1732390021.1,
+     "x": 2.51, "y": 1.18, "zones": ["kitchen"], "falls": [3]}
+    {"v": 1, "seq": 10, "type": "fall_cleared", "id": 3, "t": 1732390102.5,
+     "since": 1732390031.2, "reason": "stood_up", "duration_s": 71.3, "x": 2.6, "y": 1.2,
+     "zones": ["kitchen"], "falls": []}
+
+``since`` of a fall is the capture time of the first lying snapshot, of a clearing the fall's
+``t``; ``zones`` the zones whose polygon holds the position (no hysteresis); ``falls`` the ids
+with an active fall after the event (the room's fall state).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from service.outputs.zones import EVENT_VERSION, Zone
+
+FALL, FALL_CLEARED = "fall", "fall_cleared"
+STANDING, SITTING, LYING = "standing", "sitting", "lying"
+
+
+@dataclass(frozen=True)
+class FallRules:
+    """The timings of the rules in the module docstring (seconds of capture time)."""
+
+    max_drop_s: float = 2.0
+    lying_s: float = 10.0
+    clear_s: float = 3.0
+    lost_s: float = 120.0
+
+
+@dataclass
+class _Person:
+    x: float
+    y: float
+    seen: float  # capture time of the last snapshot with this id
+    last_standing: float | None = None  # last snapshot that read standing
+    standing_since: float | None = None  # start of the current unbroken standing streak
+    upright_since: float | None = None  # ... of standing or sitting (not lying)
+    lying_since: float | None = None  # the candidate's start (rule 1)
+    fallen_at: float | None = None  # the fall event's t while the fall is active
+
+
+class FallDetector:
+    """Per-track fall state; ``update`` returns the events one snapshot confirms."""
+
+    def __init__(self, rules: FallRules | None = None, zones: Sequence[Zone] = ()) -> None:
+        self.rules = rules or FallRules()
+        self.zones = list(zones)
+        self._people: dict[int, _Person] = {}
+        self.last_t: float | None = None
+        self.changed_t: float | None = None  # capture time of the last fall or clearing
+
+    @property
+    def active(self) -> list[int]:
+        """Ids with an active fall."""
+        return sorted(pid for pid, p in self._people.items() if p.fallen_at is not None)
+
+    def state(self) -> dict[str, Any]:
+        """The room's fall state: ``{"active", "ids", "t"}`` (MQTT ``{base}/{room}/fall``)."""
+        ids = self.active
+        return {"active": bool(ids), "ids": ids, "t": self.changed_t}
+
+    def update(self, t: float, people: Iterable[Mapping[str, Any]]) -> list[dict[str, Any]]:
+        """Advance to capture time ``t`` with the snapshot's people (id, x, y, posture)."""
+        if self.last_t is not None and t < self.last_t:
+            t = self.last_t  # never let time run backwards (a looped recording)
+        self.last_t = t
+        events: list[dict[str, Any]] = []
+        for p in people:
+            pid = int(p["id"])
+            person = self._people.get(pid)
+            if person is None:
+                person = self._people[pid] = _Person(float(p["x"]), float(p["y"]), t)
+            person.x, person.y, person.seen = float(p["x"]), float(p["y"]), t
+            event = self._observe(pid, person, t, p.get("posture"))
+            if event is not None:
+                events.append(event)
+        for pid, person in list(self._people.items()):
+            if t - person.seen < self.rules.lost_s:
+                continue
+            if person.fallen_at is not None:
+                events.append(self._clear(pid, person, t, "lost"))
+            del self._people[pid]
+        return events
+
+    def _observe(self, pid: int, p: _Person, t: float, posture: Any) -> dict[str, Any] | None:
+        rules = self.rules
+        if posture == STANDING:
+            p.last_standing = t
+            p.standing_since = t if p.standing_since is None else p.standing_since
+            p.upright_since = t if p.upright_since is None else p.upright_since
+        elif posture == SITTING:
+            p.standing_since = None
+            p.upright_since = t if p.upright_since is None else p.upright_since
+        elif posture == LYING:
+            p.standing_since = p.upright_since = None
+            quick = p.last_standing is not None and t - p.last_standing <= rules.max_drop_s
+            if p.lying_since is None and p.fallen_at is None and quick:
+                p.lying_since = t
+        # anything else (unknown, absent field): no evidence, the streaks stand as they are
+        if p.fallen_at is not None:
+            if p.standing_since is not None and t - p.standing_since >= rules.clear_s:
+                return self._clear(pid, p, t, "stood_up")
+            return None
+        if p.lying_since is None:
+            return None
+        if p.upright_since is not None:
+            if t - p.upright_since >= rules.clear_s:
+                p.lying_since = None  # got up or sat: not a fall
+            return None
+        if t - p.lying_since >= rules.lying_s:
+            return self._fall(pid, p, t)
+        return None
+
+    def _zones_at(self, p: _Person) -> list[str]:
+        return [z.name for z in self.zones if z.contains(p.x, p.y)]
+
+    def _fall(self, pid: int, p: _Person, t: float) -> dict[str, Any]:
+        since, p.fallen_at, p.lying_since = p.lying_since, t, None
+        self.changed_t = t
+        return {"v": EVENT_VERSION, "type": FALL, "id": pid, "t": t, "since": since,
+                "x": round(p.x, 3), "y": round(p.y, 3), "zones": self._zones_at(p),
+                "falls": self.active}  # fmt: skip
+
+    def _clear(self, pid: int, p: _Person, t: float, reason: str) -> dict[str, Any]:
+        since, p.fallen_at = p.fallen_at, None
+        self.changed_t = t
+        return {"v": EVENT_VERSION, "type": FALL_CLEARED, "id": pid, "t": t, "since": since,
+                "reason": reason, "duration_s": round(t - (since or t), 3),
+                "x": round(p.x, 3), "y": round(p.y, 3), "zones": self._zones_at(p),
+                "falls": self.active}  # fmt: skip

@@ -1,0 +1,150 @@
+"""The fall detector (service.outputs.falls) driven by an injected clock: snapshot times only."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from service.outputs.falls import FALL, FALL_CLEARED, FallDetector, FallRules
+from service.outputs.zones import Zone
+
+FPS = 10.0
+
+
+class Clock:
+    """Feeds one person's postures to a detector at FPS, in capture time (no wall clock)."""
+
+    def __init__(self, detector: FallDetector | None = None) -> None:
+        self.detector = detector or FallDetector()
+        self.t = 1000.0
+        self.events: list[dict[str, Any]] = []
+
+    def hold(self, seconds: float, posture: str | None, pid: int = 1, present: bool = True,
+             x: float = 2.0, y: float = 1.0) -> Clock:  # fmt: skip
+        for _ in range(round(seconds * FPS)):
+            self.t += 1.0 / FPS
+            person: dict[str, Any] = {"id": pid, "x": x, "y": y}
+            if posture is not None:
+                person["posture"] = posture
+            self.events += self.detector.update(self.t, [person] if present else [])
+        return self
+
+    def types(self) -> list[str]:
+        return [e["type"] for e in self.events]
+
+
+def test_a_quick_drop_that_stays_down_is_one_fall_with_where_and_when():
+    zones = [Zone.create("kitchen", [[0, 0], [3, 0], [3, 2], [0, 2]])]
+    clock = Clock(FallDetector(FallRules(lying_s=10.0), zones))
+    clock.hold(5, "standing").hold(0.8, "sitting")
+    down = clock.t + 1.0 / FPS
+    clock.hold(9.5, "lying")
+    assert clock.events == []  # not yet: lying for less than lying_s
+    clock.hold(30, "lying")
+    assert clock.types() == [FALL]
+    fall = clock.events[0]
+    assert fall["id"] == 1 and fall["since"] == pytest.approx(down)
+    assert fall["t"] == pytest.approx(down + 10.0)
+    assert (fall["x"], fall["y"], fall["zones"], fall["falls"]) == (2.0, 1.0, ["kitchen"], [1])
+    assert clock.detector.state() == {"active": True, "ids": [1], "t": fall["t"]}
+
+
+def test_getting_up_clears_the_fall_after_standing_for_clear_s():
+    clock = Clock(FallDetector(FallRules(clear_s=3.0)))
+    clock.hold(5, "standing").hold(0.5, "sitting").hold(15, "lying")
+    clock.hold(1, "sitting").hold(2, "standing")  # sitting up, then up for 2 s: still down
+    assert clock.types() == [FALL]
+    clock.hold(1.1, "standing")
+    assert clock.types() == [FALL, FALL_CLEARED]
+    cleared = clock.events[1]
+    assert cleared["reason"] == "stood_up" and cleared["falls"] == []
+    assert cleared["since"] == clock.events[0]["t"]
+    assert cleared["duration_s"] == pytest.approx(cleared["t"] - cleared["since"], abs=1e-3)
+    assert clock.detector.state()["active"] is False
+
+
+def test_lying_down_slowly_is_not_a_fall():
+    clock = Clock()
+    clock.hold(5, "standing").hold(4, "sitting").hold(60, "lying")  # sits, then lies down
+    assert clock.events == []
+
+
+def test_sitting_down_for_an_hour_is_not_a_fall():
+    clock = Clock()
+    clock.hold(5, "standing").hold(3600, "sitting").hold(5, "standing")
+    assert clock.events == []
+
+
+def test_sitting_down_fast_with_a_lying_misread_is_not_a_fall():
+    clock = Clock()
+    clock.hold(5, "standing").hold(0.3, "lying").hold(600, "sitting")
+    assert clock.events == []
+
+
+def test_crouching_to_pick_something_up_is_not_a_fall():
+    clock = Clock()
+    for _ in range(50):  # crouches of 2-9 s, some read lying for a moment at the bottom
+        clock.hold(4, "standing").hold(0.5, "sitting").hold(0.4, "lying").hold(8, "sitting")
+    assert clock.events == []
+
+
+def test_a_crouch_misread_as_lying_until_just_before_lying_s_is_not_a_fall():
+    clock = Clock(FallDetector(FallRules(lying_s=10.0, clear_s=3.0)))
+    clock.hold(5, "standing").hold(9, "lying").hold(10, "standing")
+    assert clock.events == []
+
+
+def test_dropouts_while_lying_neither_reset_nor_clear_the_fall():
+    clock = Clock(FallDetector(FallRules(lying_s=10.0, lost_s=120.0)))
+    clock.hold(5, "standing").hold(0.5, "sitting").hold(3, "lying")
+    clock.hold(4, "lying", present=False)  # the detector loses the person on the floor
+    clock.hold(2, None)  # served coasting without a posture
+    clock.hold(1.5, "sitting")  # seen lengthwise: reads seated for a moment
+    clock.hold(0.5, "lying")
+    assert clock.types() == [FALL]  # within the 10 s after the drop + the first sighting after
+    assert clock.events[0]["t"] - clock.events[0]["since"] == pytest.approx(10.5, abs=0.01)
+    clock.hold(60, "lying", present=False)  # gone for a minute: still fallen
+    assert clock.types() == [FALL]
+    clock.hold(5, "lying")
+    assert clock.types() == [FALL]
+
+
+def test_a_track_lost_for_lost_s_clears_with_reason_lost():
+    clock = Clock(FallDetector(FallRules(lost_s=30.0)))
+    clock.hold(5, "standing").hold(0.5, "sitting").hold(12, "lying")
+    clock.hold(29.9, None, present=False)
+    assert clock.types() == [FALL]
+    clock.hold(0.2, None, present=False)
+    assert clock.types() == [FALL, FALL_CLEARED] and clock.events[1]["reason"] == "lost"
+    assert clock.detector.state()["ids"] == []
+
+
+def test_someone_already_lying_at_start_is_not_a_fall():
+    clock = Clock()
+    clock.hold(120, "lying")
+    assert clock.events == []
+
+
+def test_two_people_fall_and_the_state_lists_both():
+    detector = FallDetector(FallRules(lying_s=5.0))
+    t = 0.0
+    events: list[dict[str, Any]] = []
+    for i in range(300):
+        t = i / FPS
+        postures = {1: "standing" if t < 5 else "lying", 2: "standing" if t < 12 else "lying"}
+        people = [{"id": pid, "x": 1.0, "y": 1.0, "posture": p} for pid, p in postures.items()]
+        events += detector.update(t, people)
+    assert [(e["type"], e["id"], e["falls"]) for e in events] == [
+        (FALL, 1, [1]),
+        (FALL, 2, [1, 2]),
+    ]
+    assert detector.state()["ids"] == [1, 2]
+
+
+def test_time_running_backwards_does_not_fire_early():
+    detector = FallDetector(FallRules(lying_s=10.0))
+    for t in range(0, 50):
+        detector.update(t / FPS, [{"id": 1, "x": 0, "y": 0, "posture": "standing"}])
+    detector.update(5.1, [{"id": 1, "x": 0, "y": 0, "posture": "lying"}])
+    assert detector.update(0.0, [{"id": 1, "x": 0, "y": 0, "posture": "lying"}]) == []
