@@ -65,12 +65,19 @@ def strict_json(value: Any, digits: int | None = None) -> Any:
 
 def write_result(name: str, text: str) -> Path:
     """Write ``bench/results/<name>``, print the text and where it went; returns the path."""
-    RESULTS.mkdir(parents=True, exist_ok=True)
     out = RESULTS / name
-    out.write_text(text)
-    print(text)
-    print(f"wrote {out}")
+    write_report(out, text)
     return out
+
+
+def write_report(path: Path, text: str) -> int:
+    """Write a bench's report to ``path`` (its folder made), print it and where it went; 0,
+    the bench's exit status."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    print(text)
+    print(f"wrote {path}")
+    return 0
 
 
 def markdown_table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> str:

@@ -43,6 +43,7 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -62,22 +63,17 @@ def sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def ncnn_ready_onnx(source: Path, output: Path) -> None:
-    """The shipped graph without its input prefix and with every Pad folded (step 2)."""
-    import onnx
+def fold_pads(graph, nodes: list) -> set[int]:
+    """Fold every Pad node of ``nodes`` into the Conv/MaxPool after it (step 2); the ids of the
+    folded Pad nodes, for the caller to drop. Shared with ``tools/quantize_nanodet.py``."""
     from onnx import helper, numpy_helper
 
-    model = onnx.load(source)
-    graph = model.graph
     initializers = {init.name: init for init in graph.initializer}
-    nodes = list(graph.node)
-    if tuple(node.op_type for node in nodes[: len(PREFIX)]) != PREFIX:
-        raise SystemExit(f"{source}: the graph does not start with {PREFIX}")
     consumers: dict[str, list] = {}
     for node in nodes:
         for name in node.input:
             consumers.setdefault(name, []).append(node)
-    dropped = {id(node) for node in nodes[: len(PREFIX)]}
+    dropped = set()
     for node in nodes:
         if node.op_type != "Pad":
             continue
@@ -97,6 +93,28 @@ def ncnn_ready_onnx(source: Path, output: Path) -> None:
         after.attribute.append(helper.make_attribute("pads", spatial))
         after.input[0] = node.input[0]
         dropped.add(id(node))
+    return dropped
+
+
+def load_graph(source: Path, prefix: tuple[str, ...]) -> tuple[Any, list]:
+    """The ONNX model and its nodes, checked to start with the ``prefix`` op types."""
+    import onnx
+
+    model = onnx.load(source)
+    nodes = list(model.graph.node)
+    if tuple(node.op_type for node in nodes[: len(prefix)]) != prefix:
+        raise SystemExit(f"{source}: the graph does not start with {prefix}")
+    return model, nodes
+
+
+def ncnn_ready_onnx(source: Path, output: Path) -> None:
+    """The shipped graph without its input prefix and with every Pad folded (step 2)."""
+    import onnx
+    from onnx import helper
+
+    model, nodes = load_graph(source, PREFIX)
+    graph = model.graph
+    dropped = fold_pads(graph, nodes) | {id(node) for node in nodes[: len(PREFIX)]}
     kept = [node for node in nodes if id(node) not in dropped]
     new_input = nodes[len(PREFIX) - 1].output[0]
     del graph.node[:]

@@ -14,9 +14,9 @@ the input with the frame (:func:`models.detector.preprocessing.input_for_frame`)
   the band holds the same people at every size;
 - **drawn high-resolution frames**: :mod:`models.simulate` preset ``outdoor-6cam`` (six
   1920×1080 cameras), recall by true height;
-- **CPU**: ms per frame on one onnxruntime thread (``time.process_time``: the machine is shared,
-  process time is the budget and robust to other load), all settings interleaved frame by frame,
-  and as a ratio to the fixed input on the 640×480 frames of the same run.
+- **CPU**: ms per frame on one thread of the default engine (``time.process_time``: the machine
+  is shared, process time is the budget and robust to other load), all settings interleaved
+  frame by frame, and as a ratio to the fixed input on the 640×480 frames of the same run.
 
 Usage::
 
@@ -99,7 +99,8 @@ def drawn_samples() -> Iterator[Sample]:
 
 
 def detectors() -> dict[float | None, NanoDetDetector]:
-    """The shipped NanoDet per setting, one onnxruntime thread each (CPU per frame = budget)."""
+    """The shipped NanoDet per setting, one thread each of the default engine (runtime auto;
+    CPU per frame = budget)."""
     out = {}
     for shrink in SETTINGS:
         detector = create_detector("nanodet", max_shrink=shrink, threads=1, score_threshold=SCORE)
@@ -189,7 +190,7 @@ def reading(rows: Sequence[Row]) -> str:
     return " ".join(sentences)
 
 
-def report(rows: Sequence[Row], counts: dict[str, int], command: str) -> str:
+def report(rows: Sequence[Row], counts: dict[str, int], command: str, engine: str) -> str:
     """The markdown: header (what, machine, date, command), the reading, and one table per data
     set with CPU per frame beside the recall it buys."""
     ref = reference(rows)
@@ -206,8 +207,9 @@ def report(rows: Sequence[Row], counts: dict[str, int], command: str) -> str:
         "grey 114); under 100 px is in 640×480 terms (true height × 480 / frame height). "
         f"Drawn: `{DRAWN_PRESET}` seeds {', '.join(map(str, DRAWN_SEEDS))}, frames "
         f"{', '.join(map(str, DRAWN_FRAMES))}, every camera ({counts['drawn']} frames, "
-        "1920×1080), heights in frame pixels. CPU-ms: median per frame on one onnxruntime "
-        "thread (`time.process_time`, settings interleaved), and as a ratio to the fixed input "
+        "1920×1080), heights in frame pixels. CPU-ms: median per frame on one "
+        f"{engine} thread (`time.process_time`, settings interleaved), and as a ratio to the "
+        "fixed input "
         f"on {ref.frame_size[0]}x{ref.frame_size[1]} frames in this run.",
         "",
         "**Reading.** " + reading(rows),
@@ -260,7 +262,8 @@ def main(argv: list[str] | None = None) -> int:
     rows += measure("drawn", drawn_samples(), models, SMALL)
     counts = {"vtest": len(video), "drawn": rows[-1].result.frames}
     command = command_line("bench.detector.highres_recall", argv)
-    text = report(rows, counts, command)
+    graph = next(iter(models.values())).graph
+    text = report(rows, counts, command, f"{graph.runtime} {graph.precision}")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(text)
     print(text)

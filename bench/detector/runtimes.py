@@ -1,18 +1,25 @@
-"""Choose NanoDet's inference runtime by measurement: CPU and wall time per pair, and accuracy.
+"""Choose NanoDet's inference engine by measurement: CPU and wall time per pair, and accuracy.
 
 Run with ``make bench-detector`` or ``python -m bench.detector.runtimes [--quick]``; writes
-``bench/results/detector_runtimes.md``. Every runtime of :mod:`models.detector.runtimes` that is
-installed runs the shipped NanoDet at its default input (320×256, the same graph: ncnn's files
-are converted from the ONNX file) on
+``bench/results/detector_runtimes.md``. Every engine of :mod:`models.detector.runtimes` (runtime
+and precision) whose runtime is installed runs the shipped NanoDet at its default input (320×256,
+the same graph: ncnn's files are converted, the INT8 model quantized, from the ONNX file), and
+the levers that were tried and not shipped run beside them:
+
+- a **smaller input** (288×224) with the default engine;
+- **candidates** given as ``--candidate LABEL=RUNTIME:PATH`` (e.g. onnxruntime's INT8 graph that
+  ``tools/quantize_nanodet.py --onnxruntime-candidate`` writes);
+
+on
 
 - **speed**: a pair of real 640×480 frames (two vtest frames) per ``detect()`` call,
   preprocessing and decoding included, at 1 and 2 threads; all configurations interleaved
   round-robin so a neighbour's load hits each alike, reported as medians and as a ratio to
-  onnxruntime *in the same run* (the machine is shared: only the ratios compare);
+  onnxruntime FP32 *in the same run* (the machine is shared: only the ratios compare);
 - **accuracy**: the hand-checked ``vtest.avi`` boxes (``bench/data/vtest_people.json``), frames
   in pairs as the daemon sends two cameras; recall, precision and the bottom-edge error at the
-  shipped score threshold. A runtime must keep recall within 1 point of onnxruntime's to be
-  eligible as the default (``models.detector.runtimes.PREFERRED``).
+  shipped score threshold. A configuration must keep recall within 1 point of onnxruntime
+  FP32's to be eligible as the default (``models.detector.runtimes.PREFERRED``).
 """
 
 from __future__ import annotations
@@ -32,8 +39,8 @@ from bench.report import command_line, machine_line, markdown_table, write_resul
 from models.detector import PersonDetector, create_detector
 from models.detector.runtimes import PREFERRED, installed
 
-RUNTIMES = ("onnxruntime", "openvino", "ncnn")
-REFERENCE = "onnxruntime"
+REFERENCE = "onnxruntime fp32"
+SMALLER_INPUT = (288, 224)
 SCORES = (0.3, 0.4, 0.5)
 SHIPPED_SCORE = 0.4
 IOU = 0.5
@@ -74,11 +81,13 @@ def accuracy_rows(
     return rows, recall_at_shipped
 
 
-def speed_rows(times: dict[tuple[str, int], dict[str, list[float]]]) -> list[list[object]]:
-    rows = []
+def speed_rows(
+    times: dict[tuple[str, int], dict[str, list[float]]], labels: list[str]
+) -> list[list[object]]:
+    rows: list[list[object]] = []
     for threads in (1, 2):
         ref = times.get((REFERENCE, threads))
-        for runtime in RUNTIMES:
+        for runtime in labels:
             t = times.get((runtime, threads))
             if t is None or ref is None:
                 continue
@@ -97,50 +106,92 @@ def speed_rows(times: dict[tuple[str, int], dict[str, list[float]]]) -> list[lis
     return rows
 
 
+def configurations(candidates: list[str]) -> dict[str, dict[str, object]]:
+    """Label → ``create_detector`` options: the installed engines, the smaller input with the
+    first of them (the default) and the ``--candidate`` models."""
+    engines = [e for e in PREFERRED if installed(e.runtime)]
+    configs: dict[str, dict[str, object]] = {
+        f"{e.runtime} {e.precision}": {"runtime": e.runtime, "precision": e.precision}
+        for e in engines
+    }
+    width, height = SMALLER_INPUT
+    configs[f"{engines[0].runtime} {engines[0].precision} {width}x{height}"] = {
+        "runtime": engines[0].runtime,
+        "precision": engines[0].precision,
+        "input_size": SMALLER_INPUT,
+    }
+    for candidate in candidates:
+        label, _, target = candidate.partition("=")
+        runtime, _, path = target.partition(":")
+        if not (label and runtime and path):
+            raise SystemExit(f"--candidate {candidate!r}: expected LABEL=RUNTIME:PATH")
+        configs[label] = {"runtime": runtime, "model_path": path}
+    return configs
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="fewer timing repeats (smoke run)")
     parser.add_argument("--repeats", type=int, default=None, help="timing repeats per config")
+    parser.add_argument(
+        "--candidate",
+        action="append",
+        default=[],
+        help="LABEL=RUNTIME:PATH, an unshipped model measured beside the engines (repeatable)",
+    )
     args = parser.parse_args(argv)
     repeats = args.repeats or (8 if args.quick else 30)
     load = os.getloadavg()
 
     samples = vtest_samples(load_labels(VTEST_LABELS))
-    present = [r for r in RUNTIMES if installed(r)]
-    missing = [r for r in RUNTIMES if r not in present]
+    configs = configurations(args.candidate)
+    missing = sorted({e.runtime for e in PREFERRED if not installed(e.runtime)})
     timed: dict[tuple[str, int], PersonDetector] = {}
     detections: dict[str, list[tuple]] = {}
-    for runtime in present:
+    for label, options in configs.items():
         for threads in (1, 2):
-            timed[(runtime, threads)] = create_detector(
-                "nanodet", runtime=runtime, threads=threads, score_threshold=min(SCORES)
+            timed[(label, threads)] = create_detector(
+                "nanodet", threads=threads, score_threshold=min(SCORES), **options
             )
-        detections[runtime] = detect_all(timed[(runtime, 1)], samples)
-        print(f"{runtime}: detections done", flush=True)
+        detections[label] = detect_all(timed[(label, 1)], samples)
+        print(f"{label}: detections done", flush=True)
     pair = [s.image for s in samples[10:12]]
     started = time.perf_counter()
     times = measure_speed(timed, pair, repeats)
     seconds = time.perf_counter() - started
 
     accuracy, recall = accuracy_rows(detections)
-    speed = speed_rows(times)
-    eligible = [r for r in present if recall[r] >= recall[REFERENCE] - MAX_RECALL_LOSS]
+    speed = speed_rows(times, list(configs))
+    eligible = [c for c in configs if recall[c] >= recall[REFERENCE] - MAX_RECALL_LOSS]
     verdicts = []
-    default = next(r for r in PREFERRED if r in present)
+    default = next(f"{e.runtime} {e.precision}" for e in PREFERRED if installed(e.runtime))
     for threads in (1, 2):
-        cpu = {r: statistics.median(times[(r, threads)]["cpu"]) for r in eligible}
+        cpu = {c: statistics.median(times[(c, threads)]["cpu"]) for c in configs}
         fastest = min(eligible, key=cpu.__getitem__)
         verdicts.append(
-            f"- {threads} thread(s): **{fastest}** uses the least CPU among the runtimes that "
-            f"keep recall within {100 * MAX_RECALL_LOSS:.0f} point of onnxruntime's; the shipped "
-            f"preference is {', '.join(PREFERRED)}, so `runtime: auto` takes **{default}** here"
+            f"- {threads} thread(s): **{fastest}** uses the least CPU among the configurations "
+            f"that keep recall within {100 * MAX_RECALL_LOSS:.0f} point of onnxruntime FP32's; "
+            f"`runtime: auto` takes **{default}** here"
             + (
                 "."
                 if fastest == default
                 else f", {cpu[default] / cpu[fastest]:.2f}x the CPU of {fastest} in this run."
             )
         )
+        reference_cpu = statistics.median(times[(REFERENCE, threads)]["cpu"])
+        verdicts.append(
+            f"  {default}: {cpu[default]:.1f} CPU-ms per pair, {cpu[default] / reference_cpu:.2f}x "
+            f"onnxruntime FP32's {reference_cpu:.1f} (target ≤ 25 CPU-ms: "
+            f"{'met' if cpu[default] <= 25 else 'not met'} in this run, at the load above)."
+        )
+    ineligible = [c for c in configs if c not in eligible]
+    if ineligible:
+        verdicts.append(
+            f"- Not eligible (recall more than {100 * MAX_RECALL_LOSS:.0f} point below "
+            f"onnxruntime FP32's): {', '.join(ineligible)}."
+        )
     verdict = "\n".join(verdicts)
+    present = sorted({e.runtime for e in PREFERRED if installed(e.runtime)})
     versions = ", ".join(f"{r} {version(r)}" for r in present)
     not_run = f" Not installed, not measured: {', '.join(missing)}." if missing else ""
     text = f"""# NanoDet under each inference runtime
@@ -150,22 +201,22 @@ Load average at start {load[0]:.1f} (1 min), {load[1]:.1f} (5 min): the machine 
 several sessions, so absolute times are upper bounds and only the ratios within this run
 compare. Produced by `{command_line("bench.detector.runtimes", argv)}`.
 
-Eligible runtimes and the default (`models.detector.runtimes.PREFERRED`; the daemon's scheduled
-detector runs one thread):
+Eligible configurations and the default (`models.detector.runtimes.PREFERRED`; the daemon's
+scheduled detector runs one thread):
 
 {verdict}
 
-## Speed: a pair of 640×480 frames, one `detect()` call, 320×256 input
+## Speed: a pair of 640×480 frames, one `detect()` call, 320×256 input unless named
 
 {repeats} interleaved rounds after warm-up ({seconds:.0f} s); "CPU" is the CPU time of this process
 per call, all threads (the figure that decides how often a busy 2-core machine can detect);
-ratios are to onnxruntime at the same thread count. ncnn runs the two frames one after the other
-(it has no batch); onnxruntime and OpenVINO run them as one batch of 2.
+ratios are to onnxruntime FP32 at the same thread count. ncnn runs the two frames one after the
+other (it has no batch); onnxruntime and OpenVINO run them as one batch of 2.
 
 {
         markdown_table(
             [
-                "runtime",
+                "configuration",
                 "threads",
                 "wall median ms",
                 "wall p90 ms",
@@ -180,14 +231,14 @@ ratios are to onnxruntime at the same thread count. ncnn runs the two frames one
 ## Accuracy on the hand-checked vtest.avi boxes
 
 {len(samples)} frames resized to 640×480 (people 18–122 px tall), IoU ≥ {IOU}; "Δ recall" in
-points against onnxruntime at the same score threshold (the shipped threshold is
+points against onnxruntime FP32 at the same score threshold (the shipped threshold is
 {SHIPPED_SCORE}); bottom error: median |error| / median signed error of matched boxes fully in
 view, as a fraction of the true height (about ±0.02 is label noise here).
 
 {
         markdown_table(
             [
-                "runtime",
+                "configuration",
                 "score",
                 "recall",
                 "Δ recall (points)",

@@ -43,6 +43,7 @@ from bench.detector.data import (
     truth_from_rows,
 )
 from bench.detector.metrics import Truth, evaluate
+from bench.report import write_report
 from models.detector import Detections, create_detector
 from models.detector.nanodet import NanoDetDetector
 from models.detector.preprocessing import nms
@@ -185,10 +186,7 @@ def main(argv: list[str] | None = None) -> int:
     data = sequences(args.history)
     rows = [measure(name, strategy, data) for name, strategy in candidates()]
     text = report(rows, args.history, len(data))
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(text)
-    print(text)
-    return 0
+    return write_report(args.out, text)
 
 
 if __name__ == "__main__":

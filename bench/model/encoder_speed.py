@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.report import write_report
 from models.mom.runtime import MomRuntime
 from models.mom.sampling import InferenceSampler, SamplerConfig
 
@@ -108,10 +109,7 @@ def main(argv: list[str] | None = None) -> int:
     for threads in (1, 2):
         for name, latency, throughput in measure(model_dir, threads):
             lines.append(f"| {name} | {threads} | {latency:.3f} | {throughput:,.0f} |")
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
-    return 0
+    return write_report(RESULTS, "\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":

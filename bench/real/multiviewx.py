@@ -294,8 +294,8 @@ def report(result: dict, other: dict, header: str, command: str) -> str:
         f"{_f(result['people_found'])} % of the people have a box in some camera: recall is "
         "not what limits MODA here (second table). People walk beyond the annotated "
         f"playground, in view: set up on the {FLOOR_M[0]:g} × {FLOOR_M[1]:g} m playground the "
-        "chain's set-up area gate drops them; the earlier run of this bench set up on 25 × 16 m "
-        "and served those at y 15-16 m as false positives (per-frame MODA 60.5 % there)."
+        "chain's set-up area gate drops them (set up on 25 × 16 m, the model served those at "
+        "y 15-16 m as false positives)."
     )
     return "\n".join(
         [

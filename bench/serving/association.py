@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from bench.report import write_report
 from models.mom.runtime import MomRuntime
 from models.simulate import Scene, get_config
 from service.stages import Origin
@@ -298,10 +299,7 @@ def main(argv: list[str] | None = None) -> int:
         + "\n"
         + NOTES
     )
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(text)
-    print(text)
-    return 0
+    return write_report(args.out, text)
 
 
 if __name__ == "__main__":

@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.report import write_report
 from models.mom.runtime import MomRuntime
 from models.simulate import Perturbation, Scene, get_config
 from service.camera_health.image_shift import CameraShiftMonitor
@@ -196,10 +197,7 @@ def main(argv: list[str] | None = None) -> int:
         f"{np.median(ms):.2f} ms, p95 {np.percentile(ms, 95):.2f} ms over {ms.size} checks "
         "(once a second per camera, on its own thread in the daemon).\n" + NOTES
     )
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(text)
-    print(text)
-    return 0
+    return write_report(args.out, text)
 
 
 if __name__ == "__main__":

@@ -30,6 +30,8 @@ from typing import Any
 
 import numpy as np
 
+from bench.report import write_report
+
 RESULTS = Path(__file__).resolve().parents[1] / "results" / "service_latency.md"
 
 
@@ -332,10 +334,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     results = [scenario(d, args) for d in args.detections]
     text = report(results, args)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(text)
-    print(text)
-    return 0
+    return write_report(args.out, text)
 
 
 if __name__ == "__main__":

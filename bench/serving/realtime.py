@@ -38,6 +38,7 @@ import numpy as np
 
 from common.worker_thread import WorkerThread
 from models.detector.base import Detections
+from service.stages import Unscheduled
 
 RESULTS = Path(__file__).resolve().parents[1] / "results" / "realtime.md"
 VTEST = Path("/usr/share/doc/opencv-doc/examples/data/vtest.avi")
@@ -104,7 +105,7 @@ class ClipRig:
         return [self._state(True, self.fps, 0.0, 0, None) for _ in self.clips]
 
 
-class ReplayedBoxes:
+class ReplayedBoxes(Unscheduled):
     """Baseline detection stage: boxes known per clip frame, at no cost."""
 
     keypoints = False

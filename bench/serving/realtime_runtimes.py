@@ -1,11 +1,12 @@
-"""Detect more frames: the daemon at 30 fps on 2 cores with NanoDet under each installed runtime.
+"""Detect more frames: the daemon at 30 fps on 2 cores with NanoDet under each installed engine.
 
 The scheduler (``detection.schedule: auto``) detects the newest frame set whenever the detector
 is free and carries boxes in between, so a runtime that needs less CPU per pair shows up as a
 larger share of frame sets detected and younger boxes, not as a higher frame rate. This bench runs
 the daemon's pipeline (:func:`bench.serving.realtime.run_pipeline`: shipped demo MoM model,
 association, tracking, hub) on two 640x480 cameras replayed at 30 fps, fed by the default
-scheduled detector stage (NanoDet, 1 thread, nice 10, flow within budget) with each runtime, and
+scheduled detector stage (NanoDet, 1 thread, nice 10, flow within budget) with each engine
+(runtime and precision, ``models.detector.runtimes.PREFERRED``), and
 by the detector's own boxes replayed at no cost (the baseline). Rows run in interleaved slices so
 the shared machine's load falls on all alike; only the ratios within one run compare.
 
@@ -34,10 +35,9 @@ from bench.serving.realtime import (
     video_clips,
 )
 from models.detector import create_detector
-from models.detector.runtimes import installed
+from models.detector.runtimes import PREFERRED, installed
 
 RESULTS = Path(__file__).resolve().parents[1] / "results" / "realtime_runtimes.md"
-RUNTIMES = ("onnxruntime", "openvino", "ncnn")
 BASELINE = "replayed (baseline)"
 MODULE = "bench.serving.realtime_runtimes"
 
@@ -52,10 +52,16 @@ def main(argv: list[str] | None = None) -> int:
     started = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
     header = machine()
     clips = video_clips(args.clip)
-    present = [r for r in RUNTIMES if installed(r)]
-    detectors = {r: create_detector("nanodet", runtime=r, threads=1) for r in present}
-    stages = [(BASELINE, ReplayedBoxes(detector_boxes(detectors["onnxruntime"], clips, 0.4)))]
-    stages += [(f"auto (default schedule), {r}", scheduled(detectors[r])) for r in present]
+    detectors = {
+        f"{engine.runtime} {engine.precision}": create_detector(
+            "nanodet", runtime=engine.runtime, precision=engine.precision, threads=1
+        )
+        for engine in PREFERRED
+        if installed(engine.runtime)
+    }
+    reference = detectors["onnxruntime fp32"]
+    stages = [(BASELINE, ReplayedBoxes(detector_boxes(reference, clips, 0.4)))]
+    stages += [(f"auto (default schedule), {e}", scheduled(d)) for e, d in detectors.items()]
     raw: dict[str, list[dict]] = {label: [] for label, _ in stages}
     for _ in range(args.rounds):
         for label, stage in stages:
@@ -64,7 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     rows = [["video", label, summary(raw[label]), base] for label, _ in stages]
     end = os.getloadavg()
     lines = [
-        "# Detect more frames: the scheduled daemon with each NanoDet runtime",
+        "# Detect more frames: the scheduled daemon with each NanoDet engine",
         "",
         f"Machine: {header}. Load average at the end: {end[0]:.1f} / {end[1]:.1f}. The machine "
         "is shared by several sessions: absolute figures are upper bounds, compare rows of this "

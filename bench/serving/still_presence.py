@@ -172,7 +172,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     frames = int(args.minutes * 60 * args.fps)
     lines = [
-        "# Still presence: one person seated for an hour",
+        "# Still presence: one person seated for an hour"
+        if args.minutes == 60
+        else f"# Still presence: one person seated for {args.minutes:g} minutes",
         "",
         f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC, {platform.node()} ({platform.machine()}), "
         f"`{command_line('bench.serving.still_presence', argv)}`: {args.minutes:g} simulated "

@@ -39,11 +39,17 @@ from models.detector.base import (
     warm_up,
 )
 from models.detector.preprocessing import Geometry, check_frame, input_for_frame, make_batch, nms
-from models.detector.runtimes import Runtime, open_graph
+from models.detector.runtimes import Precision, Runtime, ShippedFiles, open_graph
 
 WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
 DEFAULT_MODEL = WEIGHTS_DIR / "nanodet_person.onnx"
-NCNN_FILES = (WEIGHTS_DIR / "nanodet_person.ncnn.param", WEIGHTS_DIR / "nanodet_person.ncnn.bin")
+SHIPPED_FILES = ShippedFiles(
+    WEIGHTS_DIR / "nanodet_person.ncnn.param",
+    WEIGHTS_DIR / "nanodet_person.ncnn.bin",
+    WEIGHTS_DIR / "nanodet_person.int8.xml",
+)
+# Every shipped file with a .sha256 beside it (the OpenVINO IR's weights are its .bin).
+SHIPPED_PATHS = (DEFAULT_MODEL, *SHIPPED_FILES, SHIPPED_FILES.openvino_int8.with_suffix(".bin"))
 STRIDES = (8, 16, 32)
 
 
@@ -79,10 +85,15 @@ class NanoDetSettings(DetectorSettingsBase):
     kind: Literal["nanodet"] = Field("nanodet", description="NanoDet (shipped default).")
     runtime: Runtime = Field(
         "auto",
-        description="Inference runtime: auto (the installed one using the least CPU: ncnn, "
-        "else OpenVINO, else onnxruntime; bench/results/detector_runtimes.md), onnxruntime "
+        description="Inference runtime: auto (the installed one using the least CPU: OpenVINO "
+        "INT8, else ncnn, else onnxruntime; bench/results/detector_runtimes.md), onnxruntime "
         "(always installed), openvino (momloc[openvino]) "
         "or ncnn (the shipped model only).",
+    )
+    precision: Precision = Field(
+        "auto",
+        description="Model precision: auto (INT8 where the runtime has it: OpenVINO), int8 "
+        "(the shipped model under OpenVINO, quantized offline) or fp32.",
     )
     model_path: Path | None = Field(
         None, description="Your own NanoDet person ONNX file (tools/convert_nanodet.py interface)."
@@ -131,6 +142,8 @@ class NanoDetDetector(PersonDetector):
     threads: inference threads (default: available CPUs, at most 4).
     runtime: which inference runtime runs the graph (:mod:`models.detector.runtimes`): ``auto``
         (default) the fastest installed one, else ``onnxruntime``, ``openvino`` or ``ncnn``.
+    precision: ``auto`` (default: INT8 where the runtime has the quantized model), ``int8`` or
+        ``fp32``; the shipped model only (a ``model_path`` runs as it is).
     """
 
     def __init__(
@@ -144,10 +157,11 @@ class NanoDetDetector(PersonDetector):
         max_detections: int = 100,
         threads: int | None = None,
         runtime: Runtime = "auto",
+        precision: Precision = "auto",
     ) -> None:
         path = Path(model_path) if model_path is not None else DEFAULT_MODEL
         if model_path is None:
-            for shipped in (path, *NCNN_FILES):
+            for shipped in SHIPPED_PATHS:
                 verify_shipped(shipped)
         width, height = _check_size(input_size)
         self.model_path = path
@@ -159,7 +173,8 @@ class NanoDetDetector(PersonDetector):
         self.letterbox = bool(letterbox)
         self.iou_threshold = float(iou_threshold)
         self.max_detections = int(max_detections)
-        self.graph = open_graph(runtime, path, NCNN_FILES if model_path is None else None, threads)
+        shipped_files = SHIPPED_FILES if model_path is None else None
+        self.graph = open_graph(runtime, precision, path, shipped_files, threads)
         warm_up(self, path, frames=2)
 
     def resized(self, input_size: tuple[int, int]) -> NanoDetDetector:
@@ -175,7 +190,8 @@ class NanoDetDetector(PersonDetector):
         width, height = self.input_size
         grows = "" if self.max_shrink is None else f", larger frames shrunk {self.max_shrink:g}x"
         return (
-            f"nanodet {self.model_path.name} {width}x{height} {mode}{grows}, {self.graph.runtime}"
+            f"nanodet {self.model_path.name} {width}x{height} {mode}{grows}, "
+            f"{self.graph.runtime} {self.graph.precision}"
         )
 
     def detect(self, frames: Sequence[np.ndarray]) -> list[Detections]:

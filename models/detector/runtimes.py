@@ -8,9 +8,12 @@ in, NanoDet's ``person`` [N, A, 5] out (``models.detector.nanodet``), and the te
 each against TensorFlow's reference outputs.
 
 - **onnxruntime** always works (a base dependency): the fallback.
-- **openvino** (``pip install momloc[openvino]``) reads the same ONNX file; it compiles one
-  static-shape model per input shape (batch, height, width) on first use, because its dynamic-
-  shape path cost more CPU in the measurement.
+- **openvino** (``pip install momloc[openvino]``) reads the same ONNX file (FP32) or the INT8
+  model ``nanodet_person.int8.xml/.bin`` quantized offline by ``tools/quantize_nanodet.py``
+  (NNCF post-training quantization); it compiles one static-shape model per input shape (batch,
+  height, width) on first use, because its dynamic-shape path cost more CPU in the measurement.
+  INT8 halves the CPU per pair against onnxruntime FP32 and keeps recall within a point; the
+  same quantization for onnxruntime lost more than a point and is not shipped (the bench).
 - **ncnn** runs ``nanodet_person.ncnn.param/.bin``, converted offline from the ONNX file by
   ``tools/convert_nanodet_ncnn.py``: NanoDet's native runtime. ncnn has no batch: one extractor
   per frame, each normalised by ncnn itself. It uses OpenMP, whose threads spin after each
@@ -19,8 +22,9 @@ each against TensorFlow's reference outputs.
   imported unless the user set it. Only the shipped model exists for ncnn (a user's ONNX file
   would need the converter).
 
-``runtime: auto`` takes the first of :data:`PREFERRED` that imports, and logs one line when it
-falls back, so a missing optional runtime is visible but never fatal.
+An :class:`Engine` is a runtime and a precision. ``runtime: auto`` / ``precision: auto`` take the
+first engine of :data:`PREFERRED` that fits the settings and whose runtime imports, and log one
+line when that is not the first one, so a missing optional runtime is visible but never fatal.
 """
 
 from __future__ import annotations
@@ -29,7 +33,7 @@ import importlib.util
 import logging
 import os
 from pathlib import Path
-from typing import Any, Literal, Protocol
+from typing import Any, Literal, NamedTuple, Protocol
 
 import numpy as np
 
@@ -37,10 +41,25 @@ from common.errors import MomlocError
 from common.onnx_session import default_threads, open_session
 
 Runtime = Literal["auto", "onnxruntime", "openvino", "ncnn"]
-# Least CPU first at one thread (the daemon's detector beside the pipeline), by
-# bench/results/detector_runtimes.md; onnxruntime last: it always imports. At two threads the
-# order between runs on the shared machine was not stable, so one order serves all.
-PREFERRED: tuple[str, ...] = ("ncnn", "openvino", "onnxruntime")
+Precision = Literal["auto", "int8", "fp32"]
+
+
+class Engine(NamedTuple):
+    """A runtime and the precision of the shipped model it runs."""
+
+    runtime: str
+    precision: str
+
+
+# Least CPU first at one thread (the daemon's detector beside the pipeline) among the engines
+# that keep recall within a point of onnxruntime FP32, by bench/results/detector_runtimes.md;
+# onnxruntime FP32 last: it always imports. A user's model runs as it is (FP32, not ncnn).
+PREFERRED: tuple[Engine, ...] = (
+    Engine("openvino", "int8"),
+    Engine("ncnn", "fp32"),
+    Engine("openvino", "fp32"),
+    Engine("onnxruntime", "fp32"),
+)
 # How each gets installed: ncnn and onnxruntime are base dependencies, OpenVINO is an extra.
 INSTALL = {
     "onnxruntime": "pip install momloc",
@@ -54,10 +73,19 @@ STD_BGR = (57.375, 57.12, 58.395)
 log = logging.getLogger(__name__)
 
 
+class ShippedFiles(NamedTuple):
+    """The shipped model's other forms: ncnn's (converted) and OpenVINO's INT8 (quantized)."""
+
+    ncnn_param: Path
+    ncnn_weights: Path
+    openvino_int8: Path
+
+
 class NanoDetGraph(Protocol):
     """NanoDet's graph under one runtime."""
 
     runtime: str
+    precision: str
 
     def run(self, batch: np.ndarray) -> np.ndarray:
         """uint8 BGR [N, H, W, 3] (H, W multiples of 32) → float32 ``person`` [N, A, 5]."""
@@ -69,41 +97,56 @@ def installed(runtime: str) -> bool:
     return importlib.util.find_spec(runtime) is not None
 
 
-def choose_runtime(runtime: Runtime, user_model: bool) -> str:
-    """The runtime ``auto`` stands for here (the first installed of :data:`PREFERRED`; ncnn only
-    for the shipped model), or ``runtime`` itself when it is installed; else MomlocError."""
-    if runtime == "auto":
-        candidates = [c for c in PREFERRED if not (c == "ncnn" and user_model)]
-        for candidate in candidates:
-            if installed(candidate):
-                if candidate != candidates[0]:
-                    log.info(
-                        "detector runtime: %s is not installed, using %s (%s for the faster one)",
-                        candidates[0],
-                        candidate,
-                        INSTALL[candidates[0]],
-                    )
-                return candidate
-        raise MomlocError("detector runtime: none installed (onnxruntime is a dependency)")
-    if runtime not in INSTALL:
+def choose_engine(runtime: Runtime, precision: Precision, user_model: bool) -> Engine:
+    """The engine the settings stand for here: the first of :data:`PREFERRED` that matches
+    ``runtime`` and ``precision`` (``auto`` matches any) and is installed; else MomlocError."""
+    if runtime != "auto" and runtime not in INSTALL:
         raise MomlocError(f"detector runtime {runtime!r} is unknown (choose one of: auto, "
                           f"{', '.join(INSTALL)})")  # fmt: skip
-    if not installed(runtime):
+    if user_model and precision == "int8":
         raise MomlocError(
-            f"detector runtime {runtime!r} is not installed ({INSTALL[runtime]}, or runtime: auto)"
+            "detector precision 'int8' is for the shipped NanoDet only (a model_path runs as it "
+            "is: precision auto)"
         )
-    if runtime == "ncnn" and user_model:
+    if user_model and runtime == "ncnn":
         raise MomlocError(
             "detector runtime 'ncnn' runs the shipped NanoDet only (a model_path needs "
             "runtime onnxruntime or openvino)"
         )
-    return runtime
+
+    def fits(engine: Engine) -> bool:
+        if runtime not in ("auto", engine.runtime) or precision not in ("auto", engine.precision):
+            return False
+        return not user_model or (engine.precision == "fp32" and engine.runtime != "ncnn")
+
+    candidates = [engine for engine in PREFERRED if fits(engine)]
+    if not candidates:
+        offered = ", ".join(f"{e.runtime} {e.precision}" for e in PREFERRED)
+        raise MomlocError(
+            f"detector runtime {runtime!r} has no {precision} model (shipped: {offered})"
+        )
+    for engine in candidates:
+        if installed(engine.runtime):
+            if engine != candidates[0]:
+                log.info(
+                    "detector runtime: %s is not installed, using %s %s (%s for the faster one)",
+                    candidates[0].runtime,
+                    engine.runtime,
+                    engine.precision,
+                    INSTALL[candidates[0].runtime],
+                )
+            return engine
+    raise MomlocError(
+        f"detector runtime {runtime!r} is not installed ({INSTALL[candidates[0].runtime]}, or "
+        "runtime: auto)"
+    )
 
 
 class OnnxRuntimeGraph:
     """The ONNX file under onnxruntime (the project's session settings, common.onnx_session)."""
 
     runtime = "onnxruntime"
+    precision = "fp32"
 
     def __init__(self, path: Path, threads: int | None) -> None:
         self.path = path
@@ -129,13 +172,15 @@ class OnnxRuntimeGraph:
 
 
 class OpenVinoGraph:
-    """The ONNX file under OpenVINO's CPU plugin, FP32, one compiled model per input shape."""
+    """The ONNX file (FP32) or the INT8 IR under OpenVINO's CPU plugin, one compiled model per
+    input shape."""
 
     runtime = "openvino"
 
-    def __init__(self, path: Path, threads: int | None) -> None:
+    def __init__(self, path: Path, threads: int | None, precision: str = "fp32") -> None:
         import openvino
 
+        self.precision = precision
         if not path.is_file():
             raise MomlocError(f"detector model {path}: file not found")
         self.path = path
@@ -178,6 +223,7 @@ class NcnnGraph:
     """The converted ncnn files (``tools/convert_nanodet_ncnn.py``), one extractor per frame."""
 
     runtime = "ncnn"
+    precision = "fp32"
 
     def __init__(self, param: Path, weights: Path, threads: int | None) -> None:
         os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # before libgomp loads: see above
@@ -212,12 +258,18 @@ class NcnnGraph:
 
 
 def open_graph(
-    runtime: Runtime, onnx_path: Path, ncnn_files: tuple[Path, Path] | None, threads: int | None
+    runtime: Runtime,
+    precision: Precision,
+    onnx_path: Path,
+    shipped: ShippedFiles | None,
+    threads: int | None,
 ) -> NanoDetGraph:
-    """NanoDet's graph under ``runtime``; ``ncnn_files`` (param, bin) is None for a user's model."""
-    chosen = choose_runtime(runtime, user_model=ncnn_files is None)
-    if chosen == "ncnn" and ncnn_files is not None:
-        return NcnnGraph(*ncnn_files, threads)
-    if chosen == "openvino":
+    """NanoDet's graph under the chosen engine; ``shipped`` is None for a user's model."""
+    engine = choose_engine(runtime, precision, user_model=shipped is None)
+    if shipped is not None and engine == ("ncnn", "fp32"):
+        return NcnnGraph(shipped.ncnn_param, shipped.ncnn_weights, threads)
+    if shipped is not None and engine == ("openvino", "int8"):
+        return OpenVinoGraph(shipped.openvino_int8, threads, "int8")
+    if engine.runtime == "openvino":
         return OpenVinoGraph(onnx_path, threads)
     return OnnxRuntimeGraph(onnx_path, threads)

@@ -5,7 +5,7 @@ short in every view. In the simulated lounge the person in the armchair is ~0.8 
 height to the camera they face away from (their feet are further than their hips, so the
 expected height at the box bottom is smaller), which reads as standing, while the other camera
 sees a short, wide seated box. Localized from one standing box and one head-based box, that
-person was put 0.4-0.6 m off (``bench/results/postures.md``, breakdown by camera labels).
+person was put far off (``bench/results/postures.md``: the seated error by camera labels).
 Once the boxes are associated, the person's posture is the vote over their boxes
 (:meth:`~service.tracking.posture.BoxPostures.of`); a box of another label is converted as that
 posture says (a seated person's standing box from its top), and the association is localized
@@ -24,10 +24,10 @@ in the other view) keeps its own. Walkers measured in the simulated indoor rooms
 in ~3 % of boxes; the seated person's "standing" views are 0.74-0.84.
 
 Rejected: a lower per-box threshold for sitting (raising ``SEATED_RATIO`` from 0.78 to 0.9
-catches those views but also ~1.5 % more walker boxes, whose misplaced positions cost the
-walking scenes); the track's posture as a prior (the box-to-track link is only known after the
-association). The cost is one extra localization call per frame set with a mixed association,
-none otherwise.
+catches those views but reads ~1.5 % more of the simulated walkers' boxes as seated, each
+then localized from its head); the track's posture as a prior (the box-to-track link is only
+known after the association). The cost is one or two extra localization calls per mixed
+association and a height-model lookup per standing box of a multi-box association.
 """
 
 from __future__ import annotations
@@ -61,7 +61,6 @@ class Relocalizing(WithCovariance, Protocol):
     def localize(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray: ...
 
 
-SPLIT_DISAGREEING = True  # a seated and a tall box are split (module docstring)
 AGREE_RATIO = 0.9  # a "standing" box shorter than this (of a standing person's height) can be
 # a seated person's view that the per-box thresholds missed
 
@@ -94,7 +93,7 @@ def agree(
             for k, i in enumerate(association.detection_index)
             if i is not None and str(postures.labels[k][i]) in (SITTING, LYING)
         ]
-        if SPLIT_DISAGREEING and tall and low:  # a standing person's box and a seated one
+        if tall and low:  # a standing person's box and a seated one
             out[n] = _part(association, low, runtime)
             split.append(_part(association, tall, runtime))
             continue

@@ -78,8 +78,11 @@ def test_report_is_computed_from_the_rows() -> None:
         fake_row("drawn", (1920, 1080), None, 11.0),
         fake_row("drawn", (1920, 1080), 3.0, 30.0),
     ]
-    text = report(rows, {"vtest": 3, "drawn": 1}, "python -m bench.detector.highres_recall")
+    text = report(
+        rows, {"vtest": 3, "drawn": 1}, "python -m bench.detector.highres_recall", "openvino int8"
+    )
     lines = text.splitlines()
+    assert "median per frame on one openvino int8 thread" in text
     assert lines[0].startswith("# ")
     assert "`python -m bench.detector.highres_recall`" in text and "UTC" in text
     reading = next(line for line in lines if line.startswith("**Reading.**"))

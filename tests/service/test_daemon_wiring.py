@@ -75,8 +75,8 @@ def test_the_detectors_input_growth_is_a_setting() -> None:
 
 
 def test_the_detectors_runtime_is_a_typed_setting() -> None:
-    """``detector.runtime`` picks NanoDet's inference runtime; auto: the first installed of the
-    measured preference."""
+    """``detector.runtime`` and ``detector.precision`` pick NanoDet's inference engine; auto: the
+    first installed of the measured preference."""
     from models.detector import runtimes
     from models.detector.nanodet import NanoDetDetector
     from service.detection.schedule import DetectionScheduler
@@ -89,12 +89,18 @@ def test_the_detectors_runtime_is_a_typed_setting() -> None:
         stage = build_detect_stage(settings, None)
         assert isinstance(stage, DetectionScheduler)
         assert isinstance(stage.detector, NanoDetDetector)
-        return stage.detector.graph.runtime
+        return stage.detector.graph.runtime, stage.detector.graph.precision
 
-    assert built({"schedule": "every_frame"}, runtime="onnxruntime") == "onnxruntime"
-    preferred = runtimes.choose_runtime("auto", user_model=False)
+    assert built({"schedule": "every_frame"}, runtime="onnxruntime") == ("onnxruntime", "fp32")
+    preferred = runtimes.choose_engine("auto", "auto", user_model=False)
     assert built({"schedule": "auto"}) == preferred
     assert built({"schedule": "every_frame"}, threads=1, runtime="auto") == preferred
+    fp32 = runtimes.choose_engine("auto", "fp32", user_model=False)
+    assert built({"schedule": "every_frame"}, precision="fp32") == fp32
+    with pytest.raises(MomlocError, match=r"detector\.precision: Input should be 'auto'"):
+        built({"schedule": "every_frame"}, precision="fp16")
+    with pytest.raises(MomlocError, match="'onnxruntime' has no int8 model"):
+        built({"schedule": "every_frame"}, runtime="onnxruntime", precision="int8")
     with pytest.raises(MomlocError, match=r"detector\.runtime: Input should be 'auto'"):
         built({"schedule": "every_frame"}, runtime="tensorrt")
     with pytest.raises(MomlocError, match=r"detector\.runtime: Extra inputs"):
