@@ -48,7 +48,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.report import command_line
+from bench.report import command_line, write_report
 from models.mom.runtime import MomRuntime
 from models.mom.setup_area import SetupArea
 from models.simulate import PRESETS, Scene, SceneConfig
@@ -416,9 +416,7 @@ def main(argv: list[str] | None = None) -> int:
         *daily,
         "",
     ]
-    args.out.write_text("\n".join(text))
-    print("\n".join(text))
-    return 0
+    return write_report(args.out, "\n".join(text))
 
 
 if __name__ == "__main__":

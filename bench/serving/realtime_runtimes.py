@@ -22,7 +22,7 @@ import os
 from datetime import UTC, datetime
 from pathlib import Path
 
-from bench.report import command_line
+from bench.report import command_line, write_report
 from bench.serving.realtime import (
     ClipRig,
     ReplayedBoxes,
@@ -88,9 +88,7 @@ def main(argv: list[str] | None = None) -> int:
         *fmt_live(rows),
         "",
     ]
-    args.out.write_text("\n".join(lines))
-    print("\n".join(lines))
-    return 0
+    return write_report(args.out, "\n".join(lines))
 
 
 if __name__ == "__main__":
