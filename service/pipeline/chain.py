@@ -52,7 +52,7 @@ from service.stages import (
 from service.tracking.association import DEFAULT_MAX_ERROR_PX
 from service.tracking.association import associate as associate_people
 from service.tracking.measurements import coverage_function, measurement_covariances
-from service.tracking.posture import BoxPostures, PostureSmoother
+from service.tracking.posture import SITTING, BoxPostures, PostureSmoother
 from service.tracking.posture import normalise as normalise_postures
 from service.tracking.posture_agreement import agree as agree_postures
 from service.tracking.view_bias import ViewBias
@@ -123,7 +123,8 @@ class Chain:
             )
             if box_postures is not None:  # one posture per person (its boxes' vote)
                 found = agree_postures(found, detected, box_postures, area, runtime)
-                _outside_as_detected(found, detected, runtime)
+                seated = [a for a in found if box_postures.of(a.detection_index)[0] == SITTING]
+                _outside_as_detected(seated, detected, runtime)
             associations = gate_to_area(found, runtime, self.outside_area)
             if len(associations) < len(found):
                 self.outside = [a for a in found if not a.inside]
@@ -195,15 +196,17 @@ class Chain:
 def _outside_as_detected(
     associations: list[Association], detected: Sequence[Detections], runtime: LocalizationModel
 ) -> None:
-    """Mark outside the set-up area every association whose boxes the posture step replaced
-    and whose boxes *as detected* lie outside it.
+    """Mark outside the set-up area every one of the (seated) ``associations`` whose boxes the
+    posture step replaced and whose boxes *as detected* lie outside it.
 
     Why: a box cut by a person in front, or a detector's fragment of a body, is short like a
     seated person's, and its standing replacement reaches down to a floor point nearer the
     camera; on the real CMC room such boxes of people beyond the area were carried into it and
     served (``bench/results/real_cmc_chain_tuning.md``). A person really seated in the area is
     in it as detected too: their box bottom is the feet or a table, a little nearer the camera
-    than their hips, and the area has a margin.
+    than their hips, and the area has a margin. Not for lying people: a low wide box read as a
+    standing person's is put far beyond them, and a fall must not vanish
+    (``tests/e2e/test_falls.py``).
     """
     replaced = [a for a in associations if a.inside and _replaced(a, detected)]
     if not replaced:
