@@ -4,7 +4,7 @@ Per frame set the chain asks the localizer about the same boxes many times, in d
 groupings: every candidate cluster of the association, the lone views, the tracker's measurement
 covariance. Each row's result depends on that row alone, and a small batch costs its numpy and
 onnxruntime call overheads rather than its rows, so computing each distinct row once removes
-most of that work (``bench/results/demo_scene.md``). Rejected: passing one frame set's views
+most of that work (``bench/results/demo_cost.md``). Rejected: passing one frame set's views
 down the chain, which would couple every stage's signature to the others' needs.
 
 Bounded by clearing when full (a few seconds of frames), not by LRU order: the rows of a live
