@@ -221,7 +221,7 @@ def _as_detected(association: Association, detected: Sequence[Detections]) -> np
     """The association's boxes [K, 4] as the detector returned them."""
     boxes = np.array(association.boxes, dtype=np.float32, copy=True)
     for k, i in enumerate(association.detection_index):
-        if i is not None:
+        if i is not None and k < len(detected) and i < len(detected[k].boxes):
             boxes[k] = detected[k].boxes[i]
     return boxes
 
