@@ -208,10 +208,17 @@ def _outside_as_detected(
     standing person's is put far beyond them, and a fall must not vanish
     (``tests/e2e/test_falls.py``).
     """
-    replaced = [a for a in associations if a.inside and _replaced(a, detected)]
+    replaced, as_detected = [], []
+    for a in associations:
+        boxes = _as_detected(a, detected) if a.inside else None
+        if boxes is not None and not np.array_equal(
+            boxes, a.boxes.astype(np.float32), equal_nan=True
+        ):
+            replaced.append(a)
+            as_detected.append(boxes)
     if not replaced:
         return
-    boxes = np.stack([_as_detected(a, detected) for a in replaced])
+    boxes = np.stack(as_detected)
     world = np.asarray(runtime.localize(boxes), float)
     for a, flag in zip(replaced, runtime.inside(boxes, world).tolist(), strict=True):
         a.inside = bool(flag)
@@ -224,12 +231,6 @@ def _as_detected(association: Association, detected: Sequence[Detections]) -> np
         if i is not None and k < len(detected) and i < len(detected[k].boxes):
             boxes[k] = detected[k].boxes[i]
     return boxes
-
-
-def _replaced(association: Association, detected: Sequence[Detections]) -> bool:
-    return not np.array_equal(
-        _as_detected(association, detected), association.boxes.astype(np.float32), equal_nan=True
-    )
 
 
 def gate_to_area(
