@@ -39,6 +39,7 @@ from typing import Literal
 import numpy as np
 
 from models.detector.base import Detections
+from models.mom.setup_area import SetupArea
 from service.stages import (
     AreaAware,
     AssociateStage,
@@ -124,7 +125,7 @@ class Chain:
             if box_postures is not None:  # one posture per person (its boxes' vote)
                 found = agree_postures(found, detected, box_postures, area, runtime)
                 seated = [a for a in found if box_postures.of(a.detection_index)[0] == SITTING]
-                _outside_as_detected(seated, detected, runtime)
+                _outside_as_detected(seated, detected, runtime, area)
             associations = gate_to_area(found, runtime, self.outside_area)
             if len(associations) < len(found):
                 self.outside = [a for a in found if not a.inside]
@@ -194,20 +195,27 @@ class Chain:
 
 
 def _outside_as_detected(
-    associations: list[Association], detected: Sequence[Detections], runtime: LocalizationModel
+    associations: list[Association],
+    detected: Sequence[Detections],
+    runtime: LocalizationModel,
+    area: SetupArea | None,
 ) -> None:
     """Mark outside the set-up area every one of the (seated) ``associations`` whose boxes the
-    posture step replaced and whose boxes *as detected* lie outside it.
+    posture step replaced and whose boxes *as detected* are localized outside its floor area.
 
     Why: a box cut by a person in front, or a detector's fragment of a body, is short like a
     seated person's, and its standing replacement reaches down to a floor point nearer the
     camera; on the real CMC room such boxes of people beyond the area were carried into it and
     served (``bench/results/real_cmc_chain_tuning.md``). A person really seated in the area is
     in it as detected too: their box bottom is the feet or a table, a little nearer the camera
-    than their hips, and the area has a margin. Not for lying people: a low wide box read as a
-    standing person's is put far beyond them, and a fall must not vanish
-    (``tests/e2e/test_falls.py``).
+    than their hips, and the area has a margin. Only the floor position is judged: the image
+    check (:meth:`~models.mom.setup_area.SetupArea.boxes_in_region`) wants a standing
+    person's height, which a seated box never has (it dropped the demo's sofa sitter). Not for
+    lying people: a low wide box read as a standing person's is put far beyond them, and a fall
+    must not vanish (``tests/e2e/test_falls.py``).
     """
+    if area is None:
+        return
     replaced, as_detected = [], []
     for a in associations:
         boxes = _as_detected(a, detected) if a.inside else None
@@ -218,9 +226,8 @@ def _outside_as_detected(
             as_detected.append(boxes)
     if not replaced:
         return
-    boxes = np.stack(as_detected)
-    world = np.asarray(runtime.localize(boxes), float)
-    for a, flag in zip(replaced, runtime.inside(boxes, world).tolist(), strict=True):
+    world = np.asarray(runtime.localize(np.stack(as_detected)), float)
+    for a, flag in zip(replaced, area.contains(world).tolist(), strict=True):
         a.inside = bool(flag)
 
 

@@ -18,9 +18,7 @@ import numpy as np
 import pytest
 import websockets
 
-from models.mom.runtime import MomRuntime
 from service.demo import DEMO_SCENE
-from service.settings import DEMO_MODEL_DIR
 from tests.e2e.server import running_server
 
 pytestmark = pytest.mark.timeout(900)
@@ -52,13 +50,6 @@ def _run(srv: Any) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     return asyncio.run(collect())
 
 
-@pytest.mark.xfail(
-    MomRuntime.load(DEMO_MODEL_DIR).setup_area is None,
-    reason="the shipped demo model predates the set-up area (no height model, so no posture, "
-    "and the sitter is served ~0.45 m toward the cameras, near the seat 42 % of the time): "
-    "rebuild it with tools/make_demo_model.py (issue 27)",
-    strict=True,
-)
 def test_the_demo_sitter_is_seated_and_keeps_the_lounge_occupied() -> None:
     with running_server(scene=DEMO_SCENE, lockstep=True) as srv:
         snapshots, events = _run(srv)

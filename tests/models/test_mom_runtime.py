@@ -169,5 +169,12 @@ def test_world_bounds_are_the_training_positions_extent_and_absent_in_older_mode
     settings = Settings(cameras=[{"type": "v4l2", "device": "0"}] * 2)
     assert floor_extent(settings, runtime, None) == pytest.approx(expected)
     # a model written before world_bounds was stored loads, and the map falls back as before
-    older = MomRuntime.load(DEMO_MODEL_DIR)
+    older_dir = tmp_path / "older"
+    older_dir.mkdir()
+    meta = json.loads((DEMO_MODEL_DIR / "model.json").read_text())
+    meta.pop("world_bounds", None)
+    meta.pop("setup_area", None)
+    (older_dir / "model.json").write_text(json.dumps(meta))
+    (older_dir / "encoder.onnx").write_bytes((DEMO_MODEL_DIR / "encoder.onnx").read_bytes())
+    older = MomRuntime.load(older_dir)
     assert older.world_bounds is None and floor_extent(settings, older, None) is None

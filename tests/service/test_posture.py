@@ -129,22 +129,35 @@ def test_a_seated_person_short_in_one_view_is_read_seated_in_both() -> None:
     assert rows[0, 1, 3] == pytest.approx(100.0 + posture.SEATED_TOP * STANDING_PX)
 
 
+class _FloorArea:
+    """A set-up area of x < 3 m on the floor."""
+
+    def contains(self, world: np.ndarray) -> np.ndarray:
+        return np.asarray(world)[:, 0] < 3.0
+
+
 class _RowMap:
-    """A model whose floor x is a box's bottom / 100 and whose set-up area is x < 3 m."""
+    """A model whose floor x is a box's bottom / 100, whose set-up area is x < 3 m, and whose
+    image check (like :meth:`models.mom.setup_area.SetupArea.boxes_in_region`) wants a standing
+    person's height: 160 px or more."""
+
+    setup_area = _FloorArea()
 
     def localize(self, boxes: np.ndarray) -> np.ndarray:
         bottom = np.nanmax(np.asarray(boxes, float)[:, :, 3], axis=1)
         return np.stack([bottom / 100.0, np.zeros(len(bottom))], 1)
 
     def inside(self, boxes: np.ndarray, world: np.ndarray) -> np.ndarray:
-        return np.asarray(world)[:, 0] < 3.0
+        tall = np.nanmax(np.asarray(boxes, float)[:, :, 3] - np.asarray(boxes, float)[:, :, 1], 1)
+        return self.setup_area.contains(world) & (tall >= 160.0)
 
 
 def test_a_replaced_box_is_not_carried_into_the_set_up_area() -> None:
     """A short box beyond the area (a fragment, or a person cut by someone in front) reads as
     seated; its standing replacement reaches nearer the camera, into the area. The chain judges
     such a person by the boxes as detected (real CMC room: bench/results/real_cmc_chain_tuning.md);
-    a seated person inside the area, and boxes left as detected, keep their mark."""
+    a seated person inside the area (whose box as detected is never a standing person's height),
+    and boxes left as detected, keep their mark."""
     from service.pipeline.chain import _outside_as_detected, gate_to_area
 
     detected = [Detections(np.array([[0, 200, 80, 350], [0, 100, 80, 250]], np.float32),
@@ -158,6 +171,7 @@ def test_a_replaced_box_is_not_carried_into_the_set_up_area() -> None:
     seated = person([0, 40, 80, 200], 1)  # replaced: 2.0 m; as detected 2.5 m, inside too
     walker = person([0, 200, 80, 350], 0)  # as detected, beyond the area
     found = [fragment, seated, walker]
-    _outside_as_detected(found, detected, _RowMap())  # type: ignore[arg-type]
+    model = _RowMap()
+    _outside_as_detected(found, detected, model, model.setup_area)  # type: ignore[arg-type]
     assert [a.inside for a in found] == [False, True, True]  # the walker is the gate's job
     assert gate_to_area(found, _RowMap(), "drop") == [seated]

@@ -58,15 +58,21 @@ RECORDED = {  # gate 0.5 m, nanodet profile, service.tracking.tracker.RECOMMENDE
     # bench/results/real_cmc_chain_tuning.md); before: MOTA 84.64, recall 92.88, precision
     # 92.13, 4 switches, mean 0.1546, Acc@0.3 91.61, jitter 0.0259, lag 0.041 (seed 7: 91.56
     # before and with it).
-    "mota": 82.94,  # 10.3
-    "recall": 91.77,  # 71.2
-    "precision": 91.63,  # 54.3
-    "id_switches": 6,  # 13
+    # Re-recorded 2026-12-03 (issue 27) when the demo model was rebuilt with a set-up area and a
+    # height model (tools/make_demo_model.py; its boxes now come from the OpenVINO INT8 engine).
+    # Before: MOTA 82.94, recall 91.77, precision 91.63, 6 switches, mean 0.1501, Acc@0.3 92.00,
+    # single 0.181, jitter 0.0263, lag 0.039. Seeds 7 / 8: MOTA 91.56 / 87.47 before, 88.67 /
+    # 89.18 now. The rebuilt encoder is jitterier for standing people: 2.63 / 1.56 / 4.12 cm
+    # before, 6.00 / 3.77 / 4.40 cm now (seeds 3 / 7 / 8, same standing pairs +-4).
+    "mota": 88.65,  # 10.3
+    "recall": 92.36,  # 71.2
+    "precision": 96.51,  # 54.3
+    "id_switches": 5,  # 13
     "mean": 0.1501,  # 0.205
-    "acc@0.3": 92.00,  # 76.0
-    "single_mean": 0.181,  # 0.240
-    "jitter_m": 0.0263,  # 0.090
-    "lag_s": 0.039,  # 0.018
+    "acc@0.3": 92.37,  # 76.0
+    "single_mean": 0.164,  # 0.240
+    "jitter_m": 0.0600,  # 0.090
+    "lag_s": 0.042,  # 0.018
 }
 
 
@@ -114,7 +120,7 @@ def test_matched_errors(scores):
 
 def test_jitter_and_lag(scores):
     m = scores[0.5]
-    # 76 standing pairs since coasting tracks are served for 0.5 s only (83 at 1.5 s)
+    # 165 standing pairs (coasting tracks are served for 0.5 s only)
     assert m["jitter_n"] > 60 and m["lag_n"] > 500
     assert m["jitter_m"] <= RECORDED["jitter_m"] + 0.002, m["jitter_m"]
     assert abs(m["lag_s"] - RECORDED["lag_s"]) <= 0.02, m["lag_s"]
