@@ -63,10 +63,13 @@ RECORDED = {  # gate 0.5 m, nanodet profile, service.tracking.tracker.RECOMMENDE
     # Before: MOTA 82.94, recall 91.77, precision 91.63, 6 switches, mean 0.1501, Acc@0.3 92.00,
     # single 0.181, jitter 0.0263, lag 0.039. Seeds 7 / 8: MOTA 91.56 / 87.47 before, 88.67 /
     # 89.18 now. The rebuilt encoder is jitterier for standing people: 2.63 / 1.56 / 4.12 cm
-    # before, 6.00 / 3.77 / 4.40 cm now (seeds 3 / 7 / 8, same standing pairs +-4).
-    "mota": 88.65,  # 10.3
+    # before, 6.00 / 3.77 / 4.40 cm now (seeds 3 / 7 / 8, same standing pairs +-4). With it, a
+    # seated replacement began to be judged by its floor position as detected alone (the height
+    # check dropped every real sitter; service.pipeline.chain): 29 more false positives here
+    # (MOTA 88.65, precision 96.51 before); seeds 7 / 8 unchanged.
+    "mota": 86.42,  # 10.3
     "recall": 92.36,  # 71.2
-    "precision": 96.51,  # 54.3
+    "precision": 94.32,  # 54.3
     "id_switches": 5,  # 13
     "mean": 0.1501,  # 0.205
     "acc@0.3": 92.37,  # 76.0
