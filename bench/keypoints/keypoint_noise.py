@@ -4,8 +4,8 @@ bench/results/keypoint_noise.md and .json).
 The simulator makes keypoints as the true projected joints plus ``N(0, sigma · h + pixels)`` px
 (:mod:`models.simulate.noise`); ``models/simulate/profiles/nanodet.json`` assumed ``sigma`` 0.015,
 ``pixels`` 1.0. This benchmark measures them for
-:class:`models.detector.keypoints.KeypointEstimator` (MediaPipe Pose, full model, on the box widened
-by its margin) on OpenCV's real pedestrian video
+:class:`models.detector.keypoints_mediapipe.MediaPipePose` (MediaPipe Pose, full model, on the
+box widened by its margin) on OpenCV's real pedestrian video
 ``vtest.avi``, frames at 640×480 as in the detector benchmark (``bench.detector.data``).
 
 Method. Real video has no true joints, but it has hand-checked person boxes
@@ -62,7 +62,8 @@ Usage::
 
     python -m bench.keypoints.keypoint_noise [--sim-frames 400] [--bootstrap 2000]
 
-Run it in ``.venv-keypoints`` (MediaPipe pins numpy < 2); the statistics functions need only numpy.
+It needs MediaPipe (``momloc[keypoints]``, in the main environment); the statistics functions need
+only numpy, and ``bench.keypoints.keypoint_speed`` reuses them to compare the keypoint back-ends.
 """
 
 from __future__ import annotations
@@ -848,7 +849,7 @@ def render(result: dict[str, Any]) -> str:
         "",
         f"MediaPipe {result['mediapipe']} Pose, full model (complexity 1), static images, on each "
         "hand-checked box of `bench/data/vtest_people.json` widened by the estimator's margin "
-        f"({result['margin']}) (`models.detector.keypoints.KeypointEstimator`), frames of "
+        f"({result['margin']}) (`models.detector.keypoints_mediapipe.MediaPipePose`), frames of "
         f"`vtest.avi` "
         f"resized to 640×480; {result['real']['ms_per_crop']:.1f} ms per crop (wall). "
         f"A joint counts when its confidence is ≥ {threshold} (`models.mom.sampling`). "
@@ -1021,10 +1022,10 @@ def memory_line() -> str:
 def run(args: argparse.Namespace) -> dict[str, Any]:
     import mediapipe
 
-    from models.detector.keypoints import KeypointEstimator
+    from models.detector.keypoints_mediapipe import MediaPipePose
 
     begin = time.perf_counter()
-    estimator = KeypointEstimator()
+    estimator = MediaPipePose()
     try:
         everyone, counts, ms_per_crop = real_people(estimator)
     finally:

