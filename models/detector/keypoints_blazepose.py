@@ -12,6 +12,12 @@ MediaPipe on the same crops). The model is MediaPipe's BlazePose GHUM Lite landm
 - outputs ``landmarks`` [N, 39, 5] (x, y in input pixels, z, visibility and presence logits; the
   first 33 are MediaPipe's body landmarks) and ``pose_flag`` [N, 1] (pose presence, 0–1).
 
+Runtime: OpenVINO where it is installed (``momloc[openvino]``, the detector's default engine too),
+reading the same ONNX file, one compiled model per batch size as the detector does (its dynamic
+shapes cost more CPU there); otherwise onnxruntime. OpenVINO took less CPU for the same six crops
+(``bench/results/keypoint_speed.md``); both compute the same function (the parity test runs
+each).
+
 The region of interest mirrors MediaPipe's own from its detector: a square centred on the person,
 ``ROI_SCALE`` × the box's longer side (MediaPipe widens its body circle by 1.25 too), upright
 (the daemon's people stand or sit; a lying person's box is wide, and the square still holds
@@ -22,12 +28,15 @@ landmark threshold, 0.5) gives NaN rows, never a guess; confidence is the landma
 
 from __future__ import annotations
 
+import importlib.util
 from pathlib import Path
+from typing import Any, Literal
 
 import cv2
 import numpy as np
 
-from common.onnx_session import open_session
+from common.errors import MomlocError
+from common.onnx_session import default_threads, open_session
 from models.detector.base import verify_shipped
 from models.detector.keypoints import COCO_NAMES, MEDIAPIPE_TO_COCO
 
@@ -36,6 +45,75 @@ DEFAULT_MODEL = WEIGHTS_DIR / "blazepose_lite.onnx"
 INPUT_SIZE = 256
 ROI_SCALE = 1.25
 MIN_SIDE = 8  # px: a smaller box holds no pose worth a network pass
+OUTPUTS = ("landmarks", "pose_flag")
+KeypointRuntime = Literal["auto", "onnxruntime", "openvino"]
+
+
+class OnnxRuntimePose:
+    """The ONNX file under onnxruntime (the project's session settings)."""
+
+    runtime = "onnxruntime"
+
+    def __init__(self, path: Path, threads: int | None) -> None:
+        self.session = open_session(path, threads, what="keypoint model")
+
+    def run(self, crops: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        landmarks, flags = self.session.run(list(OUTPUTS), {"crops": crops})
+        return np.asarray(landmarks), np.asarray(flags)
+
+
+class OpenVinoPose:
+    """The ONNX file under OpenVINO's CPU plugin, one compiled model per batch size."""
+
+    runtime = "openvino"
+
+    def __init__(self, path: Path, threads: int | None) -> None:
+        import openvino
+
+        if not path.is_file():
+            raise MomlocError(f"keypoint model {path}: file not found")
+        self._core = openvino.Core()
+        try:
+            self._model = self._core.read_model(str(path))
+        except Exception as error:  # OpenVINO raises its own RuntimeError subclasses
+            first = (str(error).strip().splitlines() or [type(error).__name__])[0]
+            raise MomlocError(f"keypoint model {path}: not loadable (OpenVINO: {first})") from None
+        self._config = {
+            "INFERENCE_NUM_THREADS": default_threads(threads),
+            "NUM_STREAMS": 1,
+            "PERFORMANCE_HINT": "LATENCY",
+            "ENABLE_CPU_PINNING": False,  # the cameras' threads share these cores
+        }
+        self._requests: dict[int, Any] = {}
+
+    def run(self, crops: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        request = self._requests.get(len(crops))
+        if request is None:
+            model = self._model.clone()
+            model.reshape({"crops": [len(crops), INPUT_SIZE, INPUT_SIZE, 3]})
+            compiled = self._core.compile_model(model, "CPU", self._config)
+            request = self._requests[len(crops)] = compiled.create_infer_request()
+        result = request.infer({"crops": crops})
+        landmarks, flags = (np.asarray(result[name]).copy() for name in OUTPUTS)
+        return landmarks, flags
+
+
+def open_pose_graph(
+    runtime: KeypointRuntime, path: Path, threads: int | None
+) -> OnnxRuntimePose | OpenVinoPose:
+    """The network under ``runtime`` (``auto``: OpenVINO where it imports, else onnxruntime)."""
+    if runtime not in ("auto", "onnxruntime", "openvino"):
+        raise MomlocError(
+            f"keypoint runtime {runtime!r} is unknown (choose one of: auto, onnxruntime, openvino)"
+        )
+    openvino = importlib.util.find_spec("openvino") is not None
+    if runtime == "openvino" and not openvino:
+        raise MomlocError(
+            "keypoint runtime 'openvino' is not installed (pip install 'momloc[openvino]')"
+        )
+    if runtime == "openvino" or (runtime == "auto" and openvino):
+        return OpenVinoPose(path, threads)
+    return OnnxRuntimePose(path, threads)
 
 
 def roi_transforms(boxes: np.ndarray, scale: float = ROI_SCALE) -> np.ndarray:
@@ -65,15 +143,16 @@ class BlazePoseLite:
         model_path: str | Path = DEFAULT_MODEL,
         min_presence: float = 0.5,
         threads: int | None = None,
+        runtime: KeypointRuntime = "auto",
     ) -> None:
         model_path = Path(model_path)
         if model_path == DEFAULT_MODEL:
             verify_shipped(model_path)
         self.min_presence = float(min_presence)
-        self.session = open_session(model_path, threads, what="keypoint model")
+        self.graph = open_pose_graph(runtime, model_path, threads)
 
     def describe(self) -> str:
-        return "blazepose lite keypoints (onnxruntime, batched)"
+        return f"blazepose lite keypoints ({self.graph.runtime}, batched)"
 
     def estimate(self, frame: np.ndarray, boxes: np.ndarray) -> np.ndarray:
         """[M, 17, 3] x, y (frame pixels), confidence; NaN rows where no pose was found."""
@@ -104,7 +183,7 @@ class BlazePoseLite:
                 where.append((index, row))
         if not crops:
             return out
-        landmarks, flags = self.session.run(["landmarks", "pose_flag"], {"crops": np.stack(crops)})
+        landmarks, flags = self.graph.run(np.stack(crops))
         for (index, row), transform, points, flag in zip(
             where, transforms, landmarks, flags[:, 0], strict=True
         ):

@@ -4,10 +4,12 @@ the original graph (stored by tools/convert_blazepose.py), batching, and the cro
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 
 import numpy as np
 import pytest
 
+from common.errors import MomlocError
 from models.detector.keypoints import MEDIAPIPE_TO_COCO
 from models.detector.keypoints_blazepose import (
     DEFAULT_MODEL,
@@ -19,10 +21,23 @@ from models.detector.keypoints_blazepose import (
 )
 from models.detector.validation import background, person_frame
 
+RUNTIMES = [
+    pytest.param("onnxruntime"),
+    pytest.param(
+        "openvino",
+        marks=pytest.mark.skipif(
+            importlib.util.find_spec("openvino") is None,
+            reason="openvino is not installed (pip install 'momloc[openvino]')",
+        ),
+    ),
+]
 
-@pytest.fixture(scope="module")
-def estimator():
-    return BlazePoseLite(threads=1)
+
+@pytest.fixture(scope="module", params=RUNTIMES)
+def estimator(request):
+    found = BlazePoseLite(threads=1, runtime=request.param)
+    assert found.graph.runtime == request.param
+    return found
 
 
 def test_shipped_model_matches_its_checksum_and_names_both_licences():
@@ -35,9 +50,7 @@ def test_shipped_model_matches_its_checksum_and_names_both_licences():
 
 def test_onnx_reproduces_tensorflow_on_the_original_graph(estimator):
     reference = np.load(WEIGHTS_DIR / "blazepose_reference.npz")
-    landmarks, flag = estimator.session.run(
-        ["landmarks", "pose_flag"], {"crops": reference["crops"]}
-    )
+    landmarks, flag = estimator.graph.run(reference["crops"])
     assert reference["pose_flag"][0, 0] > 0.9 > 0.1 > reference["pose_flag"][1, 0]
     np.testing.assert_allclose(flag, reference["pose_flag"], atol=1e-4)
     # x, y in input pixels of the person crop: well under a pixel apart.
@@ -84,6 +97,11 @@ def test_boxes_too_small_or_absent_give_nan_rows(estimator):
     points = estimator.estimate(frame, np.array([[10, 10, 14, 200]], np.float32))
     assert points.shape == (1, 17, 3) and np.isnan(points).all()
     assert estimator.estimate_frames([frame, frame], [np.zeros((0, 4))] * 2)[1].shape == (0, 17, 3)
+
+
+def test_unknown_runtime_is_one_readable_error():
+    with pytest.raises(MomlocError, match="keypoint runtime 'tflite' is unknown"):
+        BlazePoseLite(runtime="tflite")  # type: ignore[arg-type]
 
 
 def test_roi_is_a_square_of_the_longer_side_centred_on_the_box():
