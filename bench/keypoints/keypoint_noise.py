@@ -62,6 +62,10 @@ Usage::
 
     python -m bench.keypoints.keypoint_noise [--sim-frames 400] [--bootstrap 2000]
 
+``--backend blazepose --out bench/results/keypoint_noise_blazepose.md`` measures the shipped
+default back-end the same way (BlazePose Lite, :mod:`models.detector.keypoints_blazepose`); the
+simulator's profiles still read the MediaPipe file (``bench.detector.profiles``).
+
 It needs MediaPipe (``momloc[keypoints]``, in the main environment); the statistics functions need
 only numpy, and ``bench.keypoints.keypoint_speed`` reuses them to compare the keypoint back-ends.
 """
@@ -306,8 +310,8 @@ def add_profile_noise(people: People, model: Any, rng: np.random.Generator) -> n
 
 
 def real_people(estimator: Any) -> tuple[People, dict[str, int], float]:
-    """Every hand-checked vtest person not ignored, with MediaPipe keypoints on its crop, the
-    label counts and the MediaPipe time per crop (ms, wall)."""
+    """Every hand-checked vtest person not ignored, with the estimator's keypoints on its crop,
+    the label counts and the estimator's time per crop (ms, wall)."""
     import cv2
 
     from bench.detector.data import FRAME_SIZE, VTEST_LABELS, ensure_vtest, load_labels
@@ -818,8 +822,9 @@ def summary(result: dict[str, Any]) -> list[str]:
         f"({foot['excess_px']:.1f} px), head {head['excess']:.3f} h "
         f"({head['excess_px']:.1f} px), hip x {hip['excess']:.3f} h "
         f"({hip['excess_px']:.1f} px).",
-        f"- Bias (median real − sim): foot {foot['bias']:+.3f} h (MediaPipe's ankle sits higher "
-        f"in the box than the simulator's), head {head['bias']:+.3f} h, "
+        f"- Bias (median real − sim): foot {foot['bias']:+.3f} h (the real ankle sits "
+        f"{'higher' if foot['bias'] > 0 else 'lower'} in the box than the simulator's), "
+        f"head {head['bias']:+.3f} h, "
         f"hip x {hip['bias']:+.3f} h; the simulator has no keypoint bias.",
         f"- Gross errors (a statistic > {GROSS} h from its height bin's own median, e.g. a "
         f"collapsed pose): foot {foot['gross']:.1%}, head {head['gross']:.1%}, hip x "
@@ -984,7 +989,7 @@ def render(result: dict[str, Any]) -> str:
         "- **The hand boxes' own error is inside the excess.** The labels give about ±1 px for "
         "the vertical edges of people fully in view and ±2 px for the horizontal ones (one "
         "annotator, one pass): for the foot and head groups the excess is an upper bound on "
-        "MediaPipe's noise as far as annotation goes (at 40 px, 1 px is 0.025 h); hip x carries "
+        "the keypoint noise as far as annotation goes (at 40 px, 1 px is 0.025 h); hip x carries "
         "the ±2 px side edges (about ±1.4 px in the centre if the two err independently).",
         "- **Pose and viewpoint mismatch** is not removed: the simulated walkers are seen by "
         "corner cameras 2.5 m up, vtest's pedestrians by one higher camera, some standing or "
@@ -1007,9 +1012,9 @@ def render(result: dict[str, Any]) -> str:
         "(`keypoints.correlation_s`, if the profile has it): the hand boxes are on isolated "
         "frames 1.5–3 s apart. The simulator reference uses no simulated noise at all "
         "(`DetectorProfile.exact()`), so it does not depend on the profile being measured.",
-        "- Real boxes are integer pixel edges scaled by 640/768; MediaPipe's coordinates are "
-        "fractions of the crop. A half-pixel convention difference would show in the bias "
-        "only.",
+        "- Real boxes are integer pixel edges scaled by 640/768; the keypoints are fractions of "
+        "the crop mapped back to frame pixels. A half-pixel convention difference would show in "
+        "the bias only.",
         "",
     ]
     return "\n".join(lines)

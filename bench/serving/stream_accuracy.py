@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import hashlib
+import json
 import os
 import platform
 import tempfile
@@ -58,6 +59,26 @@ def profile_key(profile: str | None) -> str:
     loaded = load_profile(profile if profile is not None else DEFAULT_PROFILE)
     digest = hashlib.sha1(repr(loaded).encode()).hexdigest()[:8]
     return f"{getattr(loaded, 'name', 'profile')}-{digest}"
+
+
+def with_keypoint_noise(profile: str | None, measurement: Path) -> str:
+    """A copy of ``profile`` (a shipped name or a path; the simulator's default when None) whose
+    keypoint noise comes from a ``bench.keypoints.keypoint_noise`` measurement of one keypoint
+    back-end (``bench.detector.profiles.keypoint_model``, as the shipped profiles get theirs);
+    written to the bench cache, its path returned. Lets the stream compare keypoint back-ends
+    without changing the shipped profiles."""
+    from bench.detector.profiles import keypoint_model
+    from models.simulate.profile import DEFAULT_PROFILE, PROFILE_DIR
+
+    name = profile or DEFAULT_PROFILE
+    source = Path(name) if name.endswith(".json") else PROFILE_DIR / f"{name}.json"
+    data = json.loads(source.read_text())
+    data["keypoints"], _ = keypoint_model(measurement)
+    data["name"] = f"{data['name']}+{measurement.stem}"
+    out = Path(tempfile.gettempdir()) / "momloc-bench-cache" / f"{data['name']}.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(data, indent=1))
+    return str(out)
 
 
 def train_cached(
@@ -300,8 +321,17 @@ def main(argv: list[str] | None = None) -> int:
         default="bbox",
         help="what the models read: the detector's boxes or the simulated keypoints",
     )
+    parser.add_argument(
+        "--keypoint-noise",
+        type=Path,
+        default=None,
+        help="take the profile's keypoint noise from this bench.keypoints.keypoint_noise "
+        "measurement (e.g. bench/results/keypoint_noise_blazepose.json)",
+    )
     args = parser.parse_args(argv)
     command = command_line("bench.serving.stream_accuracy", argv)
+    if args.keypoint_noise is not None:
+        args.profile = with_keypoint_noise(args.profile, args.keypoint_noise)
     if args.quick:
         args.frames, args.seeds, args.train_frames, args.epochs = 300, args.seeds[:1], 800, 40
     scenes = SCENES

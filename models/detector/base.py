@@ -85,6 +85,10 @@ class Resizable(Protocol):
     def resized(self, input_size: tuple[int, int]) -> PersonDetector: ...
 
 
+# The keypoint back-ends (models.detector.keypoints), named here so the settings can type them.
+KeypointBackend = Literal["blazepose", "mediapipe"]
+
+
 class DetectorSettingsBase(BaseModel):
     """Options every detector kind takes; a plugin's settings class adds its ``kind`` tag and own
     options (``models.detector.nanodet.NanoDetSettings``, ...)."""
@@ -100,7 +104,7 @@ class DetectorSettingsBase(BaseModel):
         description="Add COCO-17 keypoints to every box (a pose network on each person's crop); "
         "required by a model trained with --observation keypoints.",
     )
-    keypoint_backend: Literal["blazepose", "mediapipe"] = Field(
+    keypoint_backend: KeypointBackend = Field(
         "blazepose",
         description="The pose network for keypoints: blazepose (shipped ONNX, all crops of a "
         "frame set in one call) or mediapipe (MediaPipe Pose, needs momloc[keypoints]).",

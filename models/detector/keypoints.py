@@ -4,7 +4,8 @@ Two back-ends compute the same thing, ``[M, 17, 3]`` x, y (frame pixels) and con
 person box, NaN rows where no pose was found (never a guess):
 
 - ``blazepose`` (default, :mod:`models.detector.keypoints_blazepose`): BlazePose Lite's landmark
-  network as shipped ONNX, every crop of a frame set in one onnxruntime call; no extra install.
+  network as shipped ONNX, every crop of a frame set in one call (OpenVINO where installed, else
+  onnxruntime); no extra install.
 - ``mediapipe`` (:mod:`models.detector.keypoints_mediapipe`): MediaPipe Pose
   (``momloc[keypoints]``), one call per crop, the reference the default was measured against.
 
@@ -16,12 +17,12 @@ MediaPipe's 33 landmarks, mapped to COCO-17 by name (:data:`MEDIAPIPE_TO_COCO`).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Literal, Protocol
+from typing import Protocol
 
 import numpy as np
 
 from common.errors import MomlocError
-from models.detector.base import Detections, PersonDetector
+from models.detector.base import Detections, KeypointBackend, PersonDetector
 
 COCO_NAMES = (
     "nose", "left_eye", "right_eye", "left_ear", "right_ear",
@@ -83,7 +84,6 @@ class KeypointEstimator(Protocol):
     def close(self) -> None: ...
 
 
-KeypointBackend = Literal["blazepose", "mediapipe"]
 KEYPOINT_BACKENDS: tuple[KeypointBackend, ...] = ("blazepose", "mediapipe")
 DEFAULT_KEYPOINT_BACKEND: KeypointBackend = "blazepose"
 
