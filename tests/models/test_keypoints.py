@@ -145,3 +145,17 @@ def test_full_pose_model_runs_offline(monkeypatch):
     frame, truth = person_frame("camera", 400)
     points = MediaPipePose().estimate(frame, truth[None])
     assert np.isfinite(points).all()
+
+
+def test_settings_build_the_chosen_back_end():
+    from models.detector.base import detector_from_settings
+    from models.detector.keypoints import KeypointDetector
+    from models.detector.keypoints_blazepose import BlazePoseLite
+    from models.detector.ssdlite import SsdliteSettings
+
+    settings = SsdliteSettings(kind="ssdlite", keypoints=True)
+    detector = detector_from_settings(settings, threads=1)
+    assert isinstance(detector, KeypointDetector)
+    assert isinstance(detector.estimator, BlazePoseLite)
+    plain = detector_from_settings(SsdliteSettings(kind="ssdlite"), threads=1)
+    assert not isinstance(plain, KeypointDetector)

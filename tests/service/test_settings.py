@@ -183,3 +183,21 @@ def test_record_refuses_in_privacy_mode_one_line_exit_2(tmp_path):
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and "privacy is positions_only" in lines[0], result.stderr
     assert "MOMLOC_PRIVACY" in lines[0] and not out.exists()
+
+
+def test_keypoint_back_end_is_a_typed_detector_setting(tmp_path, monkeypatch):
+    monkeypatch.delenv("MOMLOC_PORT", raising=False)
+    cameras = "cameras: [{type: synthetic, index: 0}]\n"
+    path = write(
+        tmp_path,
+        cameras + "detector: {kind: nanodet, keypoints: true, keypoint_backend: mediapipe}\n",
+    )
+    settings = load_settings(path)
+    assert settings.detector.keypoints and settings.detector.keypoint_backend == "mediapipe"
+    assert load_settings(write(tmp_path, cameras)).detector.keypoint_backend == "blazepose"
+    with pytest.raises(MomlocError) as info:
+        load_settings(
+            write(tmp_path, cameras + "detector: {kind: nanodet, keypoint_backend: openpose}\n")
+        )
+    (line,) = str(info.value).splitlines()
+    assert ": detector.keypoint_backend: " in line and "blazepose" in line
