@@ -45,7 +45,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="nanodet: shrink larger frames by at most this much (a larger input; detector "
         "default 3; e.g. 100 keeps 320x256 for every frame)",
     )
-    parser.add_argument("--keypoints", action="store_true", help="add MediaPipe keypoints")
+    parser.add_argument(
+        "--keypoints", action="store_true", help="add COCO-17 keypoints on each person"
+    )
+    parser.add_argument(
+        "--keypoint-backend",
+        choices=("blazepose", "mediapipe"),
+        default="blazepose",
+        help="with --keypoints: blazepose (shipped, default) or mediapipe (momloc[keypoints])",
+    )
     parser.add_argument("--out-dir", type=Path, help="write annotated copies here")
     parser.add_argument("--no-write", action="store_true", help="only print, write no images")
     parser.add_argument("--json", action="store_true", help="print one JSON object per image")
@@ -66,7 +74,10 @@ def run(args: argparse.Namespace) -> int:
             raise MomlocError(f"image {path}: {reason}")
         images.append(image)
 
-    options: dict[str, object] = {"keypoints": args.keypoints}
+    options: dict[str, object] = {
+        "keypoints": args.keypoints,
+        "keypoint_backend": args.keypoint_backend,
+    }
     if args.model is not None:
         options["model_path"] = args.model
     if args.threshold is not None:

@@ -35,6 +35,18 @@ def test_detect_prints_boxes_and_writes_annotated_copies(tmp_path, capsys):
     assert (out_dir / "snapshot.detections.jpg").is_file()
 
 
+def test_detect_adds_the_shipped_keypoints(tmp_path, capsys):
+    frame, truth = person_frame("astronaut", 300, (0.5, 0.9))
+    person = tmp_path / "snapshot.png"
+    cv2.imwrite(str(person), frame)
+    assert main(["detect", "--json", "--no-write", str(person)]) == 0
+    assert "keypoints" not in json.loads(capsys.readouterr().out)
+    assert main(["detect", "--json", "--no-write", "--keypoints", str(person)]) == 0
+    (points,) = json.loads(capsys.readouterr().out)["keypoints"]
+    nose, left_shoulder = points[0], points[5]
+    assert truth[0] < nose[0] < truth[2] and truth[1] < nose[1] < left_shoulder[1] < truth[3]
+
+
 def test_detect_finds_a_1080p_snapshots_small_people_unless_told_to_squeeze(tmp_path, capsys):
     snapshot = tmp_path / "hd.png"
     tile, _ = person_frame("astronaut", 130, anchor=(0.5, 0.8))
