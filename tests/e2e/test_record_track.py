@@ -28,6 +28,7 @@ pytestmark = pytest.mark.timeout(180)
 ROOT = Path(__file__).resolve().parents[2]
 SNAPSHOT_KEYS = {"v", "seq", "t", "people", "frame"}
 PERSON_KEYS = {"id", "x", "y", "vx", "vy", "confidence", "cameras"}
+OPTIONAL_PERSON_KEYS = {"outside", "posture", "posture_confidence"}  # sent when they apply
 METRIC_KEYS = {"precision", "recall", "mota", "id_switches", "mean", "median", "acc@0.3"}
 
 
@@ -55,7 +56,8 @@ def read_positions(path: Path) -> list[dict]:
     for row in rows:
         assert set(row) == SNAPSHOT_KEYS and row["v"] == 1
         for person in row["people"]:
-            assert set(person) == PERSON_KEYS
+            assert set(person) - OPTIONAL_PERSON_KEYS == PERSON_KEYS
+            assert ("posture" in person) == ("posture_confidence" in person)
     assert [r["frame"] for r in rows] == list(range(len(rows)))
     return rows
 

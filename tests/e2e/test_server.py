@@ -48,7 +48,17 @@ def test_stream_seq_increases_and_matches_snapshot_schema(server):
         WIRE.validate_python(m)  # the types of service.snapshot, no other field
         assert m["v"] == 1 and set(m) == {"v", "seq", "t", "people"}
         for p in m["people"]:
-            assert set(p) == {"id", "x", "y", "vx", "vy", "confidence", "cameras"}
+            # posture fields are sent only when they apply (the demo model has a height model)
+            assert set(p) - {"outside", "posture", "posture_confidence"} == {
+                "id",
+                "x",
+                "y",
+                "vx",
+                "vy",
+                "confidence",
+                "cameras",
+            }
+            assert ("posture" in p) == ("posture_confidence" in p)
             assert 0.0 <= p["confidence"] <= 1.0 and set(p["cameras"]) <= {0, 1}
     # t is wall-clock capture time (a monotonic one would be seconds since boot): since the
     # daemon started, never in the future; no bound on the delay, which a loaded machine sets
