@@ -22,6 +22,7 @@ import websockets
 
 from bench.serving.falls import SetupOnly
 from service.demo import DEMO_PRESET
+from service.outputs.falls import FallRules
 from service.settings import DEMO_MODEL_DIR
 from tests.e2e.mqtt_broker import Subscriber
 from tests.e2e.server import running_server
@@ -68,8 +69,8 @@ def test_a_fall_arrives_over_the_websocket_and_in_the_zones(model_with_area, mon
         fall, cleared = falls
         assert fall["type"] == "fall" and fall["falls"] == [fall["id"]]
         assert fall["zones"] == ["kitchen"] and np.hypot(fall["x"] - 3.0, fall["y"] - 3.0) < 0.8
-        # the scene drops the person 3 s after they reach the spot; lying_s (10 s) later: reported
-        assert 10.0 <= fall["t"] - fall["since"] <= 13.0
+        # reported once the person has read lying for lying_s, within 3 s of the first lying read
+        assert FallRules().lying_s <= fall["t"] - fall["since"] <= 3.0
         assert cleared["id"] == fall["id"] and cleared["reason"] == "stood_up"
         assert cleared["since"] == fall["t"] and cleared["falls"] == []
         seqs = [e["seq"] for e in events]
