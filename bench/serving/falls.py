@@ -548,7 +548,9 @@ def main(argv: list[str] | None = None) -> int:
         "",
         "Daily life: three people per room walking, standing, crouching to pick things up (2-8 s) "
         "and sitting down on their seat (chairs, the sofa, desk chairs; 20-300 s) and getting up "
-        f"in random order, {args.daily_fps:g} fps (the interval: exact Poisson, Garwood):",
+        f"in random order, {args.daily_fps:g} fps, in scenes of an hour, each its own seed "
+        "(identity: each person's own boxes through the same posture code, no tracker; the "
+        "interval: exact Poisson, Garwood):",
         "",
         *daily,
         "",
