@@ -7,7 +7,7 @@ PIP := $(PY) -m pip install --quiet
 HOST ?= 127.0.0.1
 PORT ?= 8765
 
-.PHONY: demo test lint format docs bench bench-real bench-model bench-detector bench-service bench-setup bench-keypoints test-keypoints test-floors test-docker test-docker-arm64 clean
+.PHONY: demo test lint format docs bench bench-real bench-model bench-detector bench-service bench-falls bench-setup bench-keypoints test-keypoints test-floors test-docker test-docker-arm64 clean
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -75,6 +75,10 @@ bench-service: $(VENV)/.stamp-dev
 	$(PY) -m bench.serving.stream_accuracy --observation keypoints --out bench/results/stream_accuracy_keypoints.md
 	$(PY) -m bench.serving.stream_bound
 	$(PY) -m bench.serving.offline_track
+
+# Falls reported in time and false falls per 24 person-hours (bench/results/falls.md).
+bench-falls: $(VENV)/.stamp-dev
+	$(PY) -m bench.serving.falls --jobs 2 --fall-seeds 8 --daily-hours 6 --daily-with identity
 
 # Real data (../shared/data, evaluation only; each bench prints one line and exits 0 without it).
 DATA ?= ../shared/data

@@ -95,7 +95,15 @@ class FallSettings(BaseModel):
         _FALL.lying_s,
         ge=0,
         le=600,
-        description="... and is reported once they have stayed down this long (seconds).",
+        description="... and is reported once they have read lying this long in all "
+        "(seconds; a fall is to be reported within 3 s of the body reaching the floor).",
+    )
+    min_confidence: float = Field(
+        _FALL.min_confidence,
+        ge=0,
+        le=1,
+        description="... on a snapshot whose posture_confidence of lying is at least this "
+        "(a sit-down or a crouch misread as lying reads lower).",
     )
     clear_s: float = Field(
         _FALL.clear_s,
@@ -113,7 +121,9 @@ class FallSettings(BaseModel):
     )
 
     def rules(self) -> FallRules:
-        return FallRules(self.max_drop_s, self.lying_s, self.clear_s, self.lost_s)
+        return FallRules(
+            self.max_drop_s, self.lying_s, self.clear_s, self.lost_s, self.min_confidence
+        )
 
 
 class HomeAssistantSettings(BaseModel):

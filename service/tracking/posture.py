@@ -12,10 +12,15 @@ foot pixel looks). Per box, ``ratio`` = box height / expected height at its bott
 ``aspect`` = width / height:
 
 - **standing**: ratio ≥ ``SEATED_RATIO``; left as it is;
-- **lying**: ratio below ``LYING_RATIO``, or a wide box (aspect ≥ ``LYING_ASPECT``) below
-  ``LYING_WIDE_RATIO``, or a flat one (aspect ≥ ``LYING_FLAT_ASPECT``) below ``SEATED_RATIO``:
-  the body lies on the floor, so the box centre is on the floor near the hips; the standing box
-  there replaces it;
+- **lying**: ratio below ``LYING_RATIO``, or a flat box (aspect ≥ ``LYING_FLAT_ASPECT``)
+  below ``SEATED_RATIO``: the body lies on the floor, so the box centre is on the floor near the
+  hips; the standing box there replaces it. A box merely as wide as tall (aspect 1-1.5) at
+  0.45-0.6 is *not* lying: a person seated side-on in an armchair gives exactly that box (the
+  simulated lounge's armchair: 0.47-0.6 tall, aspect 1.0-1.3, one read in seven), while only one
+  lying read in twenty has it (lying bodies are mostly far shorter or flatter). Read as lying,
+  the armchair sitter was put 0.5 m off and, sitting down, raised false falls (``lying`` a
+  moment after ``standing``: ``bench/results/falls.md``). Until 2026-12-04 such a box was lying
+  below 0.6 of the height;
 - **sitting** (crouching too: both are a short, wider box): the head is ``SEATED_TOP`` of a
   standing person's height above the floor, so the feet of a standing person with the same head
   pixel are found by a fixed-point search on the height model, and that standing box replaces
@@ -54,11 +59,8 @@ SEATED_RATIO = 0.78  # box height / a standing person's there: below, not standi
 SEATED_ASPECT = 0.45  # ... and at least this wide per unit height (an occluded walker's
 # visible upper half is short too, but narrow)
 LYING_RATIO = 0.45
-LYING_ASPECT = 1.0
-LYING_WIDE_RATIO = 0.6  # a wide box is lying only if this short: a seated person seen from the
-# side is as wide as tall (aspect up to ~1.3) at 0.6-0.7 of a standing height, a lying one
-# below 0.6 (the simulated lounge's ratios: bench/results/postures.md)
 LYING_FLAT_ASPECT = 1.5  # wider than any seated box measured
+LYING_SURE_ASPECT = 1.0  # a lying box's confidence grows with its width beyond this
 SEATED_TOP = 0.64  # a seated head's top over the expected standing height (module docstring)
 BORDER_PX = 2.0  # a box this close to the image border may be cut off: not judged
 STANDING_ASPECT = 0.4  # width of the standing box that replaces a seated or lying one
@@ -90,8 +92,7 @@ def classify(ratio: np.ndarray, aspect: np.ndarray) -> tuple[np.ndarray, np.ndar
     """Labels [N] and confidences [N] from height ratios and aspects (module docstring)."""
     ratio, aspect = np.asarray(ratio, float), np.asarray(aspect, float)
     short = ratio < SEATED_RATIO
-    lying = (ratio < LYING_RATIO) | ((aspect >= LYING_ASPECT) & (ratio < LYING_WIDE_RATIO))
-    lying |= short & (aspect >= LYING_FLAT_ASPECT)
+    lying = (ratio < LYING_RATIO) | (short & (aspect >= LYING_FLAT_ASPECT))
     standing = ~lying & ((ratio >= SEATED_RATIO) | (aspect < SEATED_ASPECT))
     labels = np.where(lying, LYING, np.where(standing, STANDING, SITTING)).astype(object)
     margin = np.where(
@@ -99,7 +100,7 @@ def classify(ratio: np.ndarray, aspect: np.ndarray) -> tuple[np.ndarray, np.ndar
         (ratio - SEATED_RATIO) / 0.15,
         np.where(
             lying,
-            np.maximum(LYING_RATIO - ratio, aspect - LYING_ASPECT) / 0.3,
+            np.maximum(LYING_RATIO - ratio, aspect - LYING_SURE_ASPECT) / 0.3,
             np.minimum(SEATED_RATIO - ratio, np.abs(ratio - LYING_RATIO)) / 0.15,
         ),
     )

@@ -6,15 +6,21 @@ from __future__ import annotations
 import numpy as np
 
 from bench.serving.falls import (
+    IN_TIME_S,
     ROOMS,
+    Cached,
+    Fall,
     SetupOnly,
     daily_script,
+    fall_events,
     fall_script,
+    identity_snapshots,
+    match_falls,
     room_scene,
-    truth_events,
+    truth_snapshots,
 )
 from models.simulate.postures import LYING
-from service.outputs.falls import FALL
+from service.outputs.falls import FallRules
 
 FPS = 10.0
 
@@ -44,14 +50,24 @@ def test_daily_life_sits_only_on_its_own_seat_and_never_lies():
     assert "sitting" not in {s.posture for s in never}
 
 
-def test_the_true_association_runner_reports_a_scripted_fall():
+def test_the_true_association_runners_report_a_scripted_fall_in_time(tmp_path):
     room = ROOMS["lounge"]
     setup = SetupOnly.simulated("living-room", frames=900)  # the lounge's cameras
     route, falls = fall_script(room, np.random.default_rng(1), count=1)
     scene = room_scene(room, (tuple(route),), FPS, seed=1)
     frames = int(sum(s.seconds for s in route) * FPS)
-    events = truth_events(setup, scene, frames)
-    found = [e for e in events if e["type"] == FALL]
-    assert len(found) == 1
-    assert np.hypot(found[0]["x"] - falls[0].where[0], found[0]["y"] - falls[0].where[1]) < 1.0
-    assert falls[0].floor_t + 10.0 - 1.0 <= found[0]["t"] <= falls[0].floor_t + 10.0 + 3.0
+    for run in (truth_snapshots, identity_snapshots):
+        cached = Cached(run, run.__name__, tmp_path)
+        served = cached(setup, scene, frames)
+        assert cached(setup, scene, frames) == served  # read back from the cache
+        late, wrong = match_falls(fall_events(served, FallRules()), falls, FallRules())
+        assert wrong == 0 and late[0] is not None and 0.0 <= late[0] <= IN_TIME_S
+    assert len(list(tmp_path.glob("falls-*.pkl"))) == 2  # one per runner
+
+
+def test_a_fall_event_after_the_person_got_up_is_not_that_falls():
+    # twice at the same spot: down 20 s (LIE_S), up, 3 s standing, down again
+    falls = [Fall((1.0, 1.0), 10.0), Fall((1.1, 1.0), 34.0)]
+    second = {"t": 34.5, "x": 1.05, "y": 1.0}
+    late, wrong = match_falls([second], falls, FallRules())
+    assert late == [None, 0.5] and wrong == 0

@@ -3,25 +3,21 @@
 The scene is preset ``demo-fall`` (the demo's room and cameras: someone walks, stands, falls,
 lies 20 s and gets up, at three places in turn), its boxes the simulator's (nanodet profile),
 driven in lock-step (``tests.e2e.server.LockstepRig``: scene time, no wall clock in the
-detector's rules). Postures need the model's set-up area height model, which the shipped demo
-model (trained before set-up areas) lacks: the tests serve a copy of it with the set-up area a
-set-up on the demo room's walkers records (:meth:`models.mom.setup_area.SetupArea.fit`).
+detector's rules). Postures need the model's set-up area height model: the shipped demo model
+has one, so the tests serve it as it ships.
 """
 
 from __future__ import annotations
 
 import asyncio
 import json
-import shutil
 import uuid
-from pathlib import Path
 
 import numpy as np
 import pytest
 import websockets
 
-from bench.serving.falls import SetupOnly
-from service.demo import DEMO_PRESET
+from service.outputs.falls import FallRules
 from service.settings import DEMO_MODEL_DIR
 from tests.e2e.mqtt_broker import Subscriber
 from tests.e2e.server import running_server
@@ -32,29 +28,17 @@ SCENE = "demo-fall"
 KITCHEN = [[2.0, 2.0], [4.0, 2.0], [4.0, 4.0], [2.0, 4.0]]  # holds the first fall, at (3, 3)
 
 
-@pytest.fixture(scope="module")
-def model_with_area(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The demo model plus the set-up area of 900 frames of the demo room's walkers."""
-    folder = tmp_path_factory.mktemp("fall-model") / "model"
-    shutil.copytree(DEMO_MODEL_DIR, folder)
-    area = SetupOnly.simulated(DEMO_PRESET, frames=900).setup_area
-    meta = json.loads((folder / "model.json").read_text())
-    meta["setup_area"] = area.to_json()
-    (folder / "model.json").write_text(json.dumps(meta))
-    return folder
-
-
-def _fall_server(model: Path, monkeypatch: pytest.MonkeyPatch, **env: str):
+def _fall_server(monkeypatch: pytest.MonkeyPatch, **env: str):
     monkeypatch.setenv("MOMLOC_ZONES", json.dumps([{"name": "kitchen", "polygon": KITCHEN}]))
     for key, value in env.items():
         monkeypatch.setenv(key, value)
     return running_server(
-        scene=SCENE, people=0, lockstep=True, model_dir=model, detections="simulated"
+        scene=SCENE, people=0, lockstep=True, model_dir=DEMO_MODEL_DIR, detections="simulated"
     )
 
 
-def test_a_fall_arrives_over_the_websocket_and_in_the_zones(model_with_area, monkeypatch):
-    with _fall_server(model_with_area, monkeypatch) as srv:
+def test_a_fall_arrives_over_the_websocket_and_in_the_zones(monkeypatch):
+    with _fall_server(monkeypatch) as srv:
 
         async def fall_events() -> list[dict]:
             got: list[dict] = []
@@ -68,8 +52,8 @@ def test_a_fall_arrives_over_the_websocket_and_in_the_zones(model_with_area, mon
         fall, cleared = falls
         assert fall["type"] == "fall" and fall["falls"] == [fall["id"]]
         assert fall["zones"] == ["kitchen"] and np.hypot(fall["x"] - 3.0, fall["y"] - 3.0) < 0.8
-        # the scene drops the person 3 s after they reach the spot; lying_s (10 s) later: reported
-        assert 10.0 <= fall["t"] - fall["since"] <= 13.0
+        # reported once the person has read lying for lying_s, within 3 s of the first lying read
+        assert FallRules().lying_s <= fall["t"] - fall["since"] <= 3.0
         assert cleared["id"] == fall["id"] and cleared["reason"] == "stood_up"
         assert cleared["since"] == fall["t"] and cleared["falls"] == []
         seqs = [e["seq"] for e in events]
@@ -79,7 +63,7 @@ def test_a_fall_arrives_over_the_websocket_and_in_the_zones(model_with_area, mon
         assert [e["type"] for e in zones["recent_events"]].count("fall") == 1
 
 
-def test_a_fall_reaches_mqtt_and_home_assistant(model_with_area, monkeypatch, mosquitto):
+def test_a_fall_reaches_mqtt_and_home_assistant(monkeypatch, mosquitto):
     room = f"t{uuid.uuid4().hex[:8]}"
     sub = Subscriber(mosquitto.port, f"momloc/{room}/#", "homeassistant/#")
     env = {
@@ -91,7 +75,7 @@ def test_a_fall_reaches_mqtt_and_home_assistant(model_with_area, monkeypatch, mo
     config_topic = f"homeassistant/binary_sensor/momloc_{room}/fall/config"
     state_topic = f"momloc/{room}/fall"
     try:
-        with _fall_server(model_with_area, monkeypatch, **env):
+        with _fall_server(monkeypatch, **env):
             config = json.loads(sub.wait_for(lambda s: s.on(config_topic), timeout=120)[0].payload)
             assert config["device_class"] == "safety" and config["state_topic"] == state_topic
             assert config["availability_topic"] == f"momloc/{room}/availability"

@@ -8,6 +8,7 @@ import pytest
 
 from service.outputs.falls import FALL, FALL_CLEARED, FallDetector, FallRules
 from service.outputs.zones import Zone
+from service.tracking.posture import PostureSmoother
 
 FPS = 10.0
 
@@ -19,15 +20,28 @@ class Clock:
         self.detector = detector or FallDetector()
         self.t = 1000.0
         self.events: list[dict[str, Any]] = []
+        self.smoother = PostureSmoother()
 
     def hold(self, seconds: float, posture: str | None, pid: int = 1, present: bool = True,
-             x: float = 2.0, y: float = 1.0) -> Clock:  # fmt: skip
+             x: float = 2.0, y: float = 1.0, confidence: float | None = None) -> Clock:  # fmt: skip
         for _ in range(round(seconds * FPS)):
             self.t += 1.0 / FPS
             person: dict[str, Any] = {"id": pid, "x": x, "y": y}
             if posture is not None:
                 person["posture"] = posture
+            if confidence is not None:
+                person["posture_confidence"] = confidence
             self.events += self.detector.update(self.t, [person] if present else [])
+        return self
+
+    def served(self, seconds: float, box_posture: str, box_confidence: float = 1.0) -> Clock:
+        """Frames whose boxes read ``box_posture``, served as the chain serves a track: through
+        the posture smoother (label and its share of the evidence)."""
+        for _ in range(round(seconds * FPS)):
+            self.t += 1.0 / FPS
+            label, share = self.smoother.update(1, self.t, box_posture, box_confidence)
+            person = {"id": 1, "x": 2.0, "y": 1.0, "posture": label, "posture_confidence": share}
+            self.events += self.detector.update(self.t, [person])
         return self
 
     def types(self) -> list[str]:
@@ -98,15 +112,65 @@ def test_a_crouch_misread_as_lying_until_just_before_lying_s_is_not_a_fall():
 def test_dropouts_while_lying_neither_reset_nor_clear_the_fall():
     clock = Clock(FallDetector(FallRules(lying_s=10.0, lost_s=120.0)))
     clock.hold(5, "standing").hold(0.5, "sitting").hold(3, "lying")
+    since = clock.t - 2.9  # the first lying read
     clock.hold(4, "lying", present=False)  # the detector loses the person on the floor
     clock.hold(2, None)  # served coasting without a posture
     clock.hold(1.5, "sitting")  # seen lengthwise: reads seated for a moment
     clock.hold(0.5, "lying")
-    assert clock.types() == [FALL]  # within the 10 s after the drop + the first sighting after
-    assert clock.events[0]["t"] - clock.events[0]["since"] == pytest.approx(10.5, abs=0.01)
+    assert clock.events == []  # lying 2.9 s + 4.1 s dropout + 1.9 s unknown + 0.4 s = 9.3 s
+    clock.hold(0.7, "lying")
+    assert clock.types() == [FALL]  # 10 s of lying in all: the seated reads paused the sum
+    assert clock.events[0]["since"] == pytest.approx(since)
+    assert clock.events[0]["t"] - clock.events[0]["since"] == pytest.approx(11.6, abs=0.01)
     clock.hold(60, "lying", present=False)  # gone for a minute: still fallen
     assert clock.types() == [FALL]
     clock.hold(5, "lying")
+    assert clock.types() == [FALL]
+
+
+def test_the_shipped_rules_report_a_fall_within_3_s_of_the_body_on_the_floor():
+    clock = Clock()  # FallRules(): what the daemon runs
+    clock.served(5, "standing").served(0.4, "sitting")  # the drop: short boxes on the way down
+    on_floor = clock.t
+    clock.served(20, "lying")
+    assert clock.types() == [FALL]
+    fall = clock.events[0]
+    assert clock.detector.rules.lying_s <= fall["t"] - fall["since"]
+    assert fall["t"] - on_floor <= 3.0
+
+
+def test_a_long_wait_before_reporting_misses_the_3_s_target():
+    clock = Clock(FallDetector(FallRules(lying_s=10.0)))  # the rule before 2026-12-03
+    clock.served(5, "standing").served(0.4, "sitting")
+    on_floor = clock.t
+    clock.served(20, "lying")
+    assert clock.events[0]["t"] - on_floor > 3.0
+
+
+def test_a_lying_misread_at_low_confidence_is_not_a_fall_and_a_sure_one_is():
+    for confidence, expected in ((0.6, []), (0.9, [FALL])):
+        clock = Clock()
+        clock.hold(5, "standing").hold(2.5, "lying", confidence=confidence)  # lying_s passed
+        clock.hold(600, "sitting", confidence=0.9)  # then seated: the armchair
+        assert clock.types() == expected
+
+
+def test_an_armchair_sit_down_misread_as_lying_in_one_view_is_not_a_fall():
+    clock = Clock()
+    for _ in range(20):  # one view reads lying, the other seated: the vote goes either way
+        clock.served(10, "standing")
+        for _ in range(15):  # 4.5 s of mixed evidence: the track reads lying at a ~0.6 share
+            clock.served(0.2, "lying", 0.6).served(0.1, "sitting", 0.7)
+        clock.served(60, "sitting")
+    assert clock.events == []
+
+
+def test_seated_reads_while_down_pause_the_lying_time_without_resetting_it():
+    clock = Clock(FallDetector(FallRules(lying_s=1.5)))
+    clock.hold(5, "standing").hold(1.0, "lying")  # 0.9 s of lying (10 reads)
+    clock.hold(0.5, "sitting").hold(0.6, "lying")  # + 0.5 s: 1.4 s
+    assert clock.events == []
+    clock.hold(0.1, "lying")
     assert clock.types() == [FALL]
 
 
