@@ -7,7 +7,7 @@ PIP := $(PY) -m pip install --quiet
 HOST ?= 127.0.0.1
 PORT ?= 8765
 
-.PHONY: demo test lint format docs bench bench-real bench-model bench-detector bench-service bench-falls bench-setup bench-keypoints test-keypoints test-floors test-docker test-docker-arm64 clean
+.PHONY: demo test lint format docs bench bench-real bench-real-learning bench-model bench-detector bench-service bench-falls bench-setup bench-keypoints test-keypoints test-floors test-docker test-docker-arm64 clean
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -92,6 +92,10 @@ bench-real: $(VENV)/.stamp-dev
 	$(PY) -m bench.real.cmc_detector --data $(DATA)
 	$(PY) -m bench.detector.profiles
 	$(PY) -m bench.real.sim_vs_real --data $(DATA)
+
+# The real CMC room teaches itself and heals a bumped camera (issue 26, 4c; ~30 min on 2 cores).
+bench-real-learning: $(VENV)/.stamp-dev
+	nice -n 10 $(PY) -m bench.real.cmc_self_learning --data $(DATA)
 
 bench-setup: $(VENV)/.stamp-dev
 	$(PY) -m bench.setup.floor_prior_study

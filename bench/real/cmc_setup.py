@@ -13,6 +13,7 @@ of the training code, so a re-run reuses them and any change retrains. Two varia
 ``dense``   every labelled CMC1 row (3 people walking over the whole area)
 ``marks9``  the CMC1 rows within 0.3 m of a 3 x 3 grid of marks at the cell centres of the
             tracking area: what a user taping 9 marks and standing on them would record
+``marks4``  the same with a 2 x 2 grid (the self-learning bench's start, ``cmc_self_learning``)
 """
 
 from __future__ import annotations
@@ -45,12 +46,18 @@ TRAIN_SOURCES = (
 )
 
 
-def mark_grid() -> np.ndarray:
-    """The 9 marks [9, 2]: cell centres of a 3 x 3 grid over the tracking area."""
+def mark_grid(side: int = 3) -> np.ndarray:
+    """The ``side`` x ``side`` marks [side², 2]: cell centres of a grid over the tracking area."""
     (x0, x1), (y0, y1) = cmc_data.AREA
-    xs = x0 + (np.arange(3) + 0.5) * (x1 - x0) / 3
-    ys = y0 + (np.arange(3) + 0.5) * (y1 - y0) / 3
+    xs = x0 + (np.arange(side) + 0.5) * (x1 - x0) / side
+    ys = y0 + (np.arange(side) + 0.5) * (y1 - y0) / side
     return np.array([(x, y) for x in xs for y in ys])
+
+
+def near_marks(xy: np.ndarray, marks: np.ndarray, radius: float = MARK_RADIUS_M) -> np.ndarray:
+    """Bool [N]: the floor positions ``xy`` [N, 2] within ``radius`` of some mark."""
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    return np.linalg.norm(xy[:, None] - marks[None], axis=2).min(axis=1) <= radius
 
 
 def _import(argv: list[str]) -> None:
@@ -132,11 +139,10 @@ def replay_path(data: Path, sequence: str, cache: Path = CACHE) -> Path:
 def variant_rows(dataset: MomDataset, variant: str) -> MomDataset:
     if variant == "dense":
         return dataset
-    if variant == "marks9":
-        xy = dataset.world[:, :2].astype(np.float64)
-        near = np.linalg.norm(xy[:, None] - mark_grid()[None], axis=2).min(axis=1) <= MARK_RADIUS_M
-        return dataset.subset(near)
-    raise MomlocError(f"variant {variant}: not one of {', '.join(VARIANTS)}")
+    marks = {"marks9": 3, "marks4": 2}.get(variant)
+    if marks is not None:
+        return dataset.subset(near_marks(dataset.world[:, :2], mark_grid(marks)))
+    raise MomlocError(f"variant {variant}: not one of {', '.join((*VARIANTS, 'marks4'))}")
 
 
 def _key(dataset: MomDataset, variant: str) -> str:
