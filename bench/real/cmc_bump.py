@@ -37,14 +37,16 @@ def bump_homography(
     return out
 
 
-def move_boxes(boxes: np.ndarray, homography: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+def move_boxes(
+    boxes: np.ndarray, homography: np.ndarray, image_size: tuple[int, int]
+) -> np.ndarray:
     """Boxes [M, 4] (xyxy) moved by ``homography``: the bounding box of the moved corners,
     clipped to the image (NaN rows stay NaN)."""
     b = np.asarray(boxes, np.float64).reshape(-1, 4)
     corners = np.stack(
         [b[:, [0, 1]], b[:, [2, 1]], b[:, [2, 3]], b[:, [0, 3]]], axis=1
     )  # [M, 4, 2]
-    h = np.concatenate([corners, np.ones(corners.shape[:2] + (1,))], axis=2) @ homography.T
+    h = np.concatenate([corners, np.ones((*corners.shape[:2], 1))], axis=2) @ homography.T
     moved = h[..., :2] / h[..., 2:3]
     w, height = image_size
     lo = moved.min(axis=1)

@@ -105,7 +105,7 @@ def _healing(h: dict[str, Any]) -> str:
         f"{_f(h['check_after_s'], 0) + ' s' if h['check_after_s'] is not None else 'never'} "
         "after the bump (scene time; the healer was told from the bump on); the repaired model "
         f"went into service {_f(h['repaired_after_s'], 0)} s after it. Health says: "
-        f"\"{message}\".\n\n{table}\n"
+        f'"{message}".\n\n{table}\n'
     )
 
 
@@ -113,19 +113,20 @@ def report(results: dict[str, Any], seconds: float, machine: str) -> str:
     heal = results.get("healing")
     return (
         "# The real room learns: CMC, set up on a few marks, taught by people walking\n\n"
-        "Data: the CMC data set of Ong, Vo, Vo, Kim, Nordholm, \"A Bayesian Filter for "
-        "Multi-view 3D Multi-object Tracking with Occlusion Handling\", IEEE TPAMI 2020 (real "
+        'Data: the CMC data set of Ong, Vo, Vo, Kim, Nordholm, "A Bayesian Filter for '
+        'Multi-view 3D Multi-object Tracking with Occlusion Handling", IEEE TPAMI 2020 (real '
         "4-camera room, real Faster R-CNN boxes, 4 fps; evaluation only, read from `--data`). "
         "Protocol in `bench/real/cmc_self_learning.py`: a model set up on the CMC1 rows within "
         "0.3 m of a 2 × 2 (`marks4`) or 3 × 3 (`marks9`) grid of marks serves CMC1's and then "
-        "CMC2's raw boxes through the daemon's pipeline with its self-label collector (daemon "
-        "defaults); one self-improvement run (the `momloc train` child and the never-worse gate "
+        "CMC2's raw boxes through the daemon's pipeline with its self-label collector (the "
+        "daemon's default rules; `learning.min_separation_m` "
+        f"{results.get('min_separation_m', 1.0):g} m); one self-improvement run (the "
+        "`momloc train` child and the never-worse gate "
         "as on main); every model scored on CMC2: per frame from every person's real boxes "
         "(true association) and end to end through the chain (Hungarian at 0.5 m inside the "
         "authors' tracking area, as `real_cmc.md`). The candidate learned from CMC2's boxes, "
         "never its truth. The bump moves one camera's boxes by the homography of its image "
         "turned and shifted (`bench/real/cmc_bump.py`), from CMC2's first frame on.\n\n"
         f"{machine} `python -m bench.real.cmc_self_learning` in {seconds:.0f} s.\n\n"
-        f"{_improvement(results)}\n"
-        + ("" if heal is None else _healing(heal))
+        f"{_improvement(results)}\n" + ("" if heal is None else _healing(heal))
     )

@@ -72,10 +72,12 @@ def serve_learning(
     *,
     bumped: int | None = None,
     alert_frame: int = 0,
+    min_separation_m: float | None = None,
 ) -> LearningRun:
     """Serve ``replay`` with the model of ``model_dir``, collecting self-labels into
     ``data_dir`` (and, ``bumped`` a camera, healing it from ``alert_frame``; the run ends at
-    the repair). Call ``pipeline.stop()`` when done with the result."""
+    the repair). ``min_separation_m``: that setting instead of the daemon's default. Call
+    ``pipeline.stop()`` when done with the result."""
     runtime = MomRuntime.load(model_dir)
     feed = offline.detections_feed(replay, None)
     settings = offline.offline_settings(None, [str(replay)] * feed.num_cameras)
@@ -92,7 +94,9 @@ def serve_learning(
             min_views=learning.min_views,
             max_std_m=learning.max_std_m,
             max_cost=learning.max_cost,
-            min_separation_m=learning.min_separation_m,
+            min_separation_m=learning.min_separation_m
+            if min_separation_m is None
+            else min_separation_m,
             min_interval_s=learning.min_interval_s,
         ),
         moved=lambda: checked() | forced,

@@ -44,7 +44,7 @@ from bench.real.cmc_bump import bump_homography, bumped_dataset, bumped_replay
 from bench.real.cmc_chain import Ground, score, serve
 from bench.real.cmc_learning_run import chained, serve_learning
 from bench.real.cmc_setup import labelled_dataset, replay_path, trained_model, variant_rows
-from bench.report import RESULTS, machine_line, markdown_table
+from bench.report import RESULTS, machine_line
 from models.data.dataset import MomDataset
 from models.data.detections_replay import DetectionsReplay
 from models.mom.evaluate import evaluate as per_frame_eval
@@ -76,7 +76,7 @@ def chain(result: dict[str, Any]) -> dict[str, float]:
 
 def improvement(
     variant: str, models: dict[str, Path], cmc1: MomDataset, cmc2: MomDataset, data: Path,
-    work: Path,
+    work: Path, min_separation_m: float | None = None,
 ) -> dict[str, Any]:  # fmt: skip
     """Serve CMC1 + CMC2 with the ``variant`` model, collect, one improvement run, score."""
     room = work / f"improve-{variant}"
@@ -87,7 +87,7 @@ def improvement(
         [DetectionsReplay.load(replay_path(data, s)) for s in ("CMC1", "CMC2")]
     )
     joined.save(replay)
-    run = serve_learning(models[variant], replay, room)
+    run = serve_learning(models[variant], replay, room, min_separation_m=min_separation_m)
     kept = room / "candidate_kept"
 
     def keep(path: Path) -> LocalizationModel:
@@ -143,7 +143,9 @@ def healing(
     joined, offsets = chained([plain["CMC1"], moved["CMC2"], moved["CMC1"]])
     joined.save(room / "replay.npz")
     bump_frame = offsets[1] + int(plain["CMC2"].frame.min())
-    run = serve_learning(model_dir, room / "replay.npz", room, bumped=CAMERA, alert_frame=bump_frame)
+    run = serve_learning(
+        model_dir, room / "replay.npz", room, bumped=CAMERA, alert_frame=bump_frame
+    )
     run.pipeline.stop()
     assert run.healer is not None
     status = run.healer.status()
@@ -158,7 +160,8 @@ def healing(
     def errors(model: LocalizationModel | None, rows: MomDataset) -> dict[str, float | None]:
         if model is None:
             return {"all_m": None, "camera_m": None}
-        return {"all_m": per_frame(model, rows), "camera_m": per_frame(model, one_camera(rows, CAMERA))}
+        alone = one_camera(rows, CAMERA)
+        return {"all_m": per_frame(model, rows), "camera_m": per_frame(model, alone)}
 
     ground = Ground.build(data, "CMC2", replay_path(data, "CMC2"))
     moved_path = moved["CMC2"].save(room / "cmc2_bumped.npz")
@@ -191,6 +194,7 @@ def run(args: argparse.Namespace) -> Path:
             **chain(evaluate(models["dense"], "CMC2", data)),
         },
         "improvement": [],
+        "min_separation_m": args.min_separation or LearningSettings().min_separation_m,
     }
     out = args.out or RESULTS / "self_learning_cmc.md"
     started = time.perf_counter()
@@ -198,7 +202,9 @@ def run(args: argparse.Namespace) -> Path:
         work = Path(tmp)
         for variant in variants:
             print(f"bench-real-learning: {variant} ...", file=sys.stderr, flush=True)
-            results["improvement"].append(improvement(variant, models, cmc1, cmc2, data, work))
+            results["improvement"].append(
+                improvement(variant, models, cmc1, cmc2, data, work, args.min_separation)
+            )
             write(results, out, time.perf_counter() - started)
         if not args.no_heal:
             print("bench-real-learning: bump ...", file=sys.stderr, flush=True)
@@ -219,6 +225,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--data", type=Path, default=DEFAULT_DATA, help="folder holding cmc/")
     parser.add_argument("--marks", type=int, nargs="+", default=[4, 9], choices=[4, 9])
     parser.add_argument("--no-heal", action="store_true", help="self-improvement only")
+    parser.add_argument(
+        "--min-separation",
+        type=float,
+        default=None,
+        help="learning.min_separation_m for the self-labels (default: the daemon's)",
+    )
     parser.add_argument("--out", type=Path, default=None, help="Markdown report")
     args = parser.parse_args(argv)
     if not cmc_data.available(args.data):
