@@ -99,13 +99,23 @@ def _healing(h: dict[str, Any]) -> str:
          row("after the repair", h["repaired"])],
     )  # fmt: skip
     message = h["status"][-1]["message"] if h["status"] else "no repair started"
+    check = h["check_after_s"]
+    fixed = h["repaired_after_s"]
     return (
         f"## A bumped camera (camera {h['camera']}: roll {ROLL_DEG:g}°, shift {SHIFT_PX:g} px)\n\n"
-        f"The daemon's own camera-moved check raised it "
-        f"{_f(h['check_after_s'], 0) + ' s' if h['check_after_s'] is not None else 'never'} "
-        "after the bump (scene time; the healer was told from the bump on); the repaired model "
-        f"went into service {_f(h['repaired_after_s'], 0)} s after it. Health says: "
-        f'"{message}".\n\n{table}\n'
+        "The daemon's own camera-moved check (reprojection; CMC has no images for the image "
+        + (
+            "check) never raised it during the run"
+            if check is None
+            else f"check) raised it {check:.0f} s after the bump (scene time)"
+        )
+        + " (the healer was told from the bump on); the repaired model "
+        + (
+            "never went into service"
+            if fixed is None
+            else f"went into service {fixed:.0f} s after it"
+        )
+        + f'. Health says: "{message}".\n\n{table}\n'
     )
 
 
