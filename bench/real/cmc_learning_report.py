@@ -129,7 +129,7 @@ def report(results: dict[str, Any], seconds: float, machine: str) -> str:
         "Protocol in `bench/real/cmc_self_learning.py`: a model set up on the CMC1 rows within "
         "0.3 m of a 2 × 2 (`marks4`) or 3 × 3 (`marks9`) grid of marks serves CMC1's and then "
         "CMC2's raw boxes through the daemon's pipeline with its self-label collector (the "
-        "daemon's default rules; `learning.min_separation_m` "
+        "daemon's rules and defaults, `learning.min_separation_m` "
         f"{results.get('min_separation_m', 1.0):g} m); one self-improvement run (the "
         "`momloc train` child and the never-worse gate "
         "as on main); every model scored on CMC2: per frame from every person's real boxes "

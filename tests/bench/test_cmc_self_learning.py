@@ -55,7 +55,7 @@ def test_mark_subsets_keep_rows_near_the_marks() -> None:
         marks = mark_grid(side)
         assert len(marks) == side * side and cmc_data.in_area(marks).all()
     marks = mark_grid(2)
-    xy = np.r_[marks[:1], marks[:1] + [0.29, 0.0], marks[:1] + [0.31, 0.0]]
+    xy = marks[0] + np.array([[0.0, 0.0], [0.29, 0.0], [0.31, 0.0]])
     assert near_marks(xy, marks).tolist() == [True, True, False]
 
 
