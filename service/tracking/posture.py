@@ -180,11 +180,10 @@ def cut_off(
     ``WHOLE_BODY_WIDTH`` of a standing person's height at its bottom centre.
 
     Why the width: a walker near the camera whose legs are below the frame leaves a short box
-    of head and torso, about half a standing height wide (the real CMC room's cut boxes that
-    read as lying: median 0.41-0.45, 97-99 % below 0.8), while a body lying across the view is
-    a body length wide (simulated fallen people whose box touches the frame: 98 % at 0.8 or
-    more; figures in ``bench/results/real_cmc_chain_tuning.md``). A body lying along the line
-    of sight at the border is narrow and counts as cut: its box says nothing sure either."""
+    of head and torso, about half a standing height wide (the real CMC room's lying boxes at the
+    border: median 0.42-0.48, 97-98 % below 0.8; ``bench/results/real_cmc_chain_tuning.md``),
+    while a body lying across the view is a body's length wide. A body lying along the line of
+    sight at the border is narrow and counts as cut: its box says nothing sure either."""
     boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
     cut = at_border(boxes, image_size)
     region = None if area is None or camera >= len(area.cameras) else area.cameras[camera]
