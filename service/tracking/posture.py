@@ -31,7 +31,10 @@ foot pixel looks). Per box, ``ratio`` = box height / expected height at its bott
   It is a figure of one simulated room, to be checked on real seated people.
 
 A box within ``BORDER_PX`` of the image border is left as it is (``unknown``): a person cut
-off by the frame edge is short for another reason.
+off by the frame edge is short for another reason. A real detector's box of a cut person ends a
+little inside the edge, up to ``CUT_MARGIN`` of the image side (:func:`at_border`): the chain
+does not trust a lying box there unless it is a body's length wide (:func:`cut_off`,
+:mod:`service.pipeline.chain`).
 
 The thresholds were read off the simulated ratios and aspects of each posture (the bench prints
 them); the confidence is how far the box is from the nearest threshold, scaled to 0.5..1.
@@ -63,6 +66,10 @@ LYING_FLAT_ASPECT = 1.5  # wider than any seated box measured
 LYING_SURE_ASPECT = 1.0  # a lying box's confidence grows with its width beyond this
 SEATED_TOP = 0.64  # a seated head's top over the expected standing height (module docstring)
 BORDER_PX = 2.0  # a box this close to the image border may be cut off: not judged
+CUT_MARGIN = 0.02  # of the image's width / height: a real detector's box of a person cut by
+# the frame edge ends this near it (bench/results/real_cmc_chain_tuning.md)
+WHOLE_BODY_WIDTH = 0.8  # a lying box at the border this wide (of a standing person's height
+# there) is a body across the view, not a torso cut by the frame (:func:`cut_off`)
 STANDING_ASPECT = 0.4  # width of the standing box that replaces a seated or lying one
 SMOOTHING_S = 1.0  # a track's posture: evidence averaged over this time
 
@@ -150,6 +157,41 @@ def box_postures(
         seen &= (boxes[:, 0] > BORDER_PX) & (boxes[:, 1] > BORDER_PX)
         seen &= (boxes[:, 2] < w - BORDER_PX) & (boxes[:, 3] < h - BORDER_PX)
     return np.where(seen, labels, UNKNOWN), np.where(seen, confidence, 0.0)
+
+
+def at_border(boxes: np.ndarray, image_size: np.ndarray, margin: float = CUT_MARGIN) -> np.ndarray:
+    """Whether each box [M, 4] ends within ``margin`` of the image's width or height of an edge
+    of an image of ``image_size`` (width, height): the person may be cut off by the frame.
+
+    Why a fraction of the image and not pixels: the real CMC room's Faster R-CNN boxes of people
+    whose legs are below the frame end 2-40 px above the bottom of a 1024 px image, and no
+    fixed pixel count holds from a 640 px webcam to a 1920 px one."""
+    boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
+    w, h = float(image_size[0]), float(image_size[1])
+    near = (boxes[:, 0] < margin * w) | (boxes[:, 2] > (1.0 - margin) * w)
+    return near | (boxes[:, 1] < margin * h) | (boxes[:, 3] > (1.0 - margin) * h)
+
+
+def cut_off(
+    boxes: np.ndarray, area: SetupArea | None, camera: int, image_size: np.ndarray
+) -> np.ndarray:
+    """Whether each box [M, 4] of camera ``camera`` may be a person cut off by the frame, so
+    that its centre is not their body's: at the border (:func:`at_border`) and narrower than
+    ``WHOLE_BODY_WIDTH`` of a standing person's height at its bottom centre.
+
+    Why the width: a walker near the camera whose legs are below the frame leaves a short box
+    of head and torso, about half a standing height wide (the real CMC room's lying boxes at the
+    border: median 0.42-0.48, 97-98 % below 0.8; ``bench/results/real_cmc_chain_tuning.md``),
+    while a body lying across the view is a body's length wide. A body lying along the line of
+    sight at the border is narrow and counts as cut: its box says nothing sure either."""
+    boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
+    cut = at_border(boxes, image_size)
+    region = None if area is None or camera >= len(area.cameras) else area.cameras[camera]
+    bottom = np.stack([0.5 * (boxes[:, 0] + boxes[:, 2]), boxes[:, 3]], 1)
+    expected = None if region is None else region.expected_height(bottom)
+    if expected is None:
+        return cut
+    return cut & (boxes[:, 2] - boxes[:, 0] < WHOLE_BODY_WIDTH * np.asarray(expected, float))
 
 
 def camera_postures(

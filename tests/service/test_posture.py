@@ -5,6 +5,7 @@ the track's smoothed posture, and the snapshot's optional field."""
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 
 import numpy as np
 import pytest
@@ -12,7 +13,7 @@ import pytest
 from models.detector.base import Detections
 from models.mom.setup_area import CameraRegion, SetupArea
 from service.pipeline.live import served_person
-from service.stages import Association, Track
+from service.stages import Association, Track, TrackAnchor
 from service.tracking import posture
 from service.tracking.posture import LYING, SITTING, STANDING, UNKNOWN, PostureSmoother
 from service.tracking.posture_agreement import agree, agreed_rows
@@ -144,7 +145,7 @@ class _RowMap:
 
     setup_area = _FloorArea()
 
-    def localize(self, boxes: np.ndarray) -> np.ndarray:
+    def localize(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
         bottom = np.nanmax(np.asarray(boxes, float)[:, :, 3], axis=1)
         return np.stack([bottom / 100.0, np.zeros(len(bottom))], 1)
 
@@ -176,3 +177,78 @@ def test_a_replaced_box_is_not_carried_into_the_set_up_area() -> None:
     _outside_as_detected(found, detected, model, model.setup_area)  # type: ignore[arg-type]
     assert [a.inside for a in found] == [False, True, True]  # the walker is the gate's job
     assert gate_to_area(found, _RowMap(), "drop") == [seated]
+
+
+class _RowMapCamera(_RowMap):
+    """The row map as one 640 × 480 camera with :func:`_area`'s height model (a standing person
+    is 200 px tall everywhere), set-up area x < 4.5 m, and y the box centre's column / 100 (the
+    people apart): what the chain's posture step needs."""
+
+    observation = "bbox"
+    num_cameras = 1
+    image_sizes = np.array([[640.0, 480.0]])
+    setup_area = SetupArea(  # type: ignore[assignment]
+        np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 5.0], [0.0, 5.0]]), 0.5, _area().cameras
+    )
+
+    def localize(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
+        boxes = np.asarray(boxes, float)
+        centre = np.nanmean(0.5 * (boxes[:, :, 0] + boxes[:, :, 2]), axis=1)
+        return np.stack([super().localize(boxes)[:, 0], centre / 100.0], 1)
+
+    def covariance(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
+        return np.tile(0.01 * np.eye(2), (len(boxes), 1, 1))
+
+    def reproject(self, world: np.ndarray) -> np.ndarray:
+        return np.full((len(world), 1, 2), [320.0, 240.0])
+
+
+def _each_box(
+    detections: Sequence[Detections],
+    runtime: _RowMapCamera,
+    /,
+    *,
+    max_error_px: float,
+    anchors: Sequence[TrackAnchor] = (),
+) -> list[Association]:
+    """An association stage double: every box of the one camera is a person."""
+    boxes = np.asarray(detections[0].boxes, float).reshape(-1, 1, 4)
+    world = runtime.localize(boxes) if len(boxes) else np.zeros((0, 2))
+    return [Association(boxes[i], [0], world[i], 0.0, [i]) for i in range(len(boxes))]
+
+
+def test_a_lying_body_is_kept_and_a_torso_cut_by_the_border_is_judged_as_detected() -> None:
+    """Three boxes read as lying (0.4 of a standing height); their standing replacements land
+    inside the area (centre rows 425-436 px: 4.25-4.36 m), as detected they lie beyond it
+    (4.65-4.74 m). A narrow one ending 6 px above the image bottom (within ``CUT_MARGIN``) may
+    be a walker whose legs are below the frame (the real CMC room's fragments,
+    ``bench/results/real_cmc_chain_tuning.md``): judged as detected, dropped. One ending 15 px
+    above it holds the whole body, and one as near the bottom but a body's length wide (a
+    fallen person near the camera): both kept and served lying."""
+    from service.pipeline.chain import Chain
+    from service.tracking.tracker import RECOMMENDED, Tracker
+
+    fallen = [200.0, 385.0, 360.0, 465.0]
+    cut = [400.0, 396.0, 520.0, 474.0]  # 120 px wide: 0.6 of a standing height
+    near = [40.0, 398.0, 240.0, 474.0]  # 200 px wide: a body across the view
+    boxes = np.array([fallen, cut, near])
+    assert posture.at_border(boxes, np.array([640, 480])).tolist() == [False, True, True]
+    assert posture.cut_off(boxes, _area(), 0, np.array([640, 480])).tolist() == [
+        False,
+        True,
+        False,
+    ]
+    runtime = _RowMapCamera()
+    chain = Chain(
+        Tracker(fps_hint=10, **RECOMMENDED),
+        associate=_each_box,  # type: ignore[arg-type]
+        view_bias=None,
+    )
+    detected = [Detections(boxes.astype(np.float32), np.ones(3, np.float32))]
+    for i in range(20):
+        served, tracks = chain(i / 10, detected, runtime, [True], i)  # type: ignore[arg-type]
+    assert [a.detection_index for a in served] == [[0], [2]]
+    assert [a.world[0] for a in served] == pytest.approx([4.25, 4.36])
+    assert [a.detection_index for a in chain.outside] == [[1]]
+    assert sorted(t.x for t in tracks) == pytest.approx([4.25, 4.36], abs=0.05)
+    assert all(t.posture is not None and t.posture[0] == LYING for t in tracks)
