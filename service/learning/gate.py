@@ -18,7 +18,7 @@ model in service produced:
   serving model's fused output) is not used at all. Why not that position: the candidate was
   trained to reproduce it, so scoring against it rewards copying the serving model, errors
   included; the check before this one did, and served a candidate that was worse against the
-  truth (``bench/results/self_learning_never_worse.md``).
+  truth (``bench/results/self_learning_never_worse_before.md``).
 
 Both checks are **paired**: the same rows, candidate minus current, so the room's own difficulty
 cancels, and the difference's standard error is what the check can tell apart. Rows are not
