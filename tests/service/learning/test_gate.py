@@ -120,9 +120,9 @@ def test_the_views_check_does_not_read_the_serving_models_positions() -> None:
 def test_a_candidate_that_copies_the_serving_models_errors_is_not_served() -> None:
     """The first gate's failure (seed 106, bench/results/self_learning_never_worse_before.md): a
     candidate trained towards the serving model's fused positions looks better against them
-    while it is worse against the truth. Here camera 1 of the model in service is 0.3 m off, its fused
-    positions 0.15 m; the candidate moved both cameras 0.2 m: closer to those positions, further
-    from the truth."""
+    while it is worse against the truth. Here camera 1 of the model in service is 0.3 m off,
+    its fused positions 0.15 m; the candidate moved both cameras 0.2 m: closer to those
+    positions, further from the truth."""
     marks, labels = marks_dataset(), labels_batch()
     current, candidate = Line((0.0, 0.3)), Line((0.2, 0.2))
     labels.world = current.localize(labels.boxes).astype(np.float32)  # what the room labels
