@@ -31,8 +31,8 @@ false boxes metres off would otherwise decide a mean.
 
 - it is not worse on the marks beyond ``MARKS_ALLOWANCE_M`` plus ``Z`` standard errors (a model
   fitted to the marks alone is the best possible fit *to the marks*, so a model that also fits
-  the rest of the room gives a few millimetres there: the measured candidates in
-  ``bench/results/self_learning_never_worse.md``), and
+  the rest of the room gives up a few millimetres there: the verdicts of the served candidates
+  in the never-worse rooms, ``bench/setup/self_learning.py --never-worse``), and
 - its cameras agree better on the held-out labels by more than ``Z`` standard errors of the
   paired difference *and* by at least ``min_gain`` (relative), from at least
   ``MIN_CLUSTERS`` independent groups of rows (fewer cannot estimate the noise).
