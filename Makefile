@@ -102,6 +102,8 @@ bench-setup: $(VENV)/.stamp-dev
 	$(PY) -m bench.setup.setup_study
 	$(PY) -m bench.setup.setup_stream
 	$(PY) -m bench.setup.self_learning
+	$(PY) -m bench.setup.self_learning --never-worse 20
+	$(PY) -m bench.setup.learning_load
 	$(PY) -m bench.setup.self_healing
 
 # Both keypoint back-ends run in the main environment: BlazePose Lite (shipped ONNX) and MediaPipe

@@ -24,12 +24,15 @@ bench/results/self_learning_never_worse.md.
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from bench.report import RESULTS, machine_line, markdown_table
 from bench.setup.room_run import RoomRun
@@ -39,8 +42,9 @@ from models.mom.evaluate import evaluate
 from models.mom.runtime import MomRuntime
 from models.mom.training.train import train_model
 from models.simulate import simulate
+from service.learning.gate import Check, compare, held_out
 from service.learning.improve import ImproveOptions, Improver
-from service.learning.labels import BEYOND_TRACK
+from service.learning.labels import BEYOND_TRACK, LabelBatch
 from service.offline.stream_eval import run_stream, scene_config
 from service.stages import LocalizationModel
 
@@ -97,10 +101,12 @@ def improvement_run(
     rows: list[list[str]] | None = None,
     decisions: list[dict[str, Any]] | None = None,
     save: Callable[[], None] = lambda: None,
+    keep: Path | None = None,
 ) -> tuple[list[list[str]], list[dict[str, Any]]]:
     """One room: 4-mark model (``trained``: a copy of that one), people walk, an improvement
     run at each of ``minutes``; appends to ``rows`` and ``decisions`` and calls ``save`` after
-    each (a long run keeps what it measured so far)."""
+    each (a long run keeps what it measured so far). ``keep``: a folder that gets each run's
+    candidate, self-labels and decision (:func:`rejudge` reads it)."""
     data_dir = work / f"room-{seed}"
     data_dir.mkdir()
     shutil.copyfile(marks, data_dir / "marks.npz")
@@ -111,7 +117,17 @@ def improvement_run(
         start = MomRuntime.load(data_dir / "model")
     room = RoomRun(scene_config(PRESET, 3, profile), seed, start, data_dir)
     options = ImproveOptions(nice_by=10, time_budget_s=budget_s)
-    improver = Improver(data_dir, room.labeler, room, marks=data_dir / "marks.npz", options=options)
+    kept = None if keep is None else keep / f"seed-{seed}"
+
+    def load(path: Path) -> MomRuntime:
+        if kept is not None:
+            shutil.rmtree(kept / "candidate", ignore_errors=True)
+            shutil.copytree(path, kept / "candidate")
+        return MomRuntime.load(path)
+
+    improver = Improver(
+        data_dir, room.labeler, room, marks=data_dir / "marks.npz", options=options, load=load
+    )
     rows = [] if rows is None else rows
     decisions = [] if decisions is None else decisions
     if streamed:
@@ -123,6 +139,11 @@ def improvement_run(
         room.advance(target - room.frame)
         walked = time.monotonic() - started
         current = room.runtime
+        if kept is not None and room.labeler.store is not None:
+            kept.mkdir(parents=True, exist_ok=True)
+            stored = room.labeler.store.load()
+            if stored is not None:
+                np.savez(kept / "labels.npz", allow_pickle=False, **stored.arrays())
         verdict = improver.run()
         print(f"seed {seed} {minute:g} min: {room.labeler.stats()}", flush=True)
         if verdict is None:
@@ -131,6 +152,8 @@ def improvement_run(
         assert candidate is not None
         truth = {"current": judge.per_frame(current), "candidate": judge.per_frame(candidate)}
         decisions.append({"seed": seed, "minute": minute, "serve": verdict.serve, **truth})
+        if kept is not None:
+            (kept / "decision.json").write_text(json.dumps(decisions[-1]))
         store = room.labeler.store
         stored = store.load() if store is not None else None
         labels = 0 if stored is None else stored.n
@@ -151,21 +174,32 @@ def improvement_run(
 
 
 def gate_table(decisions: list[dict[str, Any]]) -> str:
-    """Every gate decision against the truth, and how many served candidates were worse."""
+    """Every gate decision against the truth, and how many served candidates were worse (with
+    :func:`rejudge`'s decisions: also the gate of the run and both checks' differences)."""
     worse = [d for d in decisions if d["serve"] and d["candidate"] > d["current"]]
-    table = markdown_table(
-        ("seed", "minute", "served", "in service: per-frame m", "candidate: per-frame m"),
-        [
-            (d["seed"], f"{d['minute']:g}", "yes" if d["serve"] else "no",
-             f"{d['current']:.3f}", f"{d['candidate']:.3f}")
-            for d in decisions
-        ],
-    )  # fmt: skip
+    rejudged = bool(decisions) and "then" in decisions[0]
+    header = ["seed", "minute", "served"]
+    header += ["served then", "marks mm", "views mm"] if rejudged else []
+    header += ["in service: per-frame m", "candidate: per-frame m"]
+    rows = []
+    for d in decisions:
+        row = [d["seed"], f"{d['minute']:g}", "yes" if d["serve"] else "no"]
+        if rejudged:
+            marks, views = d["verdict"].marks, d["verdict"].labels
+            row += ["yes" if d["then"] else "no", _difference(marks), _difference(views)]
+        rows.append([*row, f"{d['current']:.3f}", f"{d['candidate']:.3f}"])
     return (
-        f"{table}\n\n"
+        f"{markdown_table(header, rows)}\n\n"
         f"Served candidates worse than the model they replaced (per-frame, truth): {len(worse)} "
         f"of {sum(d['serve'] for d in decisions)} served, {len(decisions)} decisions.\n"
     )
+
+
+def _difference(check: Check | None) -> str:
+    """A paired check's difference and standard error in millimetres."""
+    if check is None:
+        return ""
+    return f"{check.difference_m * 1000:+.1f} ± {check.se_m * 1000:.1f}"
 
 
 def never_worse(args: argparse.Namespace) -> Path:
@@ -194,17 +228,68 @@ def never_worse(args: argparse.Namespace) -> Path:
         collect_marks("2x2", args.seconds, args.profile, marks4)
         trained = work / "start"
         train(MomDataset.load(marks4), trained, NEVER_WORSE_BUDGET_S)
+        if args.keep is not None:
+            args.keep.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(marks4, args.keep / "marks4.npz")
+            shutil.copytree(trained, args.keep / "start", dirs_exist_ok=True)
         for seed in seeds:
             improvement_run(
                 seed, marks4, work, judge, args.minutes[:1], args.profile,
                 NEVER_WORSE_BUDGET_S, streamed=False, trained=trained,
-                decisions=decisions, save=save,
+                decisions=decisions, save=save, keep=args.keep,
             )  # fmt: skip
             shutil.rmtree(work / f"room-{seed}", ignore_errors=True)
     return path
 
 
+def rejudge(args: argparse.Namespace) -> Path:
+    """``--rejudge DIR``: the rooms a ``--never-worse N --keep DIR`` run kept, judged again by
+    the gate as it is now. The same candidates (training is not repeated), so the gate of that
+    run and this one are compared decision by decision."""
+    folder = args.rejudge
+    marks = MomDataset.load(folder / "marks4.npz")
+    start = MomRuntime.load(folder / "start")  # in service at each room's one decision
+    decisions: list[dict[str, Any]] = []
+    rooms = sorted(folder.glob("seed-*"), key=lambda p: int(p.name.split("-", 1)[1]))
+    for room in rooms:
+        if not (room / "decision.json").is_file():
+            continue  # a room the run did not finish
+        then = json.loads((room / "decision.json").read_text())
+        labels = LabelBatch.from_arrays(dict(np.load(room / "labels.npz")))
+        candidate = MomRuntime.load(room / "candidate")
+        verdict = compare(start, candidate, marks, labels.subset(held_out(labels)))
+        decisions.append(
+            {**then, "then": then["serve"], "serve": verdict.serve, "verdict": verdict}
+        )
+        print(f"seed {then['seed']}: {verdict.reason}", flush=True)
+    path = RESULTS / "self_learning_never_worse.md"
+    seeds = [d["seed"] for d in decisions]
+    worse_then = [d for d in decisions if d["then"] and d["candidate"] > d["current"]]
+    path.write_text(
+        "# The room that learns: the gate never serves a worse model\n\n"
+        f"{machine_line()}\n\n"
+        f"indoor-2cam, detector profile `{args.profile}`; a model set up on 4 floor marks "
+        f"serves {len(decisions)} rooms of 3 people walking (seeds {seeds[0]}–{seeds[-1]}); "
+        "after 2 minutes one self-improvement run (training capped at "
+        f"{NEVER_WORSE_BUDGET_S:g} s), its candidate judged by the gate and against the truth: "
+        f"per-frame error on a dense test room (simulate seed {TEST_SEED}). The rooms were run "
+        "once with `--never-worse 20 --keep DIR` under the gate before this one (the held-out "
+        "labels' single views scored against the serving model's own fused positions: column "
+        "*served then*) and re-judged by the gate as it is now (`--rejudge DIR`: the same "
+        "candidates; column *served*). Paired differences, candidate minus model in service, "
+        "with their clustered standard error: *marks* on the floor-mark rows, *views* the "
+        "leave-one-camera-out distance on the held-out self-labels "
+        "(:mod:`service.learning.gate`). Code: `bench/setup/self_learning.py`.\n\n"
+        f"{gate_table(decisions)}"
+        f"By the gate before this one: {len(worse_then)} of "
+        f"{sum(d['then'] for d in decisions)} served candidates were worse against the truth.\n"
+    )
+    return path
+
+
 def run(args: argparse.Namespace) -> Path:
+    if args.rejudge is not None:
+        return rejudge(args)
     if args.never_worse:
         return never_worse(args)
     quick = args.quick
@@ -270,6 +355,8 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs="+", default=[21, 22])
     parser.add_argument("--minutes", type=float, nargs="+", default=[2.0, 5.0, 10.0])
     parser.add_argument("--never-worse", type=int, default=0, metavar="N", help="N gate rooms")
+    parser.add_argument("--keep", type=Path, help="--never-worse: keep candidates and labels here")
+    parser.add_argument("--rejudge", type=Path, help="judge the rooms --keep kept again")
     print(run(parser.parse_args()))
 
 

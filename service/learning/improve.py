@@ -9,8 +9,9 @@ When the room has gathered ``every_labels`` new self-labels since the last run, 
 2. runs ``momloc train`` on it in a child process at ``nice`` + ``nice_by`` with a time budget,
    exactly as the set-up page's Train button does (:mod:`service.setup.training`: a child
    process keeps torch out of the daemon and the CPU cap out of the pipeline's way);
-3. scores the candidate and the model in service on the same floor marks and held-out labels and
-   lets :func:`service.learning.gate.judge` decide;
+3. scores the candidate and the model in service on the same floor marks and held-out labels,
+   row by row, and lets :func:`service.learning.gate.judge` decide (paired: only a candidate
+   shown better beyond the checks' noise is served);
 4. serves a winner like any trained model: installed as ``data_dir/model`` (the former one kept
    as ``model.previous``), hot-loaded through ``Pipeline.reload_model``, its ``model.json``
    saying it was learned by the room (``learning``: room, parent, verdict), so its labels keep
@@ -38,7 +39,7 @@ from typing import Any, Protocol
 from common.atomic import atomic_write_json, replace_folder
 from common.errors import MomlocError, shorten
 from models.data.dataset import DatasetError, MomDataset
-from service.learning.gate import Verdict, held_out, judge, score
+from service.learning.gate import Verdict, compare, held_out
 from service.learning.listener import SelfLabeler
 from service.learning.store import room_folder
 from service.learning.training_set import training_set
@@ -176,8 +177,7 @@ class Improver:
             self._train(recording, staging)
             candidate = self._load(staging)
             self.candidate = candidate  # loaded in memory: benches score it against the truth
-            test = labels.subset(hold)
-            verdict = judge(score(current, marks, test), score(candidate, marks, test))
+            verdict = compare(current, candidate, marks, labels.subset(hold))
             if verdict.serve:
                 self._install(staging, room, verdict)
             return verdict
