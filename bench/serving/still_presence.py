@@ -11,8 +11,9 @@ sofa (:class:`service.outputs.zones.ZoneTracker`). On top of the profile's misse
 this person for at most ~0.4 s: the table hides only the shins), ``--dropouts-per-hour`` blackouts
 of up to ``--longest-dropout`` s where no camera reports them (a seated person half hidden by
 a sofa back or a blanket is lost for seconds by real detectors). Scored: the share of time
-the zone's count is right (1), the number of ids served on the sitter (within ``SITTER_M`` of
-them: 1 means no id change) and of all served ids (the rest are the detector's false boxes
+the zone's count is right (1), the number of ids served on the sitter (each frame the served
+track nearest them, within ``SITTER_M``: 1 means no id change; a false track passing by while
+theirs is served is not theirs) and of all served ids (the rest are the detector's false boxes
 tracked elsewhere in the room), the number of enter/leave events, and the longest detector
 dropout. Time is the frame timestamps (no clock).
 
@@ -117,9 +118,10 @@ def still_presence(
         events += len(happened)
         ids |= {tr.id for tr in tracks}
         sitter = obs.world[0, :2]
-        sitter_ids |= {
-            tr.id for tr in tracks if np.hypot(tr.x - sitter[0], tr.y - sitter[1]) <= SITTER_M
-        }
+        near = [(float(np.hypot(tr.x - sitter[0], tr.y - sitter[1])), tr.id) for tr in tracks]
+        near = [n for n in near if n[0] <= SITTER_M]
+        if near:  # the nearest served track within SITTER_M serves the sitter
+            sitter_ids.add(min(near)[1])
         judged += 1
         right += int(zones.states["sofa"].count == 1)
     return {
