@@ -47,15 +47,20 @@ Output policy (documented for API users):
 - with ``doubt_outside`` the ghost check also doubts a single-view track whose own camera
   should *not* see it where it is (``coverage``): a box localized where the camera that
   reported it cannot see a person is a false box localized from its odd size and place;
-- a person who has stayed within ``still_radius_m`` (0.3 m) for ``still_after_s`` (5 s) when
-  last seen, by two cameras (``multi_view``), is *still*: unseen, their track is served and kept
-  for ``hold_still_s`` (15 s in ``RECOMMENDED``) instead of ``serve_coast_s`` / ``max_missing_s``,
-  and its gate stops growing after ``max_missing_s`` (they did not walk off). Why: a seated or
-  standing person is the one a detector loses for seconds (half hidden, still, low contrast),
-  and each loss used to end their id and empty their zone (issue 27: an hour on the sofa with
-  dropouts of seconds, ``bench/results/still_presence.md``). The price is a person who stood
-  still and then left unseen (out of view) is served where they stood for up to 15 s; the
-  walking scenes' MOTA did not move (same file);
+- a person seen by two cameras (``multi_view``) whose measured positions of the last
+  ``still_window_s`` (10 s, spanning at least ``still_after_s``, 5 s) lie, for a share of at least
+  ``still_share`` (0.6), within ``still_radius_m`` (0.5 m) of their median is *still* when last
+  seen (:mod:`service.tracking.stillness`: why a median of measurements and not the filtered
+  track): unseen, their track is held at that median (the still place, velocity 0), served and
+  kept for ``hold_still_s`` (15 s in ``RECOMMENDED``) instead of ``serve_coast_s`` /
+  ``max_missing_s``, and only a detection within ``still_gate_m`` (1 m) of the place takes it
+  back (a reappearing person re-identified where they sat; a false box across the room does
+  not drag the held track away). Why: a seated or standing person is the one a detector loses
+  for seconds (half hidden, still, low contrast), and each loss used to end their id and empty
+  their zone (issue 27: an hour on the sofa with dropouts of seconds,
+  ``bench/results/still_presence.md``, ``bench/results/still_presence_chain.md``). The price is
+  a person who stood still and then left unseen (out of view) is served where they stood for
+  up to 15 s; the walking scenes' MOTA is in the same files;
 - ``confidence`` is a running detection rate (exponential average of seen / unseen frame sets
   over ``rate_time_s`` seconds, so the same at any frame rate) times the coasting factor, in 0..1;
 - a track counts as seen by two cameras (``multi_view``: no longer subject to the single-view
@@ -116,6 +121,7 @@ from scipy.optimize import linear_sum_assignment
 from service.stages import Origin, Track, TrackAnchor
 from service.tracking.image_continuity import ImageContinuity, ViewMemory
 from service.tracking.motion import ConstantVelocity, StandOrWalk
+from service.tracking.stillness import StillMemory, StillRule
 
 _UNASSIGNED = 1e9
 # What the stream benchmark measured best (bench/results/tracker_tuning.md); the daemon's
@@ -163,8 +169,7 @@ class _State:
     multi_view_time: float = 0.0  # seconds seen by two or more cameras at once
     doubted_s: float = 0.0  # time single-view while another camera should have seen it
     shadowed_s: float = 0.0  # time spent within merge_m of an older track
-    anchor: np.ndarray | None = None  # where the track has stayed (within still_radius_m)
-    anchor_t: float = 0.0  # since when
+    still: StillMemory = field(default_factory=StillMemory)  # measured positions, still place
     cameras: list[int] = field(default_factory=list)
     origin: Origin = field(default_factory=Origin)  # of the position that last fed it
     views: ViewMemory = field(default_factory=ViewMemory)  # last box per camera
@@ -203,7 +208,10 @@ class Tracker:
         merge_m: float = 0.0,
         hold_still_s: float = 0.0,
         still_after_s: float = 5.0,
-        still_radius_m: float = 0.3,
+        still_radius_m: float = 0.5,
+        still_window_s: float = 10.0,
+        still_share: float = 0.6,
+        still_gate_m: float = 1.0,
         image_std_h: float = 0.0,
         image_growth_hps: float = 0.6,
         image_cap: float = 16.0,
@@ -239,8 +247,10 @@ class Tracker:
         self.merge_m = max(0.0, float(merge_m))
         self.serve_coast_s = self.max_missing_s if serve_coast_s is None else float(serve_coast_s)
         self.hold_still_s = max(0.0, float(hold_still_s))
-        self.still_after_s = float(still_after_s)
-        self.still_radius_m = float(still_radius_m)
+        self.still_rule = StillRule(
+            float(still_after_s), float(still_window_s), float(still_radius_m), float(still_share)
+        )
+        self.still_gate_m = float(still_gate_m)
         self.image = ImageContinuity(
             max(0.0, float(image_std_h)), float(image_growth_hps), float(image_cap)
         )
@@ -253,6 +263,7 @@ class Tracker:
         self._tracks: list[_State] = []
         self._next_id = 1
         self._time: float | None = None
+        self._previous_time: float | None = None  # of the update before the latest
 
     @property
     def time(self) -> float | None:
@@ -263,6 +274,7 @@ class Tracker:
         """Forget every track (ids keep increasing so clients never see an id reused)."""
         self._tracks.clear()
         self._time = None
+        self._previous_time = None
 
     def update(
         self,
@@ -295,6 +307,7 @@ class Tracker:
         if dt < 0:  # out-of-order frame set: treat as simultaneous rather than rewinding
             dt = 0.0
         self._frame_dt = dt
+        self._previous_time = self._time
         self._time = float(t) if self._time is None else max(self._time, float(t))
         for track in self._tracks:
             self._predict(track, dt)
@@ -340,7 +353,9 @@ class Tracker:
                 continue
             motion = copy.deepcopy(tr.motion)
             motion.predict(max(0.0, float(t) - now))
-            out.append(TrackAnchor(motion.mean[:2].copy(), motion.cov[:2, :2].copy()))
+            held = self._held_place(tr, now)
+            mean = motion.mean[:2] if held is None else held
+            out.append(TrackAnchor(mean.copy(), motion.cov[:2, :2].copy()))
         return out
 
     def hidden(self) -> list[tuple[Track, str]]:
@@ -366,14 +381,16 @@ class Tracker:
         return now - tr.last_seen <= max(limit, self.serve_coast_s) + 1e-9
 
     def _still(self, tr: _State) -> bool:
-        """A person seen by two cameras who had stayed within ``still_radius_m`` for
-        ``still_after_s`` when last seen: held through ``hold_still_s`` of misses."""
-        return (
-            self.hold_still_s > 0
-            and tr.multi_view
-            and tr.anchor is not None
-            and tr.last_seen - tr.anchor_t >= self.still_after_s
-        )
+        """A person seen by two cameras who was still when last seen
+        (:mod:`service.tracking.stillness`): held through ``hold_still_s`` of misses."""
+        return self.hold_still_s > 0 and tr.multi_view and tr.still.place is not None
+
+    def _held_place(self, tr: _State, update_t: float | None) -> np.ndarray | None:
+        """Where a still track unseen at the update of time ``update_t`` is held (its still
+        place); ``None`` for a track seen then or not still: that one is where its filter says
+        (a still person who gets up and walks, seen, is followed by the filter)."""
+        unseen = update_t is not None and update_t > tr.last_seen
+        return tr.still.place if unseen and self._still(tr) else None
 
     def _max_missing(self, tr: _State) -> float:
         return max(self.max_missing_s, self.hold_still_s) if self._still(tr) else self.max_missing_s
@@ -382,6 +399,9 @@ class Tracker:
         now = self._time if self._time is not None else 0.0
         missing = now - tr.last_seen
         mean = tr.motion.mean
+        held = self._held_place(tr, self._time)
+        if held is not None:  # a still person unseen: at their place, not moving
+            mean = np.array([held[0], held[1], 0.0, 0.0])
         coast = max(0.0, 1.0 - missing / self._max_missing(tr))
         return Track(
             id=tr.id,
@@ -431,9 +451,8 @@ class Tracker:
         track.motion.correct(z, self._robust(track, z, r))
         track.last_seen = t
         track.hits += 1
-        here = track.motion.mean[:2]
-        if track.anchor is None or np.linalg.norm(here - track.anchor) > self.still_radius_m:
-            track.anchor, track.anchor_t = here.copy(), t
+        if self.hold_still_s > 0:
+            track.still.remember(t, z, self.still_rule)
         weight = self._rate_weight(self._frame_dt)
         track.rate = track.rate * (1.0 - weight) + weight
         track.cameras = [int(k) for k in origin.cameras]
@@ -532,9 +551,9 @@ class Tracker:
             last_seen=t,
             cameras=[int(k) for k in origin.cameras],
             origin=origin,
-            anchor=np.asarray(z, np.float64)[:2].copy(),
-            anchor_t=t,
         )
+        if self.hold_still_s > 0:
+            state.still.remember(t, z, self.still_rule)
         state.views.remember(origin.boxes, t)
         # credited for one frame interval, as measured (the hint before a second update)
         self._count_views(state, self._frame_dt if self._frame_dt > 0 else 1.0 / self.fps_hint)
@@ -552,12 +571,21 @@ class Tracker:
         empty = np.zeros(0, dtype=int)
         if not self._tracks or not len(positions):
             return empty, empty
-        predicted = np.stack([tr.motion.mean[:2] for tr in self._tracks])
+        # a still person held unseen is expected at their still place, within still_gate_m
+        held = [self._held_place(tr, self._previous_time) for tr in self._tracks]
+        predicted = np.stack(
+            [
+                tr.motion.mean[:2] if h is None else h
+                for tr, h in zip(self._tracks, held, strict=True)
+            ]
+        )
         nu = positions[None, :, :] - predicted[:, None, :]  # [T, P, 2]
         dist = np.linalg.norm(nu, axis=2)
-        # a still person held unseen did not walk off: their gate stops growing at max_missing_s
-        missing = np.array([min(now - tr.last_seen, self.max_missing_s) for tr in self._tracks])
-        gate = self.gate_m + self.gate_growth_mps * missing
+        missing = np.array([now - tr.last_seen for tr in self._tracks])
+        gate = np.array([
+            self.gate_m + self.gate_growth_mps * m if h is None else self.still_gate_m
+            for m, h in zip(missing.tolist(), held, strict=True)
+        ])  # fmt: skip
         admit = dist <= gate[:, None]
         cost = dist
         if self.assign_cost == "likelihood":

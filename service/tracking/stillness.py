@@ -1,0 +1,71 @@
+"""Whether a tracked person is *still*, judged from where they were measured, and where.
+
+A person sitting or standing still is the one a detector loses for seconds, so the tracker holds
+a still person's track through misses (``hold_still_s`` in :mod:`service.tracking.tracker`). This
+module decides who is still and at which *place* the track is held.
+
+Why the measured positions and a median: the former rule asked the *filtered* track to stay
+within 0.3 m for 5 s. Through the daemon's chain that failed for a seated person (issue 27,
+``bench/results/still_presence_chain.md``): when one camera misses them the other's lone view
+puts them 0.3-0.5 m off, a detector fragment of their body during a dropout is localized 0.5 m
+off, and each such frame pulled the filter beyond the radius and restarted the clock; the next
+dropout then ended the track like a walker's. A person is now still when, over the last
+``window_s`` of their measurements (spanning at least ``after_s``), a share of at least ``share``
+lies within ``radius_m`` of the measurements' coordinate-wise median: a few frames of lone views
+or fragments do not change a median nor the share, a walker's measurements spread along their
+path (at 0.5 m/s a 10 s window spans 5 m, of which 1 m is within 0.5 m of the median). The
+median is the still *place*: an unseen still track is served there (not where its filter coasts
+with the velocity the last odd measurements gave it) and a reappearing detection near it takes
+the id again. Rejected: a wider radius or a shorter wait on the filtered track (both measured
+in the results file: neither holds the sitter).
+
+Times are the measurements' timestamps (no clock); the rule is in seconds and metres, so it
+means the same at any frame rate.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class StillRule:
+    """The still rule's settings (module docstring)."""
+
+    after_s: float = 5.0  # the measurements judged must span this long
+    window_s: float = 10.0  # measurements older than this (before the latest) are forgotten
+    radius_m: float = 0.5  # around the median
+    share: float = 0.6  # of the window's measurements within ``radius_m``
+
+    def __post_init__(self) -> None:
+        if not (0.0 < self.share <= 1.0 and self.radius_m > 0 and self.window_s >= self.after_s):
+            raise ValueError("still rule: need 0 < share <= 1, radius_m > 0, window_s >= after_s")
+
+
+@dataclass
+class StillMemory:
+    """One track's measured positions over the last ``window_s`` and its still place."""
+
+    times: deque[float] = field(default_factory=deque)
+    points: deque[tuple[float, float]] = field(default_factory=deque)
+    place: np.ndarray | None = None  # the still place when last judged; None: not still
+
+    def remember(self, t: float, z: np.ndarray, rule: StillRule) -> None:
+        """Add the measurement ``z`` [2] of time ``t`` and judge again (sets :attr:`place`)."""
+        self.times.append(float(t))
+        self.points.append((float(z[0]), float(z[1])))
+        while self.times and t - self.times[0] > rule.window_s + 1e-9:
+            self.times.popleft()
+            self.points.popleft()
+        self.place = self._judge(rule)
+
+    def _judge(self, rule: StillRule) -> np.ndarray | None:
+        if self.times[-1] - self.times[0] < rule.after_s - 1e-9:
+            return None
+        points = np.asarray(self.points)
+        median = np.median(points, axis=0)
+        near = np.linalg.norm(points - median, axis=1) <= rule.radius_m
+        return median if near.mean() >= rule.share else None
