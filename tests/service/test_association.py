@@ -8,8 +8,10 @@ import pytest
 from common.errors import MomlocError
 from service.stages import Association
 from service.tracking.association import (
+    DEFAULT_GAP_SIGMAS,
     DEFAULT_MAX_ERROR_PX,
     DEFAULT_MAX_VIEW_GAP_M,
+    FLOOR_INFO_SCALE,
     associate,
 )
 from tests.service.mom_doubles import ModelDouble, OracleRuntime, person_boxes, room_cameras
@@ -301,7 +303,7 @@ def test_floor_gate_cost_is_the_mahalanobis_rise_of_the_fused_position() -> None
     (information scaled for the prior's overconfidence), NaN where a side has no floor
     information. Two crossing views fix a point; a third view agrees with it only where its
     line of sight passes through it."""
-    from service.tracking.association import FLOOR_INFO_SCALE, _FloorFit, _Views
+    from service.tracking.association import _FloorFit, _Views
 
     along_x = np.diag([1.0**2, 0.05**2])  # cameras 0 and 2 know y well, x badly
     along_y = np.diag([0.05**2, 1.0**2])  # camera 1 the other way round
@@ -437,9 +439,10 @@ class LoneViewRuntime(ModelDouble):
         return self._views(boxes)
 
 
-def _joined(runtime: ModelDouble, **gates: float) -> bool:
+def _joined(runtime: LoneViewRuntime, gap_sigmas: float = DEFAULT_GAP_SIGMAS) -> bool:
+    """Whether the pair's two boxes become one person (only the view gap can refuse them)."""
     box = np.array([[0, 0, 1, 200]], np.float32)
-    found = associate([box, box], runtime, max_floor_chi2=np.inf, **gates)
+    found = associate([box, box], runtime, max_floor_chi2=np.inf, gap_sigmas=gap_sigmas)
     return sorted(a.cameras for a in found) == [[0, 1]]
 
 
@@ -450,12 +453,7 @@ def test_view_gap_grows_with_the_views_own_uncertainty() -> None:
     within 3 std of the gap, so the far view joins its person; the same 2.5 m from a view whose
     range is known to 5 cm is a different person and stays apart. Within 2 m every pair joins
     (the fixed radius is the floor); without floor maps the fixed radius alone decides."""
-    from service.tracking.association import (
-        DEFAULT_GAP_SIGMAS,
-        FLOOR_INFO_SCALE,
-        _FloorFit,
-        _Views,
-    )
+    from service.tracking.association import _FloorFit, _Views
 
     class WithoutFloorMaps(LoneViewRuntime):
         def floor_views(self, boxes, keypoints=None):
