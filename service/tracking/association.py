@@ -18,32 +18,38 @@ mean square over the seen cameras; a tuple is admissible only if *every* camera'
 is at most ``max_error_px`` (the parameter keeps its name: it is in pixels at the reference height).
 
 A second, independent gate in metres: every box is also localized *alone* (the encoder supports
-missing views) and two clusters are merged only if their own positions are within
-``max_view_gap_m`` (2 m), or within ``gap_sigmas`` (3) standard deviations of their gap where
-the model says the two positions are that uncertain. Right pairs agree within ~1.5 m in a room,
-while a lone box in each camera from two different people far apart can have a small
-reprojection error (the encoder's compromise point splits it between the cameras); this gate
-removes those merges. But a lone view's range error grows with its distance from the camera
-(one pixel of bottom edge is many centimetres of floor far away), so a fixed radius splits far
-people into two (a duplicate and often a false position): on MultiviewX's 25 × 15 m plaza, where
-lone views 20 m from their camera are common, 2 m was too tight. The std of the gap comes from
-the floor maps (``floor_views``, below): the fused covariances ``C_P``, ``C_Q`` of the two
-clusters, read along the gap's own direction ``u``, ``sqrt(u^T (C_P + C_Q) u)``, with the same
-overconfidence scale as the floor χ² gate. In a room these stds are a few decimetres and the 2 m
-floor binds (the gate is what it was); on a plaza they reach 1-2 m and the gate grows with them.
-Rejected: a larger fixed radius (it is a constant tuned to one set's size: 3 m helped MultiviewX
-and would let wrong pairs through in a room, where the 2 m already admits most of the wrong
-pairs' lone views); the gap's full Mahalanobis distance instead of its std along the gap (that is
-the floor χ² gate again, on the encoder's positions). A model that cannot localize one view
-alone (NaN) disables this gate; one without floor maps keeps the fixed radius. Defaults (100 px at
-reference height, 2 m) come from the gate sweep in ``bench/serving/association.py``
-(``bench/results/association.md``); the gap's spread against its std on real boxes and the gate's
-effect end to end are in ``bench/results/real_multiviewx.md``. On the served stream the view gap
-is what binds, and 1.75 m scored a little better than 2 m on one simulated profile
-(``bench/results/tracker_tuning.md``). Not changed: the optimum sits between two cliffs (a lone
-view's range error splits true pairs below 1.5 m, wrong pairs merge above 2 m) whose places
-depend on the detector's bottom-edge noise, so a gain of ~2 points on one simulated profile is no
-reason to move a default every deployment uses.
+missing views) and two clusters are merged only if their own positions are within ``max_view_gap_m``
+(2 m), or, when ``gap_sigmas`` > 0 (default 0: off), within that many standard deviations of their
+gap where the model says the two positions are that uncertain. Right pairs agree within ~1.5 m in a
+room, while a lone box in each camera from two different people far apart can have a small
+reprojection error (the encoder's compromise point splits it between the cameras); this gate removes
+those merges. But a lone view's range error grows with its distance from the camera (one pixel of
+bottom edge is many centimetres of floor far away), so a fixed radius splits far people into two (a
+duplicate and often a false position): on MultiviewX's 25 × 15 m plaza, where lone views 20 m from
+their camera are common, 2 m was too tight. The std of the gap comes from the floor maps
+(``floor_views``, below): the fused covariances ``C_P``, ``C_Q`` of the two clusters, read along the
+gap's own direction ``u``, ``sqrt(u^T (C_P + C_Q) u)``, with the same overconfidence scale as the
+floor χ² gate. In the real CMC room these stds are a few decimetres and the 2 m floor binds; on a
+plaza they reach 1-2 m and the gate grows with them. Measured, not served: on MultiviewX (6 cameras,
+a 25 × 15 m plaza) 4 std lifted the served MODA from 81 to 85 % (3 std: 79 %; flat from 4 to 6 std
+and with no view gap at all: the floor χ² and reprojection gates refuse the wrong pairs it admits,
+and boxes cut by an occluder join their person); on the real CMC room it changed nothing; on the
+simulated 2-camera room of the stream gate it cost 5 points of MOTA (86.4 → 81.5 %,
+``tests/service/test_stream_accuracy.py``) and the demo's sofa sitter fell below its gate, so the
+default stays the fixed radius (``bench/results/real_multiviewx.md``,
+``bench/results/real_cmc_chain_tuning.md``). Rejected: a larger fixed radius (a constant tuned to
+one set's size: 3 m scored below 2 m as served on MultiviewX, and it would let wrong pairs through
+in a room, where the 2 m already admits most of the wrong pairs' lone views); the gap's full
+Mahalanobis distance instead of its std along the gap (that is the floor χ² gate again, on the
+encoder's positions). A model that cannot localize one view alone (NaN) disables this gate; one
+without floor maps keeps the fixed radius. Defaults (100 px at reference height, 2 m) come from the
+gate sweep in ``bench/serving/association.py`` (``bench/results/association.md``); the gap's spread
+against its std on real boxes and the gate's effect end to end are in
+``bench/results/real_multiviewx.md``. On the served stream the view gap is what binds, and 1.75 m
+scored a little better than 2 m on one simulated profile (``bench/results/tracker_tuning.md``). Not
+changed: the optimum sits between two cliffs (a lone view's range error splits true pairs below 1.5
+m, wrong pairs merge above 2 m) whose places depend on the detector's bottom-edge noise, so a gain
+of ~2 points on one simulated profile is no reason to move a default every deployment uses.
 
 Solver: when exactly two cameras have detections, the optimal gated bipartite assignment
 (``scipy.optimize.linear_sum_assignment`` on the pairwise cost matrix, one batched model call),
@@ -110,7 +116,7 @@ DEFAULT_MAX_ERROR_PX = (
 REFERENCE_HEIGHT_PX = 200.0  # errors are judged as if every box were this tall
 MIN_HEIGHT_PX = 20.0
 DEFAULT_MAX_VIEW_GAP_M = 2.0
-DEFAULT_GAP_SIGMAS = 3.0  # module docstring: the view gap grows with the positions' uncertainty
+DEFAULT_GAP_SIGMAS = 0.0  # module docstring: the view gap may grow with the positions' uncertainty
 DEFAULT_MAX_FLOOR_CHI2 = 25.0  # module docstring: the real CMC room
 DEFAULT_ANCHOR_CHI2 = 9.0  # module docstring: track-driven association
 FLOOR_INFO_SCALE = 3.0  # the floor prior's std is ~3x overconfident (service.tracking.measurements)

@@ -8,7 +8,6 @@ import pytest
 from common.errors import MomlocError
 from service.stages import Association
 from service.tracking.association import (
-    DEFAULT_GAP_SIGMAS,
     DEFAULT_MAX_ERROR_PX,
     DEFAULT_MAX_VIEW_GAP_M,
     FLOOR_INFO_SCALE,
@@ -439,7 +438,10 @@ class LoneViewRuntime(ModelDouble):
         return self._views(boxes)
 
 
-def _joined(runtime: LoneViewRuntime, gap_sigmas: float = DEFAULT_GAP_SIGMAS) -> bool:
+SIGMAS = 4.0  # the scaled view gap as measured on MultiviewX (off by default)
+
+
+def _joined(runtime: LoneViewRuntime, gap_sigmas: float = SIGMAS) -> bool:
     """Whether the pair's two boxes become one person (only the view gap can refuse them)."""
     box = np.array([[0, 0, 1, 200]], np.float32)
     found = associate([box, box], runtime, max_floor_chi2=np.inf, gap_sigmas=gap_sigmas)
@@ -450,9 +452,10 @@ def test_view_gap_grows_with_the_views_own_uncertainty() -> None:
     """Camera 0 sees a person near (range known to 5 cm, its line of sight along y); camera 1,
     looking along x, sees them 20 m away, where its lone view's range is off by 2.5 m and known
     to 0.3 m (x3 for the floor maps' overconfidence: 0.9 m). 2.5 m is beyond the fixed 2 m but
-    within 3 std of the gap, so the far view joins its person; the same 2.5 m from a view whose
-    range is known to 5 cm is a different person and stays apart. Within 2 m every pair joins
-    (the fixed radius is the floor); without floor maps the fixed radius alone decides."""
+    within 4 std of the gap (``SIGMAS``), so the far view joins its person; the same 2.5 m from
+    a view whose range is known to 5 cm is a different person and stays apart. Within 2 m every
+    pair joins (the fixed radius is the floor); without floor maps the fixed radius alone
+    decides."""
     from service.tracking.association import _FloorFit, _Views
 
     class WithoutFloorMaps(LoneViewRuntime):
@@ -473,12 +476,12 @@ def test_view_gap_grows_with_the_views_own_uncertainty() -> None:
     box = np.array([[0, 0, 1, 200]], np.float32)
     got = _FloorFit(_Views([box, box], None), far).gap_std([({0: 0}, {1: 0})], np.array([[2.5, 0]]))
     assert got is not None and got[0] == pytest.approx(std)
-    assert 2.0 < 2.5 < DEFAULT_GAP_SIGMAS * std
+    assert 2.0 < 2.5 < SIGMAS * std
     assert _joined(far)
-    assert not _joined(far, gap_sigmas=0.0)  # the former fixed 2 m gate split them
+    assert not _joined(far, gap_sigmas=0.0)  # the fixed 2 m gate (the default) splits them
     assert not _joined(runtime(2.5, 0.05))  # a near view 2.5 m off: another person
     assert _joined(runtime(1.8, 0.05))  # within the fixed radius
-    assert not _joined(runtime(DEFAULT_GAP_SIGMAS * std + 0.1, 0.3))  # beyond its own spread
+    assert not _joined(runtime(SIGMAS * std + 0.1, 0.3))  # beyond its own spread
 
     assert not _joined(runtime(2.5, 0.3, WithoutFloorMaps))
     assert _joined(runtime(1.8, 0.3, WithoutFloorMaps))
