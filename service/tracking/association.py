@@ -18,13 +18,35 @@ mean square over the seen cameras; a tuple is admissible only if *every* camera'
 is at most ``max_error_px`` (the parameter keeps its name: it is in pixels at the reference height).
 
 A second, independent gate in metres: every box is also localized *alone* (the encoder supports
-missing views) and two clusters are merged only if their own positions are within
-``max_view_gap_m``. Right pairs agree within ~1.5 m even for single views, while a lone box in
-each camera from two different people far apart can have a small reprojection error (the
-encoder's compromise point splits it between the cameras); this gate removes those merges. A
-model that cannot localize one view alone (NaN) disables it. Defaults (100 px at reference height,
-2 m) come from the gate sweep in ``bench/serving/association.py``
-(``bench/results/association.md``). On the served stream the view gap is what binds, and 1.75 m
+missing views) and two clusters are merged only if their own positions are within ``max_view_gap_m``
+(2 m), or, when ``gap_sigmas`` > 0 (default 0: off), within that many standard deviations of their
+gap where the model says the two positions are that uncertain. Right pairs agree within ~1.5 m in a
+room, while a lone box in each camera from two different people far apart can have a small
+reprojection error (the encoder's compromise point splits it between the cameras); this gate removes
+those merges. But a lone view's range error grows with its distance from the camera (one pixel of
+bottom edge is many centimetres of floor far away), so a fixed radius splits far people into two (a
+duplicate and often a false position): on MultiviewX's 25 × 15 m plaza, where lone views 20 m from
+their camera are common, 2 m was too tight. The std of the gap comes from the floor maps
+(``floor_views``, below): the fused covariances ``C_P``, ``C_Q`` of the two clusters, read along the
+gap's own direction ``u``, ``sqrt(u^T (C_P + C_Q) u)``, with the same overconfidence scale as the
+floor χ² gate. In the real CMC room these stds are a few decimetres and the 2 m floor binds; on a
+plaza they reach 1-2 m and the gate grows with them. Measured, not served: on MultiviewX (6 cameras,
+a 25 × 15 m plaza) 4 std lifted the served MODA from 81 to 85 % on one trained model (flat from 4 to
+6 std and with no view gap at all: the floor χ² and reprojection gates refuse the wrong pairs it
+admits) and cost 3 points on another (86.7 → 83.8 %): within the spread between trainings on 10
+frames; on the real CMC room it changed little (CMC2 MOTA 77.0 → 76.9 %, CMC1 58.8 → 56.9 %); on the
+simulated 2-camera room of the stream gate it cost 5 points of MOTA (86.4 → 81.5 %,
+``tests/service/test_stream_accuracy.py``) and the demo's sofa sitter fell below its gate, so the
+default stays the fixed radius (``bench/results/real_multiviewx.md``,
+``bench/results/real_cmc_chain_tuning.md``). Rejected: a larger fixed radius (a constant tuned to
+one set's size: 3 m scored below 2 m as served on MultiviewX, and it would let wrong pairs through
+in a room, where the 2 m already admits most of the wrong pairs' lone views); the gap's full
+Mahalanobis distance instead of its std along the gap (that is the floor χ² gate again, on the
+encoder's positions). A model that cannot localize one view alone (NaN) disables this gate; one
+without floor maps keeps the fixed radius. Defaults (100 px at reference height, 2 m) come from the
+gate sweep in ``bench/serving/association.py`` (``bench/results/association.md``); the gap's spread
+against its std on real boxes and the gate's effect end to end are in
+``bench/results/real_multiviewx.md``. On the served stream the view gap is what binds, and 1.75 m
 scored a little better than 2 m on one simulated profile (``bench/results/tracker_tuning.md``). Not
 changed: the optimum sits between two cliffs (a lone view's range error splits true pairs below 1.5
 m, wrong pairs merge above 2 m) whose places depend on the detector's bottom-edge noise, so a gain
@@ -95,6 +117,7 @@ DEFAULT_MAX_ERROR_PX = (
 REFERENCE_HEIGHT_PX = 200.0  # errors are judged as if every box were this tall
 MIN_HEIGHT_PX = 20.0
 DEFAULT_MAX_VIEW_GAP_M = 2.0
+DEFAULT_GAP_SIGMAS = 0.0  # module docstring: the view gap may grow with the positions' uncertainty
 DEFAULT_MAX_FLOOR_CHI2 = 25.0  # module docstring: the real CMC room
 DEFAULT_ANCHOR_CHI2 = 9.0  # module docstring: track-driven association
 FLOOR_INFO_SCALE = 3.0  # the floor prior's std is ~3x overconfident (service.tracking.measurements)
@@ -106,14 +129,23 @@ class _Gate:
     max_error_px: float
     max_view_gap_m: float
     max_floor_chi2: float = DEFAULT_MAX_FLOOR_CHI2
+    gap_sigmas: float = DEFAULT_GAP_SIGMAS
 
     def admits(
-        self, worst: np.ndarray, gap: np.ndarray, chi2: np.ndarray | None = None
+        self,
+        worst: np.ndarray,
+        gap: np.ndarray,
+        chi2: np.ndarray | None = None,
+        gap_std: np.ndarray | None = None,
     ) -> np.ndarray:
-        """Worst normalised error within the gate, and views that agree on the floor (a NaN gap
-        or χ², from a model that cannot localize one view alone or has no floor geometry for a
-        camera, does not veto)."""
-        ok = (worst <= self.max_error_px) & ~(gap > self.max_view_gap_m)
+        """Worst normalised error within the gate, and views that agree on the floor: a gap
+        within ``max_view_gap_m`` or ``gap_sigmas`` of its std (a NaN gap or χ², from a model
+        that cannot localize one view alone or has no floor geometry for a camera, does not
+        veto; a NaN std leaves the fixed radius)."""
+        limit = np.full(np.shape(gap), self.max_view_gap_m)
+        if gap_std is not None:
+            limit = np.fmax(limit, self.gap_sigmas * gap_std)
+        ok = (worst <= self.max_error_px) & ~(gap > limit)
         return ok if chi2 is None else ok & ~(chi2 > self.max_floor_chi2)
 
 
@@ -157,6 +189,33 @@ class _FloorFit:
             return None
         if not pairs:
             return np.zeros(0)
+        (cov_p, mean_p), (cov_q, mean_q), valid = self._sides(pairs)
+        d = mean_p - mean_q
+        out = np.einsum("bi,bi->b", d, np.linalg.solve(cov_p + cov_q, d[..., None])[..., 0])
+        return np.where(valid, out, np.nan)
+
+    def gap_std(
+        self, pairs: Sequence[tuple[dict[int, int], dict[int, int]]], gaps: np.ndarray
+    ) -> np.ndarray | None:
+        """Std [B] (m) of each pair's gap [B, 2] between two positions with the clusters'
+        fused covariances, along the gap: ``sqrt(u^T (C_P + C_Q) u)``; NaN where either side's
+        maps do not fix a point (or the gap is not finite)."""
+        if not self.ok:
+            return None
+        if not pairs:
+            return np.zeros(0)
+        (cov_p, _), (cov_q, _), valid = self._sides(pairs)
+        gaps = np.asarray(gaps, np.float64).reshape(len(pairs), 2)
+        norm = np.linalg.norm(gaps, axis=1, keepdims=True)
+        u = np.where(norm > 0, gaps / np.where(norm > 0, norm, 1.0), [1.0, 0.0])
+        std = np.sqrt(np.einsum("bi,bij,bj->b", u, cov_p + cov_q, u))
+        return np.where(valid & np.isfinite(norm[:, 0]), std, np.nan)
+
+    def _sides(
+        self, pairs: Sequence[tuple[dict[int, int], dict[int, int]]]
+    ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray], np.ndarray]:
+        """Both sides' fused covariance [B, 2, 2] and position [B, 2] per pair, and [B] whether
+        both are fixed (identity and the information vector where not)."""
         sides = [self._fused(p) for p, _ in pairs], [self._fused(q) for _, q in pairs]
         (lp, ep), (lq, eq) = (
             (np.stack([f[0] for f in side]), np.stack([f[1] for f in side])) for side in sides
@@ -165,9 +224,9 @@ class _FloorFit:
         eye = np.eye(2)
         cov_p = np.linalg.inv(np.where(valid[:, None, None], lp, eye))
         cov_q = np.linalg.inv(np.where(valid[:, None, None], lq, eye))
-        d = np.einsum("bij,bj->bi", cov_p, ep) - np.einsum("bij,bj->bi", cov_q, eq)
-        out = np.einsum("bi,bi->b", d, np.linalg.solve(cov_p + cov_q, d[..., None])[..., 0])
-        return np.where(valid, out, np.nan)
+        mean_p = np.einsum("bij,bj->bi", cov_p, ep)
+        mean_q = np.einsum("bij,bj->bi", cov_q, eq)
+        return (cov_p, mean_p), (cov_q, mean_q), valid
 
     def _fused(self, cluster: dict[int, int]) -> tuple[np.ndarray, np.ndarray]:
         info = sum((self._info[(k, j)] for k, j in cluster.items()), np.zeros((2, 2)))
@@ -183,9 +242,11 @@ def associate(
     max_floor_chi2: float = DEFAULT_MAX_FLOOR_CHI2,
     anchors: Sequence[TrackAnchor] = (),
     anchor_chi2: float = DEFAULT_ANCHOR_CHI2,
+    gap_sigmas: float = DEFAULT_GAP_SIGMAS,
 ) -> list[Association]:
     """Group the detections of all cameras into people (see the module docstring);
-    ``anchors``: the tracker's predicted tracks, whose leftover fragments are folded in."""
+    ``anchors``: the tracker's predicted tracks, whose leftover fragments are folded in;
+    ``gap_sigmas`` 0: the view gap's fixed radius alone."""
     num_cameras = int(runtime.num_cameras)
     if len(detections_per_camera) != num_cameras:
         raise MomlocError(
@@ -194,7 +255,7 @@ def associate(
         )
     detections = _Views.of(detections_per_camera, runtime.observation == "keypoints")
     seen_cameras = [k for k in range(num_cameras) if len(detections[k])]
-    gate = _Gate(max_error_px, max_view_gap_m, max_floor_chi2)
+    gate = _Gate(max_error_px, max_view_gap_m, max_floor_chi2, gap_sigmas)
     floor = _FloorFit(detections, runtime)
     if len(seen_cameras) == 2:
         clusters = _match_two(detections, seen_cameras, runtime, gate, floor)
@@ -242,9 +303,12 @@ def _match_two(
     _, _, cost, worst = _evaluate(tuples, runtime)
     shape = (len(detections[a]), len(detections[b]))
     single = _single_view_positions(detections, runtime)
-    gap = np.linalg.norm(single[a][:, None] - single[b][None], axis=2).reshape(-1)
-    chi2 = floor.chi2([({a: i}, {b: j}) for i, j in pairs])
-    gated = np.where(limits.admits(worst, gap, chi2), cost, _BLOCKED).reshape(shape)
+    gaps = (single[a][:, None] - single[b][None]).reshape(-1, 2)
+    sides = [({a: i}, {b: j}) for i, j in pairs]
+    admitted = limits.admits(
+        worst, np.linalg.norm(gaps, axis=1), floor.chi2(sides), floor.gap_std(sides, gaps)
+    )
+    gated = np.where(admitted, cost, _BLOCKED).reshape(shape)
     gate = limits.max_error_px
     # Leaving a detection unmatched (a single-view person) costs gate / 2, so a pair is only
     # worth matching when its RMS error is below the gate, and two marginal wrong pairs never
@@ -397,8 +461,11 @@ def _score_pairs(
         return
     tuples = detections.stack([{**clusters[p], **clusters[q]} for p, q in pairs])
     world, _, cost, worst = _evaluate(tuples, runtime)
-    gap = np.array([np.linalg.norm(positions[p] - positions[q]) for p, q in pairs])
-    ok = limits.admits(worst, gap, floor.chi2([(clusters[p], clusters[q]) for p, q in pairs]))
+    gaps = np.array([positions[p] - positions[q] for p, q in pairs]).reshape(-1, 2)
+    sides = [(clusters[p], clusters[q]) for p, q in pairs]
+    ok = limits.admits(
+        worst, np.linalg.norm(gaps, axis=1), floor.chi2(sides), floor.gap_std(sides, gaps)
+    )
     for i, pair in enumerate(pairs):
         if ok[i]:
             costs[pair] = (float(cost[i]), world[i])

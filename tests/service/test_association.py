@@ -10,6 +10,7 @@ from service.stages import Association
 from service.tracking.association import (
     DEFAULT_MAX_ERROR_PX,
     DEFAULT_MAX_VIEW_GAP_M,
+    FLOOR_INFO_SCALE,
     associate,
 )
 from tests.service.mom_doubles import ModelDouble, OracleRuntime, person_boxes, room_cameras
@@ -301,7 +302,7 @@ def test_floor_gate_cost_is_the_mahalanobis_rise_of_the_fused_position() -> None
     (information scaled for the prior's overconfidence), NaN where a side has no floor
     information. Two crossing views fix a point; a third view agrees with it only where its
     line of sight passes through it."""
-    from service.tracking.association import FLOOR_INFO_SCALE, _FloorFit, _Views
+    from service.tracking.association import _FloorFit, _Views
 
     along_x = np.diag([1.0**2, 0.05**2])  # cameras 0 and 2 know y well, x badly
     along_y = np.diag([0.05**2, 1.0**2])  # camera 1 the other way round
@@ -392,3 +393,95 @@ def test_tracked_people_absorb_their_fragments() -> None:
     nowhere = [TrackAnchor(np.array([0.5, 5.5]), np.eye(2) * 0.01)]
     far = associate(detections, runtime, anchors=nowhere)
     assert [a.detection_index for a in far] == [a.detection_index for a in alone]
+
+
+class LoneViewRuntime(ModelDouble):
+    """Two cameras; camera k's box j is ``[j, 0, j + 1, 200]`` and lands alone at
+    ``lone[k][j]``, known to ``ACROSS_M`` across that camera's line of sight (``sight[k]``) and
+    ``along[k][j]`` along it (a far view's range is known worse); a tuple lands at the mean of
+    its views and reprojects perfectly (only the view gap can refuse a pair)."""
+
+    num_cameras = 2
+    image_sizes = np.array([[1920, 1080], [1920, 1080]])
+    ACROSS_M = 0.05
+
+    def __init__(
+        self, lone: list[list[list[float]]], along: list[list[float]], sight: list[list[float]]
+    ) -> None:
+        self.lone = [np.asarray(p, np.float64) for p in lone]
+        self.along = [np.asarray(s, np.float64) for s in along]
+        self.sight = [np.asarray(s, np.float64) / np.linalg.norm(s) for s in sight]
+
+    def _views(self, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        boxes = np.asarray(boxes, np.float64)
+        est = np.zeros((len(boxes), 2, 2))
+        info = np.zeros((len(boxes), 2, 2, 2))
+        for b, k in zip(*np.nonzero(np.isfinite(boxes).all(axis=2)), strict=True):
+            j = int(boxes[b, k, 0])
+            u = self.sight[k]
+            turn = np.column_stack([u, [-u[1], u[0]]])
+            cov = turn @ np.diag([self.along[k][j], self.ACROSS_M]) ** 2 @ turn.T
+            est[b, k], info[b, k] = self.lone[k][j], np.linalg.inv(cov)
+        return est, info
+
+    def localize(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
+        est, info = self._views(boxes)
+        seen = np.trace(info, axis1=2, axis2=3) > 0
+        return (est * seen[..., None]).sum(axis=1) / seen.sum(axis=1, keepdims=True)
+
+    def reprojection_error(
+        self, boxes: np.ndarray, world: np.ndarray, keypoints: np.ndarray | None = None
+    ) -> np.ndarray:
+        return np.where(np.isfinite(boxes).all(axis=2), 0.0, np.nan)
+
+    def floor_views(self, boxes, keypoints=None):
+        return self._views(boxes)
+
+
+SIGMAS = 4.0  # the scaled view gap as measured on MultiviewX (off by default)
+
+
+def _joined(runtime: LoneViewRuntime, gap_sigmas: float = SIGMAS) -> bool:
+    """Whether the pair's two boxes become one person (only the view gap can refuse them)."""
+    box = np.array([[0, 0, 1, 200]], np.float32)
+    found = associate([box, box], runtime, max_floor_chi2=np.inf, gap_sigmas=gap_sigmas)
+    return sorted(a.cameras for a in found) == [[0, 1]]
+
+
+def test_view_gap_grows_with_the_views_own_uncertainty() -> None:
+    """Camera 0 sees a person near (range known to 5 cm, its line of sight along y); camera 1,
+    looking along x, sees them 20 m away, where its lone view's range is off by 2.5 m and known
+    to 0.3 m (x3 for the floor maps' overconfidence: 0.9 m). 2.5 m is beyond the fixed 2 m but
+    within 4 std of the gap (``SIGMAS``), so the far view joins its person; the same 2.5 m from
+    a view whose range is known to 5 cm is a different person and stays apart. Within 2 m every
+    pair joins (the fixed radius is the floor); without floor maps the fixed radius alone
+    decides."""
+    from service.tracking.association import _FloorFit, _Views
+
+    class WithoutFloorMaps(LoneViewRuntime):
+        def floor_views(self, boxes, keypoints=None):
+            return None
+
+    def runtime(
+        offset: float, along: float, kind: type[LoneViewRuntime] = LoneViewRuntime
+    ) -> LoneViewRuntime:
+        return kind(
+            lone=[[[20.0, 0.0]], [[20.0 + offset, 0.0]]],
+            along=[[0.05], [along]],
+            sight=[[0.0, 1.0], [1.0, 0.0]],
+        )
+
+    far = runtime(2.5, 0.3)
+    std = np.sqrt(0.05**2 + 0.3**2) * FLOOR_INFO_SCALE  # along the gap (x): across 0, along 1
+    box = np.array([[0, 0, 1, 200]], np.float32)
+    got = _FloorFit(_Views([box, box], None), far).gap_std([({0: 0}, {1: 0})], np.array([[2.5, 0]]))
+    assert got is not None and got[0] == pytest.approx(std)
+    assert 2.0 < 2.5 < SIGMAS * std
+    assert _joined(far)
+    assert not _joined(far, gap_sigmas=0.0)  # the fixed 2 m gate (the default) splits them
+    assert not _joined(runtime(2.5, 0.05))  # a near view 2.5 m off: another person
+    assert _joined(runtime(1.8, 0.05))  # within the fixed radius
+    assert not _joined(runtime(SIGMAS * std + 0.1, 0.3))  # beyond its own spread
+
+    assert not _joined(runtime(2.5, 0.3, WithoutFloorMaps))
+    assert _joined(runtime(1.8, 0.3, WithoutFloorMaps))
