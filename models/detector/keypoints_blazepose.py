@@ -32,13 +32,14 @@ from __future__ import annotations
 
 import importlib.util
 from pathlib import Path
-from typing import Any, Literal
+from typing import Literal
 
 import cv2
 import numpy as np
 
 from common.errors import MomlocError
-from common.onnx_session import default_threads, open_session
+from common.onnx_session import open_session
+from common.openvino_cpu import CompiledPerShape, read_model
 from models.detector.base import verify_shipped
 from models.detector.keypoints import COCO_NAMES, MEDIAPIPE_TO_COCO
 
@@ -70,33 +71,10 @@ class OpenVinoPose:
     runtime = "openvino"
 
     def __init__(self, path: Path, threads: int | None) -> None:
-        import openvino
-
-        if not path.is_file():
-            raise MomlocError(f"keypoint model {path}: file not found")
-        self._core = openvino.Core()
-        try:
-            self._model = self._core.read_model(str(path))
-        except Exception as error:  # OpenVINO raises its own RuntimeError subclasses
-            first = (str(error).strip().splitlines() or [type(error).__name__])[0]
-            raise MomlocError(f"keypoint model {path}: not loadable (OpenVINO: {first})") from None
-        self._config = {
-            "INFERENCE_NUM_THREADS": default_threads(threads),
-            "NUM_STREAMS": 1,
-            "PERFORMANCE_HINT": "LATENCY",
-            "ENABLE_CPU_PINNING": False,  # the cameras' threads share these cores
-        }
-        self._requests: dict[int, Any] = {}
+        self._compiled = CompiledPerShape(read_model(path, "keypoint model"), "crops", threads)
 
     def run(self, crops: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        request = self._requests.get(len(crops))
-        if request is None:
-            model = self._model.clone()
-            model.reshape({"crops": [len(crops), INPUT_SIZE, INPUT_SIZE, 3]})
-            compiled = self._core.compile_model(model, "CPU", self._config)
-            request = self._requests[len(crops)] = compiled.create_infer_request()
-        result = request.infer({"crops": crops})
-        landmarks, flags = (np.asarray(result[name]).copy() for name in OUTPUTS)
+        landmarks, flags = self._compiled.infer(crops, OUTPUTS)
         return landmarks, flags
 
 

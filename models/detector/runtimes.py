@@ -33,12 +33,13 @@ import importlib.util
 import logging
 import os
 from pathlib import Path
-from typing import Any, Literal, NamedTuple, Protocol
+from typing import Literal, NamedTuple, Protocol
 
 import numpy as np
 
 from common.errors import MomlocError
 from common.onnx_session import default_threads, open_session
+from common.openvino_cpu import CompiledPerShape, read_model
 
 Runtime = Literal["auto", "onnxruntime", "openvino", "ncnn"]
 Precision = Literal["auto", "int8", "fp32"]
@@ -178,45 +179,21 @@ class OpenVinoGraph:
     runtime = "openvino"
 
     def __init__(self, path: Path, threads: int | None, precision: str = "fp32") -> None:
-        import openvino
-
         self.precision = precision
-        if not path.is_file():
-            raise MomlocError(f"detector model {path}: file not found")
         self.path = path
-        self._core = openvino.Core()
-        try:
-            self._model = self._core.read_model(str(path))
-        except Exception as error:  # OpenVINO raises its own RuntimeError subclasses
-            first = (str(error).strip().splitlines() or [type(error).__name__])[0]
-            raise MomlocError(
-                f"detector model {path}: not a loadable ONNX model (OpenVINO: {first})"
-            ) from None
-        names = [port.get_any_name() for port in self._model.inputs]
-        outputs = {name for port in self._model.outputs for name in port.get_names()}
+        model = read_model(path, "detector model")
+        names = [port.get_any_name() for port in model.inputs]
+        outputs = {name for port in model.outputs for name in port.get_names()}
         if names != [INPUT_NAME] or OUTPUT_NAME not in outputs:
             raise MomlocError(
                 f"detector model {path}: not a NanoDet person model (inputs {names}, expected "
                 f"[{INPUT_NAME!r}] and output {OUTPUT_NAME!r})"
             )
-        self._config = {
-            "INFERENCE_NUM_THREADS": default_threads(threads),
-            "NUM_STREAMS": 1,
-            "PERFORMANCE_HINT": "LATENCY",
-            "ENABLE_CPU_PINNING": False,  # the cameras' threads share these cores
-        }
-        self._requests: dict[tuple[int, ...], Any] = {}
+        self._compiled = CompiledPerShape(model, INPUT_NAME, threads)
 
     def run(self, batch: np.ndarray) -> np.ndarray:
-        shape = tuple(int(v) for v in batch.shape)
-        request = self._requests.get(shape)
-        if request is None:
-            model = self._model.clone()
-            model.reshape({INPUT_NAME: list(shape)})
-            compiled = self._core.compile_model(model, "CPU", self._config)
-            request = self._requests[shape] = compiled.create_infer_request()
-        result = request.infer({INPUT_NAME: batch})
-        return np.asarray(result[OUTPUT_NAME]).copy()
+        (raw,) = self._compiled.infer(batch, (OUTPUT_NAME,))
+        return raw
 
 
 class NcnnGraph:
