@@ -135,10 +135,16 @@ class TrackAnchor:
     track-driven step, fed by ``service.tracking.tracker.Tracker.anchors``).
 
     ``xy`` [2] m and ``cov`` [2, 2] m²: the predicted floor position and its covariance.
+    ``image_x`` [K'] px and ``image_std`` [K'] px (optional; K' ≤ K cameras, the rest unknown;
+    NaN where camera k has not seen the track within ``image_continuity.MAX_AGE_S``): each
+    camera's predicted box centre of the track and its std (``ViewMemory.predict``), for the
+    association's per-camera box continuity.
     """
 
     xy: np.ndarray
     cov: np.ndarray
+    image_x: np.ndarray | None = None
+    image_std: np.ndarray | None = None
 
 
 class Reprojecting(Protocol):

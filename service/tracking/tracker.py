@@ -119,7 +119,12 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from service.stages import Origin, Track, TrackAnchor
-from service.tracking.image_continuity import ImageContinuity, ViewMemory
+from service.tracking.image_continuity import (
+    LABEL_GROWTH_HPS,
+    LABEL_STD_H,
+    ImageContinuity,
+    ViewMemory,
+)
 from service.tracking.motion import ConstantVelocity, StandOrWalk
 from service.tracking.stillness import StillMemory, StillRule
 
@@ -355,7 +360,9 @@ class Tracker:
             motion.predict(max(0.0, float(t) - now))
             held = self._held_place(tr, now)
             mean = motion.mean[:2] if held is None else held
-            out.append(TrackAnchor(mean.copy(), motion.cov[:2, :2].copy()))
+            cameras = 1 + max(tr.views.seen, default=-1)
+            image_x, image_std = tr.views.predict(cameras, float(t), LABEL_STD_H, LABEL_GROWTH_HPS)
+            out.append(TrackAnchor(mean.copy(), motion.cov[:2, :2].copy(), image_x, image_std))
         return out
 
     def hidden(self) -> list[tuple[Track, str]]:

@@ -395,6 +395,39 @@ def test_tracked_people_absorb_their_fragments() -> None:
     assert [a.detection_index for a in far] == [a.detection_index for a in alone]
 
 
+@pytest.mark.parametrize("cameras", [2, 3])
+def test_a_box_continuing_another_track_in_its_image_is_not_joined(cameras: int) -> None:
+    """Per-camera box continuity vetoes a mix the floor cannot see: two neighbours, camera 1
+    sees one box, which lies where person 0 should be (floor and reprojection pair it with
+    person 0's box of camera 0), but in camera 1's own image it continues track 1's box.
+    With the tracks' image predictions it joins no box of track 0 (neither in the clustering
+    nor as a fragment folded into track 0's cluster); without them (or with the veto off,
+    the default) the boxes alone mix."""
+    from service.stages import TrackAnchor
+
+    runtime = FloorOracle(room_cameras(cameras))
+    world = np.array([[3.0, 3.0], [3.5, 3.0]])
+    boxes = person_boxes(runtime.projections, world)
+    detections = [boxes[:, 0].astype(np.float32), boxes[:1, 1].astype(np.float32)]
+    detections += [boxes[1:, k].astype(np.float32) for k in range(2, cameras)]
+    centre = [0.5 * (d[:, 0] + d[:, 2]) for d in detections]
+    image_x = [np.full(cameras, np.nan) for _ in world]
+    image_x[0][0], image_x[1][0], image_x[1][1] = centre[0][0], centre[0][1], centre[1][0]
+    std = np.full(cameras, 3.0)
+    anchors = [TrackAnchor(xy, np.eye(2) * 0.3**2) for xy in world]
+
+    def joined(found: list[Association]) -> bool:
+        return any(a.detection_index[:2] == [0, 0] for a in found)
+
+    assert joined(associate(detections, runtime))
+    assert joined(associate(detections, runtime, anchors=anchors, continuity_z2=4.0))
+    continued = [TrackAnchor(a.xy, a.cov, x, std) for a, x in zip(anchors, image_x, strict=True)]
+    found = associate(detections, runtime, anchors=continued, continuity_z2=4.0)
+    assert not joined(found)
+    assert any(a.detection_index[1] == 0 for a in found)  # the box is kept, not dropped
+    assert joined(associate(detections, runtime, anchors=continued))  # off by default
+
+
 class LoneViewRuntime(ModelDouble):
     """Two cameras; camera k's box j is ``[j, 0, j + 1, 200]`` and lands alone at
     ``lone[k][j]``, known to ``ACROSS_M`` across that camera's line of sight (``sight[k]``) and
