@@ -86,7 +86,9 @@ anchor takes the cluster that best continues it, and a leftover cluster whose ne
 took another one is that person's fragment: folded into the main cluster (boxes of cameras it
 lacks, when the whole tuple passes the reprojection gate) or dropped. The figures, the rejected
 variants (the anchors claiming each camera's boxes before clustering mixed neighbours and lost
-people) are in ``bench/results/real_cmc_chain_tuning.md``.
+people) are in ``bench/results/real_cmc_chain_tuning.md``. Opt-in (``continuity_z2`` > 0, off:
+no gain measured on the real room), the anchors' image predictions also label the boxes each
+track continues in its own camera, and boxes of two tracks never join (``_BoxContinuity``).
 
 The model's ``covariance(boxes)`` (``MomRuntime``: the floor prior's GLS covariance; NaN without
 one) also gives each association the covariance of its position, which the tracker takes as that

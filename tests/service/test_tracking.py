@@ -316,3 +316,21 @@ def test_image_continuity_forgets_old_boxes_and_ignores_missing_views() -> None:
     assert cost[0, 0] < 0 < cost[0, 1] <= 3.0  # capped: one camera never vetoes alone
     assert cost[0, 2] == 0.0  # no box in common: no opinion
     assert term.cost([memory], [far], 0.25 + MAX_AGE_S + 0.01)[0, 0] == 0.0  # forgotten
+
+
+def test_anchors_carry_each_cameras_predicted_box_centre() -> None:
+    """``Tracker.anchors``: per camera, the last box centre moved on by its image velocity,
+    with the measured label std (``LABEL_STD_H`` + ``LABEL_GROWTH_HPS`` per second, in box
+    heights); NaN for a camera that has not seen the track (the association's box continuity)."""
+    from service.tracking.image_continuity import LABEL_GROWTH_HPS, LABEL_STD_H
+
+    tracker = Tracker(**{**RECOMMENDED, "fps_hint": 4.0})
+    for i in range(8):
+        t = i * 0.25
+        box = np.array([[100.0 + 40 * i, 0.0, 140.0 + 40 * i, 200.0], [np.nan] * 4])
+        tracker.update(t, np.array([[1.0 + 0.1 * i, 2.0]]), [Origin(cameras=(0,), boxes=box)])
+    (anchor,) = tracker.anchors(2.0)
+    assert anchor.image_x is not None and anchor.image_std is not None
+    assert anchor.image_x[0] == pytest.approx(120.0 + 40 * 8, abs=10.0)  # 160 px/s on
+    assert anchor.image_std[0] == pytest.approx(200.0 * (LABEL_STD_H + LABEL_GROWTH_HPS * 0.25))
+    assert len(anchor.image_x) == 1 or np.isnan(anchor.image_x[1])
