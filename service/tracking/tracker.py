@@ -212,6 +212,8 @@ class Tracker:
         still_window_s: float = 10.0,
         still_share: float = 0.6,
         still_gate_m: float = 1.0,
+        still_guard_m: float = 1.2,
+        still_multi_view_s: float = 1.0,
         image_std_h: float = 0.0,
         image_growth_hps: float = 0.6,
         image_cap: float = 16.0,
@@ -251,6 +253,9 @@ class Tracker:
             float(still_after_s), float(still_window_s), float(still_radius_m), float(still_share)
         )
         self.still_gate_m = float(still_gate_m)
+        self.still_guard_m = float(still_guard_m)
+        self.still_multi_view_s = max(self.multi_view_s, float(still_multi_view_s))
+        self._still_places: list[tuple[int, np.ndarray]] = []  # (id, place) before this update
         self.image = ImageContinuity(
             max(0.0, float(image_std_h)), float(image_growth_hps), float(image_cap)
         )
@@ -311,6 +316,11 @@ class Tracker:
         self._time = float(t) if self._time is None else max(self._time, float(t))
         for track in self._tracks:
             self._predict(track, dt)
+        self._still_places = [
+            (tr.id, tr.still.place)
+            for tr in self._tracks
+            if self._still(tr) and tr.still.place is not None
+        ]
 
         boxes = [o.boxes for o in kept]
         rows, cols = self._assign(positions, noise, self._time, boxes)
@@ -386,11 +396,37 @@ class Tracker:
         return self.hold_still_s > 0 and tr.multi_view and tr.still.place is not None
 
     def _held_place(self, tr: _State, update_t: float | None) -> np.ndarray | None:
-        """Where a still track unseen at the update of time ``update_t`` is held (its still
-        place); ``None`` for a track seen then or not still: that one is where its filter says
-        (a still person who gets up and walks, seen, is followed by the filter)."""
-        unseen = update_t is not None and update_t > tr.last_seen
-        return tr.still.place if unseen and self._still(tr) else None
+        """Where a still track is held (its still place) at the update of time ``update_t``:
+        when unseen then, or when its last measurement was one camera's lone view within
+        ``still_gate_m`` of the place. ``None`` for a track not still or seen by two cameras:
+        that one is where its filter says (a still person who gets up and walks, seen, is
+        followed by the filter).
+
+        Why a lone view does not move a still track: its range is poorly known, and near a
+        seated person it is as often a detector's false box or a fragment of them as the
+        person (issue 27, ``bench/results/still_presence_chain.md``: one camera's persisting
+        false box 0.8 m off took the held track and its filter, given the jump as a velocity,
+        carried it out of the sofa's zone). The median of the window already takes the lone
+        views in; the place moves when they keep saying the person moved. The price: a still
+        person who walks off seen by one camera only is served at their place for their first
+        ``still_gate_m``, then their lone views start a new track."""
+        if update_t is None or not self._still(tr):
+            return None
+        if update_t > tr.last_seen:
+            return tr.still.place
+        return tr.still.place if self._lone_near_place(tr) else None
+
+    def _lone_near_place(self, tr: _State) -> bool:
+        """Last fed by one camera's view within ``still_gate_m`` of the still place."""
+        place = tr.still.place
+        if len(tr.cameras) != 1 or place is None or not tr.still.points:
+            return False
+        return bool(np.hypot(*(np.asarray(tr.still.points[-1]) - place)) <= self.still_gate_m)
+
+    def _served_xy(self, tr: _State) -> np.ndarray:
+        """Where the track is served now: its held place or its filter's position."""
+        held = self._held_place(tr, self._time)
+        return tr.motion.mean[:2] if held is None else held
 
     def _max_missing(self, tr: _State) -> float:
         return max(self.max_missing_s, self.hold_still_s) if self._still(tr) else self.max_missing_s
@@ -457,19 +493,24 @@ class Tracker:
         track.rate = track.rate * (1.0 - weight) + weight
         track.cameras = [int(k) for k in origin.cameras]
         track.views.remember(origin.boxes, t)
-        self._count_views(track, self._frame_dt)
+        self._count_views(track, self._frame_dt, z)
         self._confirm(track, t)
         track.origin = origin
 
     def _births(self, positions: np.ndarray, assigned: set[int]) -> list[int]:
         """The unassigned positions that start tracks: none closer than ``birth_clearance_m``
         to a confirmed track or to a track measured this update (a second cluster of a person
-        already tracked, not a second person: two people do not stand in one spot)."""
+        already tracked, not a second person: two people do not stand in one spot). A track is
+        where it is served (a held still track at its place, :meth:`_held_place`) and a still
+        track also at its place: a box beside a seated person whose track a lone view or a
+        false box has just taken is theirs, not a newcomer (issue 27: such a newcomer took the
+        seated person's own boxes when they reappeared, and their id)."""
         free = [c for c in range(len(positions)) if c not in assigned]
         if self.birth_clearance_m <= 0 or not free or not self._tracks:
             return free
-        held = [
-            tr.motion.mean[:2] for tr in self._tracks if tr.confirmed or tr.last_seen == self._time
+        near = [tr for tr in self._tracks if tr.confirmed or tr.last_seen == self._time]
+        held = [self._served_xy(tr) for tr in near] + [
+            tr.still.place for tr in near if self._still(tr) and tr.still.place is not None
         ]
         if not held:
             return free
@@ -479,12 +520,15 @@ class Tracker:
     def _merge_shadows(self, dt: float) -> None:
         """Drop a track that has stayed within ``merge_m`` of an older one for
         ``merge_s``: two tracks on one person (fed by the two halves of a split association)
-        that would otherwise both be served; the older id is kept."""
+        that would otherwise both be served; the older id is kept. Where each is served
+        (:meth:`_served_xy`): a held still track is at its place, whatever its coasting filter
+        says, so a newcomer that takes over a seated person's boxes yields to their held track,
+        which takes them back (issue 27)."""
         kept: list[_State] = []
         for tr in sorted(self._tracks, key=lambda s: s.id):
+            here = self._served_xy(tr)
             near = any(
-                np.linalg.norm(tr.motion.mean[:2] - older.motion.mean[:2]) < self.merge_m
-                for older in kept
+                np.linalg.norm(here - self._served_xy(older)) < self.merge_m for older in kept
             )
             tr.shadowed_s = tr.shadowed_s + dt if near else 0.0
             if tr.shadowed_s <= self.merge_s:
@@ -527,12 +571,26 @@ class Tracker:
             if seen and (should - seen or (self.doubt_outside and not should & seen)):
                 tr.doubted_s += dt
 
-    def _count_views(self, track: _State, dt: float) -> None:
+    def _count_views(self, track: _State, dt: float, z: np.ndarray) -> None:
         if len(track.cameras) > 1:
             track.multi_view_time += dt
         track.multi_view = track.multi_view or (
-            len(track.cameras) > 1 and track.multi_view_time >= self.multi_view_s - 1e-9
+            len(track.cameras) > 1
+            and track.multi_view_time >= self._multi_view_wait(track, z) - 1e-9
         )
+
+    def _multi_view_wait(self, track: _State, z: np.ndarray) -> float:
+        """``multi_view_s``; ``still_multi_view_s`` for a track measured (at ``z``) within
+        ``still_guard_m`` of another track's still place. Why: beside a seated person whom the
+        detector has lost, each camera's false boxes (and fragments of the person) are paired
+        by the association into a two-camera "person" for a frame now and then; one such frame
+        made the track multi-view, exempt from the ghost check, and it was served in the
+        seated person's zone for seconds (issue 27, ``bench/results/still_presence_chain.md``).
+        A real second person there is seen by both cameras for longer."""
+        for other, place in self._still_places:
+            if other != track.id and np.hypot(*(z - place)) <= self.still_guard_m:
+                return self.still_multi_view_s
+        return self.multi_view_s
 
     def _ghost(self, track: _State) -> bool:
         """Not (yet) a multi-view track, and longer than ``ghost_s`` unseen by a camera that
@@ -556,7 +614,7 @@ class Tracker:
             state.still.remember(t, z, self.still_rule)
         state.views.remember(origin.boxes, t)
         # credited for one frame interval, as measured (the hint before a second update)
-        self._count_views(state, self._frame_dt if self._frame_dt > 0 else 1.0 / self.fps_hint)
+        self._count_views(state, self._frame_dt if self._frame_dt > 0 else 1.0 / self.fps_hint, z)
         self._confirm(state, t)
         self._next_id += 1
         return state
