@@ -423,11 +423,6 @@ class Tracker:
             return False
         return bool(np.hypot(*(np.asarray(tr.still.points[-1]) - place)) <= self.still_gate_m)
 
-    def _served_xy(self, tr: _State) -> np.ndarray:
-        """Where the track is served now: its held place or its filter's position."""
-        held = self._held_place(tr, self._time)
-        return tr.motion.mean[:2] if held is None else held
-
     def _max_missing(self, tr: _State) -> float:
         return max(self.max_missing_s, self.hold_still_s) if self._still(tr) else self.max_missing_s
 
@@ -500,17 +495,12 @@ class Tracker:
     def _births(self, positions: np.ndarray, assigned: set[int]) -> list[int]:
         """The unassigned positions that start tracks: none closer than ``birth_clearance_m``
         to a confirmed track or to a track measured this update (a second cluster of a person
-        already tracked, not a second person: two people do not stand in one spot). A track is
-        where it is served (a held still track at its place, :meth:`_held_place`) and a still
-        track also at its place: a box beside a seated person whose track a lone view or a
-        false box has just taken is theirs, not a newcomer (issue 27: such a newcomer took the
-        seated person's own boxes when they reappeared, and their id)."""
+        already tracked, not a second person: two people do not stand in one spot)."""
         free = [c for c in range(len(positions)) if c not in assigned]
         if self.birth_clearance_m <= 0 or not free or not self._tracks:
             return free
-        near = [tr for tr in self._tracks if tr.confirmed or tr.last_seen == self._time]
-        held = [self._served_xy(tr) for tr in near] + [
-            tr.still.place for tr in near if self._still(tr) and tr.still.place is not None
+        held = [
+            tr.motion.mean[:2] for tr in self._tracks if tr.confirmed or tr.last_seen == self._time
         ]
         if not held:
             return free
@@ -520,15 +510,12 @@ class Tracker:
     def _merge_shadows(self, dt: float) -> None:
         """Drop a track that has stayed within ``merge_m`` of an older one for
         ``merge_s``: two tracks on one person (fed by the two halves of a split association)
-        that would otherwise both be served; the older id is kept. Where each is served
-        (:meth:`_served_xy`): a held still track is at its place, whatever its coasting filter
-        says, so a newcomer that takes over a seated person's boxes yields to their held track,
-        which takes them back (issue 27)."""
+        that would otherwise both be served; the older id is kept."""
         kept: list[_State] = []
         for tr in sorted(self._tracks, key=lambda s: s.id):
-            here = self._served_xy(tr)
             near = any(
-                np.linalg.norm(here - self._served_xy(older)) < self.merge_m for older in kept
+                np.linalg.norm(tr.motion.mean[:2] - older.motion.mean[:2]) < self.merge_m
+                for older in kept
             )
             tr.shadowed_s = tr.shadowed_s + dt if near else 0.0
             if tr.shadowed_s <= self.merge_s:
