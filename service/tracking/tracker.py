@@ -57,17 +57,17 @@ Output policy (documented for API users):
   back (a reappearing person re-identified where they sat; a false box across the room does
   not drag the held track away). After such a dropout, one camera's lone views within that
   gate keep the track seen but held at its place (near a seated person they are as often false
-  boxes as them); two cameras release it. A track measured within ``still_guard_m`` (1.2 m) of another's
-  still place becomes ``multi_view`` only after ``still_multi_view_s`` (1 s) of two views: a
-  false box of each camera paired for one frame beside a seated person stays under the ghost
-  check. Why: a seated or standing person is the one a detector loses
-  for seconds (half hidden, still, low contrast), and each loss used to end their id and empty
-  their zone (issue 27: an hour on the sofa with dropouts of seconds,
-  ``bench/results/still_presence.md``, ``bench/results/still_presence_chain.md``). The price is
-  a person who stood still and then left unseen (out of view) is served where they stood for
-  up to 15 s, one who walks off after a dropout seen by one camera only is served at their
-  place for their first metre (then their lone views start a new id), and a person appearing beside a still
-  one is served after ~1 s, not 0.3 s; the walking scenes' MOTA is in the same files;
+  boxes as them); two cameras release it. A track measured within ``still_guard_m`` (1.2 m) of
+  another's still place becomes ``multi_view`` only after ``still_multi_view_s`` (1 s) of two
+  views: a false box of each camera paired for one frame beside a seated person stays under
+  the ghost check. Why: a seated or standing person is the one a detector loses for seconds
+  (half hidden, still, low contrast), and each loss used to end their id and empty their zone
+  (issue 27: an hour on the sofa with dropouts of seconds, ``bench/results/still_presence.md``,
+  ``bench/results/still_presence_chain.md``). The price is a person who stood still and then
+  left unseen (out of view) is served where they stood for up to 15 s, one who walks off
+  after a dropout seen by one camera only is served at their place for their first metre (then
+  their lone views start a new id), and a person appearing beside a still one is served after
+  ~1 s, not 0.3 s; the walking scenes' MOTA is in the same files;
 - ``confidence`` is a running detection rate (exponential average of seen / unseen frame sets
   over ``rate_time_s`` seconds, so the same at any frame rate) times the coasting factor, in 0..1;
 - a track counts as seen by two cameras (``multi_view``: no longer subject to the single-view
