@@ -55,19 +55,19 @@ Output policy (documented for API users):
   kept for ``hold_still_s`` (15 s in ``RECOMMENDED``) instead of ``serve_coast_s`` /
   ``max_missing_s``, and only a detection within ``still_gate_m`` (1 m) of the place takes it
   back (a reappearing person re-identified where they sat; a false box across the room does
-  not drag the held track away). After such a dropout, one camera's lone views within that
-  gate keep the track seen but held at its place (near a seated person they are as often false
-  boxes as them); two cameras release it. A track measured within ``still_guard_m`` (1.2 m) of
-  another's still place becomes ``multi_view`` only after ``still_multi_view_s`` (1 s) of two
-  views: a false box of each camera paired for one frame beside a seated person stays under
-  the ghost check. Why: a seated or standing person is the one a detector loses for seconds
-  (half hidden, still, low contrast), and each loss used to end their id and empty their zone
-  (issue 27: an hour on the sofa with dropouts of seconds, ``bench/results/still_presence.md``,
+  not drag the held track away). One camera's lone view within that gate keeps the track seen
+  but held at its place (near a seated person it is as often a false box as them); two cameras
+  release it. A track measured within ``still_guard_m`` (1.2 m) of another's still place
+  becomes ``multi_view`` only after ``still_multi_view_s`` (1 s) of two views: a false box of
+  each camera paired for one frame beside a seated person stays under the ghost check. Why: a
+  seated or standing person is the one a detector loses for seconds (half hidden, still, low
+  contrast), and each loss used to end their id and empty their zone (issue 27: an hour on the
+  sofa with dropouts of seconds, ``bench/results/still_presence.md``,
   ``bench/results/still_presence_chain.md``). The price is a person who stood still and then
-  left unseen (out of view) is served where they stood for up to 15 s, one who walks off
-  after a dropout seen by one camera only is served at their place for their first metre (then
-  their lone views start a new id), and a person appearing beside a still one is served after
-  ~1 s, not 0.3 s; the walking scenes' MOTA is in the same files;
+  left unseen (out of view) is served where they stood for up to 15 s, one who walks off seen
+  by one camera only is served at their place for their first metre (then their lone views
+  start a new id), and a person appearing beside a still one is served after ~1 s, not 0.3 s;
+  the walking scenes' MOTA is in the same files;
 - ``confidence`` is a running detection rate (exponential average of seen / unseen frame sets
   over ``rate_time_s`` seconds, so the same at any frame rate) times the coasting factor, in 0..1;
 - a track counts as seen by two cameras (``multi_view``: no longer subject to the single-view
@@ -177,7 +177,6 @@ class _State:
     doubted_s: float = 0.0  # time single-view while another camera should have seen it
     shadowed_s: float = 0.0  # time spent within merge_m of an older track
     still: StillMemory = field(default_factory=StillMemory)  # measured positions, still place
-    lone_held: bool = False  # held unseen, since then fed only by lone views near its place
     cameras: list[int] = field(default_factory=list)
     origin: Origin = field(default_factory=Origin)  # of the position that last fed it
     views: ViewMemory = field(default_factory=ViewMemory)  # last box per camera
@@ -405,23 +404,26 @@ class Tracker:
 
     def _held_place(self, tr: _State, update_t: float | None) -> np.ndarray | None:
         """Where a still track is held (its still place) at the update of time ``update_t``:
-        when unseen then, or when since it was held unseen only one camera's lone views within
-        ``still_gate_m`` of the place fed it (``lone_held``). ``None`` for a track not still or
-        seen by two cameras since: that one is where its filter says (a still person who gets
-        up and walks, seen, is followed by the filter).
+        when unseen then, or when its last measurement was one camera's lone view within
+        ``still_gate_m`` of the place. ``None`` for a track not still or seen by two cameras:
+        that one is where its filter says (a still person who gets up and walks, seen, is
+        followed by the filter).
 
-        Why a lone view does not release a held track: during a dropout the boxes near a seated
-        person are as often the detector's false boxes or fragments of them as the person, and
-        a lone view's range is poorly known (issue 27, ``bench/results/still_presence_chain.md``:
-        one camera's persisting false box 0.8 m off took the held track and its filter, given
-        the jump as a velocity, carried it out of the sofa's zone). Two cameras release it. A
-        still person whom one of two cameras loses without a dropout is followed as before (the
-        walking scenes' MOTA is in the results file). The price: a still person who, after a
-        dropout, walks off seen by one camera only is served at their place for their first
-        ``still_gate_m``, then their lone views start a new track."""
+        Why a lone view does not move a still track: its range is poorly known, and near a
+        seated person it is as often a detector's false box or a fragment of them as the
+        person (issue 27, ``bench/results/still_presence_chain.md``: one camera's persisting
+        false box 0.8 m off took the held track and its filter, given the jump as a velocity,
+        carried it out of the sofa's zone). The median of the window already takes the lone
+        views in; the place moves when they keep saying the person moved. The price: a still
+        person who walks off seen by one camera only is served at their place for their first
+        ``still_gate_m``, then their lone views start a new track. Rejected: holding only after
+        a dropout (a still track seen by two cameras, then one, followed by the filter): the
+        hour through the chain fell to 99.34 % and 3 id changes (results file)."""
         if update_t is None or not self._still(tr):
             return None
-        return tr.still.place if update_t > tr.last_seen or tr.lone_held else None
+        if update_t > tr.last_seen:
+            return tr.still.place
+        return tr.still.place if self._lone_near_place(tr) else None
 
     def _lone_near_place(self, tr: _State) -> bool:
         """Last fed by one camera's view within ``still_gate_m`` of the still place."""
@@ -486,7 +488,6 @@ class Tracker:
     def _correct(
         self, track: _State, z: np.ndarray, r: np.ndarray, origin: Origin, t: float
     ) -> None:
-        held = self._held_place(track, self._previous_time) is not None
         track.motion.correct(z, self._robust(track, z, r))
         track.last_seen = t
         track.hits += 1
@@ -495,7 +496,6 @@ class Tracker:
         weight = self._rate_weight(self._frame_dt)
         track.rate = track.rate * (1.0 - weight) + weight
         track.cameras = [int(k) for k in origin.cameras]
-        track.lone_held = held and self._lone_near_place(track)
         track.views.remember(origin.boxes, t)
         self._count_views(track, self._frame_dt, z)
         self._confirm(track, t)
