@@ -29,7 +29,7 @@ def _area() -> SetupArea:
 
 
 def test_box_shape_gives_the_posture() -> None:
-    ratio = np.array([1.0, 0.65, 0.65, 0.4, 0.6, 0.6, 0.66, 0.52])
+    ratio = np.array([1.0, 0.65, 0.65, 0.3, 0.6, 0.6, 0.66, 0.52])
     aspect = np.array([0.4, 0.7, 0.3, 0.9, 1.6, 0.8, 1.1, 1.1])
     labels, confidence = posture.classify(ratio, aspect)
     # an upright box; a short wide one (seated); short but narrow (an occluded walker's upper
