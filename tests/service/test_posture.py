@@ -65,10 +65,9 @@ def test_a_body_flat_on_the_floor_cut_by_the_image_edge_is_lying() -> None:
 
 def test_one_view_of_a_body_across_it_outvotes_a_lengthwise_view() -> None:
     # a lying body seen lengthwise is short and narrow (sitting) in one view and a body's
-    # length wide (lying) in the other: no crouch or sitter gives that wide a box, so it wins
-    postures = posture.BoxPostures(
-        [np.array([SITTING], object), np.array([LYING], object)], [np.array([0.95]), np.array([0.7])]
-    )
+    # flat (lying) in the other: no crouch or sitter gives a flat box, so that view wins
+    labels = [np.array([SITTING], object), np.array([LYING], object)]
+    postures = posture.BoxPostures(labels, [np.array([0.95]), np.array([0.7])])
     assert postures.of([0, 0])[0] == LYING
     assert postures.of([0, None])[0] == SITTING
 
