@@ -35,10 +35,11 @@ Until 2026-12-03 the rule waited ``lying_s`` = 10 s, which no fall could meet. T
 confidence (the track's smoothed share of lying evidence,
 :class:`service.tracking.posture.PostureSmoother`) is what a 1-2 s look has besides the label:
 the gate cut the simulated false falls from 20 to 12 in 36 person-hours, for two falls in 48
-reported late. It does not separate a crouch: its bottom
-reads lying in every view and its share climbs past 0.8 as a fall's does; every false fall left
-is one, and no ``lying_s`` or ``min_confidence`` meets the targets (``bench/results/falls.md``):
-that is for the posture to tell, not this rule.
+reported late. It did not separate a crouch, whose box below 0.45 of a standing height read
+lying in every view: since 2026-12-04 the posture reads such a compact box as sitting
+(:mod:`service.tracking.posture`), and the simulated false falls are 0-1 in 36 person-hours.
+The falls reported late or missed are bodies no box reads lying (``bench/results/falls.md``):
+no ``lying_s`` or ``min_confidence`` changes them.
 
 A track absent from a snapshot is neither evidence of getting up nor of staying down: its
 candidate waits (dropouts while lying do not reset it) and fires on the next snapshot with it.

@@ -14,8 +14,15 @@ foot pixel looks). Per box, ``ratio`` = box height / expected height at its bott
 - **standing**: ratio ≥ ``SEATED_RATIO``; left as it is;
 - **lying**: ratio below ``LYING_RATIO``, or a flat box (aspect ≥ ``LYING_FLAT_ASPECT``)
   below ``SEATED_RATIO``: the body lies on the floor, so the box centre is on the floor near the
-  hips; the standing box there replaces it. A box merely as wide as tall (aspect 1-1.5) at
-  0.45-0.6 is *not* lying: a person seated side-on in an armchair gives exactly that box (the
+  hips; the standing box there replaces it. A box that is short but not flat is *not* lying
+  above 0.33 of the height: a squat to pick something up (pelvis at 0.2 of the height, trunk
+  bent forward) is a compact box 0.4-0.6 of the height and 0.6-1.3 times as wide as tall, and
+  until 2026-12-04 its 0.33-0.45 reads (one crouch box in twenty) were lying and every false
+  fall the bench had. Held bodies of the bench's rooms (seeds 1-4, 5 fps): 4.8 % of crouch
+  boxes read lying below 0.45, 0.1 % below 0.33, for 57 % and 50 % of lying boxes; what is
+  lost is a body lying obliquely, short and not flat, which the other view mostly sees flat
+  (:meth:`BoxPostures.of`). A box as wide as tall (aspect 1-1.5) at 0.45-0.6 is not lying
+  either: a person seated side-on in an armchair gives exactly that box (the
   simulated lounge's armchair: 0.47-0.6 tall, aspect 1.0-1.3, one read in seven), while only one
   lying read in twenty has it (lying bodies are mostly far shorter or flatter). Read as lying,
   the armchair sitter was put 0.5 m off and, sitting down, raised false falls (``lying`` a
@@ -31,7 +38,12 @@ foot pixel looks). Per box, ``ratio`` = box height / expected height at its bott
   It is a figure of one simulated room, to be checked on real seated people.
 
 A box within ``BORDER_PX`` of the image border is left as it is (``unknown``): a person cut
-off by the frame edge is short for another reason. A real detector's box of a cut person ends a
+off by the frame edge is short for another reason. Unless what is left of it is a body on the
+floor (:func:`cut_postures`): cut by the bottom or top edge, a flat box a body's length wide
+(``WHOLE_BODY_WIDTH``); cut by a side only (the height is whole), a box that reads lying. A
+fallen person near a camera is often cut so (a sixth of the lying frames in the simulated
+lounge, where the other camera sees them lengthwise), and a walker's torso cut by the frame is
+neither that wide nor that low. A real detector's box of a cut person ends a
 little inside the edge, up to ``CUT_MARGIN`` of the image side (:func:`at_border`): the chain
 does not trust a lying box there unless it is a body's length wide (:func:`cut_off`,
 :mod:`service.pipeline.chain`).
@@ -61,7 +73,7 @@ STANDING, SITTING, LYING, UNKNOWN = "standing", "sitting", "lying", "unknown"
 SEATED_RATIO = 0.78  # box height / a standing person's there: below, not standing
 SEATED_ASPECT = 0.45  # ... and at least this wide per unit height (an occluded walker's
 # visible upper half is short too, but narrow)
-LYING_RATIO = 0.45
+LYING_RATIO = 0.33  # below, lying whatever the width (a squat is 0.4-0.6: module docstring)
 LYING_FLAT_ASPECT = 1.5  # wider than any seated box measured
 LYING_SURE_ASPECT = 1.0  # a lying box's confidence grows with its width beyond this
 SEATED_TOP = 0.64  # a seated head's top over the expected standing height (module docstring)
@@ -76,7 +88,14 @@ SMOOTHING_S = 1.0  # a track's posture: evidence averaged over this time
 
 @dataclass(frozen=True)
 class BoxPostures:
-    """Per camera: the posture [M] and its confidence [M] of each detection."""
+    """Per camera: the posture [M] and its confidence [M] of each detection.
+
+    One view that reads lying makes the person lying: a body on the floor seen lengthwise is
+    short and narrow, i.e. seated, to that camera while the camera across it sees it flat, and
+    the vote of the two was a toss-up that kept the fall's posture confidence under the fall
+    rule's floor for seconds. Since a lying read needs a box under a third of a standing height
+    or flat (:func:`classify`), a squat or a seated person gives one in a thousand boxes, and
+    the track's smoothing (:class:`PostureSmoother`) absorbs those."""
 
     labels: list[np.ndarray]
     confidence: list[np.ndarray]
@@ -90,6 +109,8 @@ class BoxPostures:
                 votes[str(self.labels[k][i])].append(float(self.confidence[k][i]))
         if not votes:
             return UNKNOWN, 0.0
+        if LYING in votes:  # a view across the body outvotes views along it (class docstring)
+            return LYING, round(float(np.mean(votes[LYING])), 3)
         label = max(votes, key=lambda name: sum(votes[name]))
         total = sum(sum(v) for v in votes.values())
         return label, round(sum(votes[label]) / max(total, 1e-9) * float(np.mean(votes[label])), 3)
@@ -153,10 +174,36 @@ def box_postures(
     labels, confidence = classify(height / expected, (boxes[:, 2] - boxes[:, 0]) / height)
     seen = np.isfinite(boxes).all(axis=1)
     if image_size is not None:
-        w, h = float(image_size[0]), float(image_size[1])
-        seen &= (boxes[:, 0] > BORDER_PX) & (boxes[:, 1] > BORDER_PX)
-        seen &= (boxes[:, 2] < w - BORDER_PX) & (boxes[:, 3] < h - BORDER_PX)
+        side, end = _edges(boxes, image_size)
+        lying = seen & cut_postures(boxes, np.asarray(expected, float), labels, side, end)
+        seen &= ~side & ~end
+        labels = np.where(lying, LYING, labels)
+        seen |= lying
     return np.where(seen, labels, UNKNOWN), np.where(seen, confidence, 0.0)
+
+
+def _edges(boxes: np.ndarray, image_size: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Whether each box [M, 4] is within ``BORDER_PX`` of the left or right border, and of the
+    top or bottom one, of an image of ``image_size`` (width, height)."""
+    w, h = float(image_size[0]), float(image_size[1])
+    side = (boxes[:, 0] <= BORDER_PX) | (boxes[:, 2] >= w - BORDER_PX)
+    return side, (boxes[:, 1] <= BORDER_PX) | (boxes[:, 3] >= h - BORDER_PX)
+
+
+def cut_postures(
+    boxes: np.ndarray, expected: np.ndarray, labels: np.ndarray, side: np.ndarray, end: np.ndarray
+) -> np.ndarray:
+    """Whether each box [M, 4] at the image border (``side``: the left or right one; ``end``:
+    the top or bottom one) is still surely a body lying on the floor (module docstring):
+    cut by the top or bottom, flat and at least ``WHOLE_BODY_WIDTH`` of a standing person's
+    height ``expected`` wide (what is cut off only adds to its length); cut by a side only, its
+    height (whole) and aspect (only cut narrower) read lying. In the simulated rooms such boxes
+    of lying bodies are 0.3-0.35 of the height and 3 times as wide as tall; those of squats are
+    0.45-0.7 and 0.5-0.7 of the height wide, of walkers 0.8-1.2 and 0.2-0.6."""
+    width = boxes[:, 2] - boxes[:, 0]
+    height = np.maximum(boxes[:, 3] - boxes[:, 1], 1e-6)
+    flat = (width / height >= LYING_FLAT_ASPECT) & (width >= WHOLE_BODY_WIDTH * expected)
+    return np.where(end, flat, side & (labels == LYING))
 
 
 def at_border(boxes: np.ndarray, image_size: np.ndarray, margin: float = CUT_MARGIN) -> np.ndarray:

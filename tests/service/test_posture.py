@@ -29,7 +29,7 @@ def _area() -> SetupArea:
 
 
 def test_box_shape_gives_the_posture() -> None:
-    ratio = np.array([1.0, 0.65, 0.65, 0.4, 0.6, 0.6, 0.66, 0.52])
+    ratio = np.array([1.0, 0.65, 0.65, 0.3, 0.6, 0.6, 0.66, 0.52])
     aspect = np.array([0.4, 0.7, 0.3, 0.9, 1.6, 0.8, 1.1, 1.1])
     labels, confidence = posture.classify(ratio, aspect)
     # an upright box; a short wide one (seated); short but narrow (an occluded walker's upper
@@ -38,6 +38,38 @@ def test_box_shape_gives_the_posture() -> None:
     # (as wide as tall and shorter: until 2026-12-04 read lying, and a false fall)
     assert labels.tolist() == [STANDING, SITTING, STANDING, LYING, LYING, SITTING, SITTING, SITTING]
     assert ((confidence >= 0.5) & (confidence <= 1.0)).all()
+
+
+def test_a_crouch_is_not_lying_and_a_body_across_the_view_is() -> None:
+    # height / a standing person's there and width / height: a squat's compact box (0.43 of
+    # the height, as wide as tall: until 2026-12-04 lying by its height alone, every false
+    # fall the bench had), a squat reaching forward (0.38 tall, 1.4 wide per unit height); a
+    # body lying obliquely (0.5 tall, 1.7 wide: flat), one flat across the view, one lying
+    # very low (0.3), and the armchair sitter side-on (0.58 tall, as wide as tall)
+    ratio = np.array([0.43, 0.38, 0.5, 0.36, 0.3, 0.58])
+    aspect = np.array([1.0, 1.4, 1.7, 2.6, 1.2, 1.3])
+    labels, confidence = posture.classify(ratio, aspect)
+    assert labels.tolist() == [SITTING, SITTING, LYING, LYING, LYING, SITTING]
+    assert ((confidence >= 0.5) & (confidence <= 1.0)).all()
+
+
+def test_a_body_flat_on_the_floor_cut_by_the_image_edge_is_lying() -> None:
+    size = np.array([640, 480])
+    across = [300.0, 420.0, 500.0, 480.0]  # cut by the bottom edge: 60 px tall, 200 wide
+    torso = [300.0, 380.0, 400.0, 480.0]  # a walker's upper body cut there: 100 x 100
+    side = [0.0, 300.0, 150.0, 360.0]  # cut by the left edge, 0.3 of the height: on the floor
+    crouch = [0.0, 200.0, 90.0, 300.0]  # cut by the left edge, half the height: not judged
+    labels, _ = posture.box_postures(np.array([across, torso, side, crouch]), _area(), 0, size)
+    assert labels.tolist() == [LYING, UNKNOWN, LYING, UNKNOWN]
+
+
+def test_one_view_of_a_body_across_it_outvotes_a_lengthwise_view() -> None:
+    # a lying body seen lengthwise is short and narrow (sitting) in one view and a body's
+    # flat (lying) in the other: no crouch or sitter gives a flat box, so that view wins
+    labels = [np.array([SITTING], object), np.array([LYING], object)]
+    postures = posture.BoxPostures(labels, [np.array([0.95]), np.array([0.7])])
+    assert postures.of([0, 0])[0] == LYING
+    assert postures.of([0, None])[0] == SITTING
 
 
 def test_seated_and_lying_boxes_become_standing_ones() -> None:
