@@ -85,7 +85,15 @@ def test_a_fall_reaches_mqtt_and_home_assistant(monkeypatch, mosquitto):
 
             sub.wait_for(lambda s: any(st["active"] for st in states(s)), timeout=300)
             sub.wait_for(lambda s: not states(s)[-1]["active"], timeout=300)
-            events = [json.loads(m.payload) for m in sub.on(f"momloc/{room}/events")]
+
+            def events_of(s: Subscriber) -> list[dict]:
+                return [json.loads(m.payload) for m in s.on(f"momloc/{room}/events")]
+
+            # the event and the state are two publishes: the event may arrive after the state
+            sub.wait_for(
+                lambda s: any(e["type"] == "fall_cleared" for e in events_of(s)), timeout=60
+            )
+            events = events_of(sub)
             # a client that subscribes later (Home Assistant restarting) gets both, retained
             late = Subscriber(mosquitto.port, config_topic, state_topic)
             try:
