@@ -1,9 +1,7 @@
 """The CMC self-learning bench's pure parts: the simulated bump, the mark subsets, the chained
-replay; and one line + exit 0 without the data."""
+replay (its run without the data: tests/bench/test_real_cmc.py)."""
 
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,7 +9,6 @@ import pytest
 from bench.real import cmc_data
 from bench.real.cmc_bump import bump_homography, bumped_replay, move_boxes
 from bench.real.cmc_learning_run import GAP_FRAMES, chained
-from bench.real.cmc_self_learning import main
 from bench.real.cmc_setup import mark_grid, near_marks
 from models.data.detections_replay import DetectionsReplay
 
@@ -70,11 +67,3 @@ def test_chained_replays_follow_each_other_with_a_gap() -> None:
     joined, offsets = chained([part([1, 2, 5]), part([1, 3])])
     assert offsets == [-1, 4 + GAP_FRAMES - 1]
     assert joined.frame.tolist() == [0, 1, 4, 4 + GAP_FRAMES, 6 + GAP_FRAMES]
-
-
-def test_without_data_one_line_and_exit_0(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    assert main(["--data", str(tmp_path)]) == 0
-    out = capsys.readouterr().out.splitlines()
-    assert len(out) == 1 and "skipped" in out[0]

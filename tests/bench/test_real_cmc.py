@@ -1,8 +1,10 @@
-"""`make bench-real` (bench/real/cmc.py): one line and exit 0 without the data; with the CMC
-data present, the evaluation pairing that makes its labels pairs nearly everyone in CMC1."""
+"""`make bench-real` (bench/real/cmc.py) and `make bench-real-learning`: one line and exit 0
+without the data; with the CMC data present, the evaluation pairing that makes its labels pairs
+nearly everyone in CMC1."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -10,13 +12,15 @@ import pytest
 
 from bench.real import cmc_data
 from bench.real.cmc import DEFAULT_DATA, main
+from bench.real.cmc_self_learning import main as self_learning_main
 from models.data.mot_import import read_mot
 
 
+@pytest.mark.parametrize("bench_main", [main, self_learning_main], ids=["cmc", "self_learning"])
 def test_without_data_one_line_and_exit_0(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    bench_main: Callable[[list[str]], int], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    assert main(["--data", str(tmp_path)]) == 0
+    assert bench_main(["--data", str(tmp_path)]) == 0
     out = capsys.readouterr().out.splitlines()
     assert len(out) == 1 and "skipped" in out[0]
 
