@@ -19,6 +19,15 @@ with the velocity the last odd measurements gave it) and a reappearing detection
 the id again. Rejected: a wider radius or a shorter wait on the filtered track (both measured
 in the results file: neither holds the sitter).
 
+A person who walks off has *left* the place once the median of their measurements of the last
+``recent_s`` lies beyond ``leave_m`` (the tracker's still gate) from it, although the window's
+median stays there for seconds more. Without this, a person who stood on a mark, walked 3.5 m
+and was then missed for a second (a stalled pipeline, a dropout) was held back at the mark they
+had left and served there for the whole hold, while they themselves became a new track beyond
+the gate: the set-up check failed a fresh-clone CI run this way. A median of the recent
+measurements, not the last one: a mispaired view 2 m off just before a dropout must not end a
+sitter's stillness.
+
 Times are the measurements' timestamps (no clock); the rule is in seconds and metres, so it
 means the same at any frame rate.
 """
@@ -39,10 +48,14 @@ class StillRule:
     window_s: float = 10.0  # measurements older than this (before the latest) are forgotten
     radius_m: float = 0.5  # around the median
     share: float = 0.6  # of the window's measurements within ``radius_m``
+    leave_m: float = 1.0  # the recent measurements' median this far from the place: left it
+    recent_s: float = 0.5  # the measurements of this last span are the recent ones
 
     def __post_init__(self) -> None:
         if not (0.0 < self.share <= 1.0 and self.radius_m > 0 and self.window_s >= self.after_s):
             raise ValueError("still rule: need 0 < share <= 1, radius_m > 0, window_s >= after_s")
+        if not (self.leave_m > 0 and self.recent_s >= 0):
+            raise ValueError("still rule: need leave_m > 0 and recent_s >= 0")
 
 
 @dataclass
@@ -68,4 +81,8 @@ class StillMemory:
         points = np.asarray(self.points)
         median = np.median(points, axis=0)
         near = np.linalg.norm(points - median, axis=1) <= rule.radius_m
-        return median if near.mean() >= rule.share else None
+        if near.mean() < rule.share:
+            return None
+        recent = points[np.asarray(self.times) >= self.times[-1] - rule.recent_s - 1e-9]
+        left = np.linalg.norm(np.median(recent, axis=0) - median) > rule.leave_m
+        return None if left else median

@@ -253,7 +253,11 @@ class Tracker:
         self.serve_coast_s = self.max_missing_s if serve_coast_s is None else float(serve_coast_s)
         self.hold_still_s = max(0.0, float(hold_still_s))
         self.still_rule = StillRule(
-            float(still_after_s), float(still_window_s), float(still_radius_m), float(still_share)
+            float(still_after_s),
+            float(still_window_s),
+            float(still_radius_m),
+            float(still_share),
+            leave_m=float(still_gate_m),  # beyond the gate that takes a held track back: left
         )
         self.still_gate_m = float(still_gate_m)
         self.image = ImageContinuity(
