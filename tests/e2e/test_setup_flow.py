@@ -206,12 +206,12 @@ def test_first_run_to_live_positions_through_the_api(tmp_path: Path) -> None:
         assert positions["seq"] > 0
 
         # Verify on two marks: live error at each, a summary stored in model.json and health
-        served = ServedLog(daemon)  # what was served meanwhile, shown if the check fails
+        live = ServedLog(daemon)  # what was served meanwhile, shown if the check fails
         post(base, "/v1/setup/verify", {
             "marks": [{"name": "A2", "x": 7.5, "y": 2.5}, {"name": "M", "x": 5.0, "y": 5.0}],
             "seconds": 3, "move_seconds": 4, "countdown": 1,
         })  # fmt: skip
-        with served:
+        with live:
             check = wait_for(
                 lambda: get("/v1/setup/status")["verify"],
                 lambda v: v["state"] != "running",
@@ -223,7 +223,7 @@ def test_first_run_to_live_positions_through_the_api(tmp_path: Path) -> None:
         assert summary["marks"] == 2 and all(m["samples"] > 5 for m in check["marks"])
         assert summary["text"] == f"median {summary['median_m']:.2f} m over 2 marks"
         # ideal detector profile, 4 marks x 4 s, 60 epochs: well within a metre of the marks
-        assert summary["median_m"] < 1.0, (check, served.lines)
+        assert summary["median_m"] < 1.0, (check, live.lines)
         stored = json.loads((model_dir / "model.json").read_text())["verification"]
         assert stored["median_m"] == summary["median_m"]
         shown = wait_for(
@@ -246,7 +246,8 @@ class ServedLog:
     check's mark and step, ids at rounded places), so a failed check shows what was served."""
 
     def __init__(self, daemon: Any) -> None:
-        self.daemon, self.lines = daemon, []
+        self.daemon = daemon
+        self.lines: list[str] = []
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
 
