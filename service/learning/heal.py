@@ -57,7 +57,10 @@ import numpy as np
 from common.errors import MomlocError
 from models.geometry.dlt import fit_dlt
 from models.geometry.floor_prior import FloorPrior
+from models.mom.image_transform import apply, boxes_to_model
 from models.mom.sampling import SamplerConfig, unit_mean
+from service.learning.bump import DOFS
+from service.learning.bump import fit as fit_bump
 from service.learning.labels import LabelRules
 from service.stages import FrameResult
 
@@ -99,8 +102,10 @@ def heal_samples(
 ) -> int:
     """Add this frame set's pairs for moved ``camera`` to ``into``; how many were added."""
     runtime = result.runtime
-    prior = runtime.floor_prior if runtime is not None else None
-    if prior is None or prior.cameras[camera] is None:
+    if runtime is None or runtime.floor_prior is None:
+        return 0
+    prior = runtime.floor_prior
+    if prior.cameras[camera] is None:
         return 0
     boxes_m = np.asarray(result.detections[camera].boxes, np.float64).reshape(-1, 4)
     if not len(boxes_m) or not result.associations:
@@ -110,9 +115,13 @@ def heal_samples(
     seen: np.ndarray = np.any(np.all(np.isfinite(others), axis=-1), axis=1)
     if not seen.any():
         return 0
+    others, _ = runtime.to_model_frame(others)  # another repaired camera's: as its maps saw
     xy, cov = prior.predict_covariance(np.where(seen[:, None, None], others, np.nan))
     std = np.sqrt(np.clip(np.linalg.eigvalsh(np.nan_to_num(cov))[:, -1], 0, None))
     feet = prior.reproject(np.nan_to_num(xy), "foot")[:, camera]
+    former = _transform(runtime.meta, camera)
+    if former is not None:  # a camera repaired before: where its current image shows the feet
+        feet = apply(former, feet)
     box_feet = np.c_[(boxes_m[:, 0] + boxes_m[:, 2]) / 2, boxes_m[:, 3]]
     height = boxes_m[:, 3] - boxes_m[:, 1]
     by_association = {tr.association: tr for tr in result.tracks if tr.association is not None}
@@ -147,12 +156,15 @@ def heal_samples(
 
 @dataclass(frozen=True)
 class Repair:
-    """A repaired ``model.json`` and its check."""
+    """A repaired ``model.json`` and its check; ``how``: ``"transform"`` (the former model with
+    the camera's boxes mapped back, :mod:`service.learning.bump`) or ``"refit"`` (its maps
+    refitted)."""
 
     meta: dict[str, Any]
     positions: int
     error_m: float
     reachable_m: float
+    how: str = "refit"
 
     @property
     def passed(self) -> bool:
@@ -160,15 +172,84 @@ class Repair:
 
 
 def repair(meta: dict[str, Any], camera: int, samples: HealSamples, single_m: float) -> Repair:
-    """``meta`` (a model.json) with camera's floor maps and decoder matrix refitted on the
-    training share of ``samples``, checked on the held-out share (module docstring)."""
-    world = np.asarray(samples.world, np.float64)
-    box = np.asarray(samples.box, np.float64)
-    held = np.arange(samples.n) % HELD_OUT_EVERY == HELD_OUT_EVERY - 1
+    """``meta`` (a model.json) repaired for moved ``camera`` on the training share of
+    ``samples`` and checked on the held-out share (module docstring).
+
+    First the bump as one image transform of the former model (:func:`_transform_repair`): few
+    unknowns, so it needs few positions, and it keeps the encoder. When that does not explain
+    the held-out positions (the camera was moved, not only turned: the room looks different
+    from where it stands, which no image transform undoes), its maps are refitted
+    (:func:`_refit_repair`) and the better of the two by the held-out check is returned.
+    """
     entry = (meta.get("floor_prior") or {}).get("prior")
     if not entry:
         raise MomlocError("the model has no floor geometry to repair")
-    prior = FloorPrior.from_json(entry)
+    single_views = np.asarray(samples.std, np.float64)[_held(samples.n)]
+    reference = float(np.median(single_views)) if len(single_views) else float("inf")
+    reachable = round(float(np.hypot(single_m, RAYLEIGH_MEDIAN * reference)), 4)
+    if len(samples.cov) == samples.n:
+        try:
+            transformed = _transform_repair(meta, camera, samples, reachable)
+        except MomlocError:
+            transformed = None
+        if transformed is not None and transformed.passed:
+            return transformed
+    else:
+        transformed = None
+    refitted = _refit_repair(meta, camera, samples, reachable)
+    if transformed is not None and transformed.error_m < refitted.error_m:
+        return transformed
+    return refitted
+
+
+def _held(n: int) -> np.ndarray:
+    return np.arange(n) % HELD_OUT_EVERY == HELD_OUT_EVERY - 1
+
+
+def _transform(meta: dict[str, Any], camera: int) -> np.ndarray | None:
+    """The camera's image transform in ``meta`` (None: none)."""
+    entries = meta.get("image_transforms")
+    h = None if entries is None else entries[camera]
+    return None if h is None else np.asarray(h, np.float64)
+
+
+def _transform_repair(
+    meta: dict[str, Any], camera: int, samples: HealSamples, reachable: float
+) -> Repair:
+    """The former model with ``camera``'s boxes mapped back by a fitted image transform
+    (a similarity and a homography tried, the one with the smaller held-out error kept)."""
+    prior = FloorPrior.from_json(meta["floor_prior"]["prior"])
+    world = np.asarray(samples.world, np.float64)
+    box = np.asarray(samples.box, np.float64)
+    cov = np.asarray(samples.cov, np.float64)
+    held = _held(samples.n)
+    former = _transform(meta, camera)
+    best: tuple[float, np.ndarray] | None = None
+    for dof in DOFS:
+        if (~held).sum() < 4 * dof:  # a few positions per unknown, or it fits the noise
+            continue
+        h = fit_bump(prior, camera, world[~held], cov[~held], box[~held], former, dof)
+        error = _lone_error(prior, camera, world[held], boxes_to_model(h, box[held]))
+        if best is None or error < best[0]:
+            best = (error, h)
+    if best is None:
+        raise MomlocError(f"{samples.n} positions are too few to fit the bump")
+    error, h = best
+    out = copy.deepcopy(meta)
+    transforms = out.get("image_transforms") or [None] * int(meta["num_cameras"])
+    transforms[camera] = h.tolist()
+    out["image_transforms"] = transforms
+    return Repair(out, samples.n, round(error, 4), reachable, "transform")
+
+
+def _refit_repair(
+    meta: dict[str, Any], camera: int, samples: HealSamples, reachable: float
+) -> Repair:
+    """``meta`` with camera's floor maps and decoder matrix refitted on the training share."""
+    world = np.asarray(samples.world, np.float64)
+    box = np.asarray(samples.box, np.float64)
+    held = _held(samples.n)
+    prior = FloorPrior.from_json(meta["floor_prior"]["prior"])
     decoder = np.asarray(meta["decoder"]["matrices"], np.float64)
     cov = np.asarray(samples.cov, np.float64) if len(samples.cov) == samples.n else None
     fixed, decoder[camera] = _refit(
@@ -176,7 +257,6 @@ def repair(meta: dict[str, Any], camera: int, samples: HealSamples, single_m: fl
         decoder[camera], meta,
     )  # fmt: skip
     error = _lone_error(fixed, camera, world[held], box[held])
-    reference = float(np.median(np.asarray(samples.std)[held]))
     out = copy.deepcopy(meta)
     out["floor_prior"] = {
         **out["floor_prior"],
@@ -186,8 +266,9 @@ def repair(meta: dict[str, Any], camera: int, samples: HealSamples, single_m: fl
         "reason": f"camera {camera} re-learned from {samples.n} positions after it moved",
     }
     out["decoder"] = {**out["decoder"], "matrices": decoder.tolist()}
-    reachable = float(np.hypot(single_m, RAYLEIGH_MEDIAN * reference))
-    return Repair(out, samples.n, round(error, 4), round(reachable, 4))
+    if out.get("image_transforms"):  # the refitted maps read the camera's boxes as they are
+        out["image_transforms"][camera] = None
+    return Repair(out, samples.n, round(error, 4), reachable, "refit")
 
 
 def _lone_error(prior: FloorPrior, camera: int, world: np.ndarray, box: np.ndarray) -> float:
