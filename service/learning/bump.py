@@ -6,9 +6,11 @@ and the room stays put, so the camera's new image is its former image through on
 its boxes are mapped back. Refitting the maps from scratch fits 16 numbers per map to positions
 that are, with two cameras, single views long along the other camera's line of sight: it needed
 300-400 positions (~2 minutes of walking) to get within 1.2-1.3× of the pre-bump error
-(``bench/results/self_healing.md``). The transform has 4 (a similarity: roll, scale, shift) to 8
-(a homography: also pan and tilt's perspective) unknowns, and every position constrains all of
-them through the former maps.
+(``bench/results/self_healing.md``). The transform has 3 (roll and shift: a small pan or tilt
+moves the image about as a shift, and a bump leaves the focal length, so no scale) or 8 (a
+homography: also the perspective of a larger pan or tilt) unknowns, every position constrains
+all of them through the former maps, and the repair keeps the one that does better on held-out
+positions.
 
 Fit: minimise over ``H`` the Mahalanobis distances between the moved camera's single-view
 position under the former maps, its boxes mapped back by ``H``, and each reference, under the
@@ -31,15 +33,19 @@ from models.mom.image_transform import boxes_to_model
 
 ROUNDS = 2
 LOSS_SCALE = 2.0  # Mahalanobis distance past which a pair counts as an outlier (soft-L1)
-DOFS = (4, 8)  # similarity, homography
+DOFS = (3, 8)  # roll and shift, homography
 
 
 def delta(params: np.ndarray, size: np.ndarray) -> np.ndarray:
-    """The image transform [3, 3] about the image centre for ``params`` (4: similarity, 6:
-    affine, 8: homography; zeros: the identity)."""
+    """The image transform [3, 3] about the image centre for ``params`` (3: roll and shift, 4:
+    similarity, 6: affine, 8: homography; zeros: the identity)."""
     p = np.asarray(params, dtype=np.float64)
     m = np.eye(3)
-    if len(p) == 4:
+    if len(p) == 3:
+        c, s = np.cos(p[0]), np.sin(p[0])
+        m[:2, :2] = [[c, -s], [s, c]]
+        m[:2, 2] = p[1:3]
+    elif len(p) == 4:
         m[:2, :2] += [[p[0], -p[1]], [p[1], p[0]]]
         m[:2, 2] = p[2:4]
     else:
@@ -74,8 +80,10 @@ def fit(
     world = np.asarray(world, dtype=np.float64)
     reference_cov = np.asarray(cov, dtype=np.float64)
     params = np.zeros(dof)
-    scale = np.r_[0.01, 0.01, 10.0, 10.0] if dof == 4 else np.r_[[0.01] * 4, 10.0, 10.0, 0.1, 0.1]
-    scale = scale[:dof]
+    scale = {
+        3: np.r_[0.01, 10.0, 10.0],
+        4: np.r_[0.01, 0.01, 10.0, 10.0],
+    }.get(dof, np.r_[[0.01] * 4, 10.0, 10.0, 0.1, 0.1][:dof])
     for _ in range(ROUNDS):
         h = delta(params, size) @ start
         _, own_cov, ok = _single_views(prior, camera, h, box)
