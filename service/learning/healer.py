@@ -116,7 +116,8 @@ class Healer:
         moved_at = time.strftime("%H:%M", time.localtime(session.wall))
         session.message = (
             f"camera {session.camera} moved at {moved_at}; re-learned from {fixed.positions} "
-            f"positions ({HOW[fixed.how]}); error {fixed.error_m:.2f} m (reachable {fixed.reachable_m:.2f} m)"
+            f"positions ({HOW[fixed.how]}); error {fixed.error_m:.2f} m "
+            f"(reachable {fixed.reachable_m:.2f} m)"
         )
         fixed.meta["learning"] = {  # its own room: the labels of the former one saw m elsewhere
             "repaired": {
