@@ -5,13 +5,18 @@ When the camera-moved check (:mod:`service.camera_health`) flags camera ``m``, i
 decoder matrix no longer describe where it looks; every other camera still does. So, while ``m``
 stays flagged, each moment where the *other* cameras localize a person alone in ``m``'s view
 pairs that position with ``m``'s box (:func:`heal_samples`); once ``min_positions`` are in,
-:func:`repair` refits ``m``'s maps on them and its decoder matrix (a DLT of the floor onto the
-box's mean pixel), and the repaired model is served when its check passes. Rejected: modelling
-the bump as the image moving under the former maps (a similarity, four unknowns instead of
-eight): a rolled camera's *boxes* are the bounding boxes of a rotated person, whose foot and
-centre points no similarity maps exactly; on ideal boxes and exact references it left camera
-1 of indoor-2cam at 0.27 m single-view error where the refit reached 0.215 m (0.208 m before
-the bump).
+:func:`repair` first fits the bump as one image transform of the former model (the camera's
+boxes mapped back into the image the model learned, :mod:`service.learning.bump`, served as
+``model.json`` ``image_transforms``): a bump turns the camera, the room stays, so its image
+moves by one homography and the former maps, encoder and decoder hold once the boxes are mapped
+back; 3 unknowns (roll and shift) instead of 16 per map, so 80 positions do what the refit
+needed 300-400 for. Only when no transform explains the held-out positions (the camera was
+moved, not turned) are ``m``'s maps refitted on them and its decoder matrix (a DLT of the floor
+onto the box's mean pixel). An earlier similarity of the former maps' points was rejected (it
+left camera 1 of indoor-2cam at 0.27 m single-view error where the refit reached 0.215 m):
+a rolled camera's boxes are the bounding boxes of a rotated person, whose foot and centre
+points no similarity maps exactly; the transform now maps whole boxes
+(:func:`models.mom.image_transform.boxes_to_model`), which un-boxes their size.
 
 Pairing a position with ``m``'s box: ``m``'s former map predicts where the person's feet
 should be in its image; a bump of a few degrees moves them by tens of pixels, less than a box
@@ -41,8 +46,9 @@ expected spread is ``reachable_m = sqrt(single² + (1.18 reference)²)``, ``sing
 Gaussian in per-axis stds). The repair is served when its held-out
 error is within ``TOLERANCE`` of ``reachable_m``; the figure is stated in health either way.
 
-The repaired model serves the floor geometry for every view (policy ``prior``): the encoder
-read ``m``'s boxes as they were before the bump and cannot be refitted in seconds. The next
+A refitted model serves the floor geometry for every view (policy ``prior``): the encoder
+read ``m``'s boxes as they were before the bump and cannot be refitted in seconds (a transform
+keeps the model's policy: its encoder reads the boxes mapped back). The next
 self-improvement run (:mod:`service.learning.improve`) retrains it on post-bump labels.
 """
 
@@ -175,11 +181,16 @@ def repair(meta: dict[str, Any], camera: int, samples: HealSamples, single_m: fl
     """``meta`` (a model.json) repaired for moved ``camera`` on the training share of
     ``samples`` and checked on the held-out share (module docstring).
 
-    First the bump as one image transform of the former model (:func:`_transform_repair`): few
-    unknowns, so it needs few positions, and it keeps the encoder. When that does not explain
-    the held-out positions (the camera was moved, not only turned: the room looks different
-    from where it stands, which no image transform undoes), its maps are refitted
-    (:func:`_refit_repair`) and the better of the two by the held-out check is returned.
+    The first repair that passes its check, in order of unknowns: the bump as the camera's
+    image rolled and shifted under the former model (3), as any homography (8)
+    (:func:`_transform_repair`), its maps refitted (:func:`_refit_repair`, 16 per map). Fewer
+    unknowns first, not the best on the held-out share: with two cameras the references are
+    single views and a fifth of 100 of them cannot tell a homography that fits their noise
+    from the roll and shift that is there (indoor-2cam, 80 positions: 0.17 m and 0.33 m on the
+    dense room, the held-out check preferring the second). The homography is for a larger pan
+    or tilt, the refit for a camera that was moved, not turned: the room then looks different
+    from where it stands, which no image transform undoes. None passing: the one with the
+    smallest held-out error (the caller collects more positions).
     """
     entry = (meta.get("floor_prior") or {}).get("prior")
     if not entry:
@@ -187,19 +198,17 @@ def repair(meta: dict[str, Any], camera: int, samples: HealSamples, single_m: fl
     single_views = np.asarray(samples.std, np.float64)[_held(samples.n)]
     reference = float(np.median(single_views)) if len(single_views) else float("inf")
     reachable = round(float(np.hypot(single_m, RAYLEIGH_MEDIAN * reference)), 4)
+    tried: list[Repair] = []
     if len(samples.cov) == samples.n:
-        try:
-            transformed = _transform_repair(meta, camera, samples, reachable)
-        except MomlocError:
-            transformed = None
-        if transformed is not None and transformed.passed:
-            return transformed
-    else:
-        transformed = None
-    refitted = _refit_repair(meta, camera, samples, reachable)
-    if transformed is not None and transformed.error_m < refitted.error_m:
-        return transformed
-    return refitted
+        for dof in DOFS:
+            try:
+                tried.append(_transform_repair(meta, camera, samples, reachable, dof))
+            except MomlocError:
+                continue
+            if tried[-1].passed:
+                return tried[-1]
+    tried.append(_refit_repair(meta, camera, samples, reachable))
+    return tried[-1] if tried[-1].passed else min(tried, key=lambda r: r.error_m)
 
 
 def _held(n: int) -> np.ndarray:
@@ -214,27 +223,19 @@ def _transform(meta: dict[str, Any], camera: int) -> np.ndarray | None:
 
 
 def _transform_repair(
-    meta: dict[str, Any], camera: int, samples: HealSamples, reachable: float
+    meta: dict[str, Any], camera: int, samples: HealSamples, reachable: float, dof: int
 ) -> Repair:
-    """The former model with ``camera``'s boxes mapped back by a fitted image transform
-    (a similarity and a homography tried, the one with the smaller held-out error kept)."""
+    """The former model with ``camera``'s boxes mapped back by an image transform of ``dof``
+    unknowns fitted on the training share (:mod:`service.learning.bump`)."""
+    held = _held(samples.n)
+    if (~held).sum() < 4 * dof:  # a few positions per unknown, or it fits their noise
+        raise MomlocError(f"{samples.n} positions are too few for {dof} unknowns")
     prior = FloorPrior.from_json(meta["floor_prior"]["prior"])
     world = np.asarray(samples.world, np.float64)
     box = np.asarray(samples.box, np.float64)
     cov = np.asarray(samples.cov, np.float64)
-    held = _held(samples.n)
-    former = _transform(meta, camera)
-    best: tuple[float, np.ndarray] | None = None
-    for dof in DOFS:
-        if (~held).sum() < 4 * dof:  # a few positions per unknown, or it fits the noise
-            continue
-        h = fit_bump(prior, camera, world[~held], cov[~held], box[~held], former, dof)
-        error = _lone_error(prior, camera, world[held], boxes_to_model(h, box[held]))
-        if best is None or error < best[0]:
-            best = (error, h)
-    if best is None:
-        raise MomlocError(f"{samples.n} positions are too few to fit the bump")
-    error, h = best
+    h = fit_bump(prior, camera, world[~held], cov[~held], box[~held], _transform(meta, camera), dof)
+    error = _lone_error(prior, camera, world[held], boxes_to_model(h, box[held]))
     out = copy.deepcopy(meta)
     transforms = out.get("image_transforms") or [None] * int(meta["num_cameras"])
     transforms[camera] = h.tolist()

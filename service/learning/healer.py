@@ -40,7 +40,7 @@ from service.setup.training import model_path
 from service.stages import FrameResult
 
 log = logging.getLogger("momloc.learning")
-MIN_POSITIONS = 200
+MIN_POSITIONS = 120
 MAX_POSITIONS = 1600
 HOW = {"transform": "its image turned", "refit": "its floor map refitted"}
 SINGLE_VIEW_FALLBACK_M = 0.3  # a camera with no self-labels before the bump: a typical lone view
