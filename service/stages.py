@@ -182,9 +182,7 @@ class AreaAware(Protocol):
 
 class Stored(Protocol):
     """Where a model came from: its directory and ``model.json`` (the self-learning room keys
-    its labels by the floor marks recorded there), its fitted floor geometry (None: none) and
-    the boxes as that geometry's cameras saw them (a repaired camera's mapped back,
-    :mod:`models.mom.image_transform`)."""
+    its labels by the floor marks recorded there) and its fitted floor geometry (None: none)."""
 
     @property
     def model_dir(self) -> Path: ...
@@ -194,10 +192,6 @@ class Stored(Protocol):
 
     @property
     def floor_prior(self) -> FloorPrior | None: ...
-
-    def to_model_frame(
-        self, boxes: np.ndarray, keypoints: np.ndarray | None = None
-    ) -> tuple[np.ndarray, np.ndarray | None]: ...
 
 
 WorldBounds = tuple[tuple[float, float], tuple[float, float]]

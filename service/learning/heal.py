@@ -121,7 +121,7 @@ def heal_samples(
     seen: np.ndarray = np.any(np.all(np.isfinite(others), axis=-1), axis=1)
     if not seen.any():
         return 0
-    others, _ = runtime.to_model_frame(others)  # another repaired camera's: as its maps saw
+    others = _model_frame(runtime.meta, others)  # another repaired camera's: as its maps saw
     xy, cov = prior.predict_covariance(np.where(seen[:, None, None], others, np.nan))
     std = np.sqrt(np.clip(np.linalg.eigvalsh(np.nan_to_num(cov))[:, -1], 0, None))
     feet = prior.reproject(np.nan_to_num(xy), "foot")[:, camera]
@@ -213,6 +213,17 @@ def repair(meta: dict[str, Any], camera: int, samples: HealSamples, single_m: fl
 
 def _held(n: int) -> np.ndarray:
     return np.arange(n) % HELD_OUT_EVERY == HELD_OUT_EVERY - 1
+
+
+def _model_frame(meta: dict[str, Any], boxes: np.ndarray) -> np.ndarray:
+    """Boxes [B, K, 4] with each repaired camera's mapped back into the image its maps learned
+    (as the runtime does, :meth:`models.mom.runtime.MomRuntime.to_model_frame`)."""
+    out = np.array(boxes, dtype=np.float64, copy=True)
+    for k in range(out.shape[1]):
+        h = _transform(meta, k)
+        if h is not None:
+            out[:, k] = boxes_to_model(h, out[:, k])
+    return out
 
 
 def _transform(meta: dict[str, Any], camera: int) -> np.ndarray | None:
