@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pytest
 
 from models.geometry.floor_prior import FloorPrior
 from models.mom.image_transform import apply, boxes_to_model
@@ -241,3 +242,28 @@ def test_a_bumped_camera_is_repaired_as_one_image_transform_from_few_positions()
     repaired = lone_error(before, test_world, boxes_to_model(h, test_boxes))
     unbumped = lone_error(before, *camera_views(4, range(0, 600, 7), bumped=False))
     assert repaired < 1.1 * unbumped and repaired < 0.8 * bumped, (bumped, repaired, unbumped)
+
+
+def test_when_no_image_transform_explains_the_positions_the_maps_are_refitted(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A transform that leaves the bump in place (the identity: as if the camera had been
+    moved, not turned) fails the held-out check, so the camera's maps are refitted instead."""
+    import service.learning.heal
+
+    monkeypatch.setattr(service.learning.heal, "fit_bump", lambda *args, **kwargs: np.eye(3))
+    meta = json.loads((DEMO_MODEL_DIR / "model.json").read_text())
+    world, boxes = camera_views(3, range(0, 1500, 5))
+    cov = np.tile(np.eye(2) * 0.1**2, (len(world), 1, 1))
+    reference = world + np.random.default_rng(0).normal(0, 0.1, world.shape)
+    samples = HealSamples(
+        list(np.arange(len(world), dtype=float)),
+        list(reference),
+        [0.1] * len(world),
+        list(boxes),
+        list(cov),
+    )
+    fixed = repair(meta, 1, samples, single_m=0.15)
+    assert fixed.how == "refit" and fixed.passed, fixed.error_m
+    assert "image_transforms" not in fixed.meta
+    assert fixed.meta["floor_prior"]["prior"] != meta["floor_prior"]["prior"]
