@@ -9,14 +9,16 @@ pairs that position with ``m``'s box (:func:`heal_samples`); once ``min_position
 boxes mapped back into the image the model learned, :mod:`service.learning.bump`, served as
 ``model.json`` ``image_transforms``): a bump turns the camera, the room stays, so its image
 moves by one homography and the former maps, encoder and decoder hold once the boxes are mapped
-back; 3 unknowns (roll and shift) instead of 16 per map, so 80 positions do what the refit
-needed 300-400 for. Only when no transform explains the held-out positions (the camera was
-moved, not turned) are ``m``'s maps refitted on them and its decoder matrix (a DLT of the floor
-onto the box's mean pixel). An earlier similarity of the former maps' points was rejected (it
-left camera 1 of indoor-2cam at 0.27 m single-view error where the refit reached 0.215 m):
-a rolled camera's boxes are the bounding boxes of a rotated person, whose foot and centre
-points no similarity maps exactly; the transform now maps whole boxes
-(:func:`models.mom.image_transform.boxes_to_model`), which un-boxes their size.
+back; 3 unknowns (roll and shift) instead of 16 per map, so 120 positions (under a minute of
+walking) bring indoor-2cam back to 1.05-1.07× of its pre-bump error, where the refit reached
+1.18-1.31× from 200-400 (``bench/results/self_healing.md``). Only when no transform explains
+the held-out positions (the camera was moved, not turned) are ``m``'s maps refitted on them
+and its decoder matrix (a DLT of the floor onto the box's mean pixel). An earlier similarity
+of the former maps' points was rejected (it left camera 1 of indoor-2cam at 0.27 m single-view
+error where the refit reached 0.215 m): a rolled camera's boxes are the bounding boxes of a
+rotated person, whose foot and centre points no similarity maps exactly; the transform now
+maps whole boxes (:func:`models.mom.image_transform.boxes_to_model`), which un-boxes their
+size.
 
 Pairing a position with ``m``'s box: ``m``'s former map predicts where the person's feet
 should be in its image; a bump of a few degrees moves them by tens of pixels, less than a box
