@@ -307,7 +307,7 @@ class LearningSettings(BaseModel):
         "positions the other cameras give and serve the repair once its check passes.",
     )
     heal_min_positions: int = Field(
-        200, ge=20, le=100_000, description="Positions to collect before the first repair."
+        120, ge=20, le=100_000, description="Positions to collect before the first repair."
     )
     marks: Path | None = Field(
         None,

@@ -25,6 +25,7 @@ from common.errors import MomlocError, shorten
 from common.onnx_session import open_session
 from common.row_memo import RowMemo
 from models.geometry.floor_prior import FloorPrior
+from models.mom import image_transform
 from models.mom.prior_policy import POLICY_WEIGHTS, VIEW_CLASSES, blend, row_weights
 from models.mom.sampling import InferenceSampler, SamplerConfig, draws_from_json, unit_mean
 from models.mom.schema import validate_model_json
@@ -61,6 +62,11 @@ class MomRuntime:
         self.floor_prior = FloorPrior.from_json(prior["prior"]) if prior.get("prior") else None
         if max(self.prior_weights) > 0 and self.floor_prior is None:
             raise ValueError(f"floor_prior: policy {self.policy!r} without a fitted prior")
+        # a repaired camera's boxes are mapped back into the image the model learned (None: as
+        # seen; models.mom.image_transform)
+        self.image_transforms = image_transform.from_json(
+            meta.get("image_transforms"), self.num_cameras
+        )
         area = meta.get("setup_area")
         # where the model was set up (models.mom.setup_area); None for models trained before it
         self.setup_area = SetupArea.from_json(area) if area else None
@@ -185,7 +191,33 @@ class MomRuntime:
         self, boxes: np.ndarray, keypoints: np.ndarray | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
         """The exact ONNX inputs: estimators [B, D, K, E, 2] and mask [B, K]."""
+        boxes, keypoints = self.to_model_frame(boxes, keypoints)
+        return self._encoder_inputs(boxes, keypoints)
+
+    def to_model_frame(
+        self, boxes: np.ndarray, keypoints: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Boxes [B, K, 4] (and keypoints [B, K, J, 3]) as the model's cameras saw them when it
+        learned: each repaired camera's mapped by its ``image_transforms`` entry (module
+        :mod:`models.mom.image_transform`); unchanged for cameras without one."""
         boxes = self._check_boxes(boxes)
+        if all(h is None for h in self.image_transforms):
+            return boxes, keypoints
+        boxes = boxes.copy()
+        kp = None if keypoints is None else np.array(keypoints, dtype=np.float32, copy=True)
+        if kp is not None and kp.ndim == 3:
+            kp = kp[None]
+        for k, h in enumerate(self.image_transforms):
+            if h is None:
+                continue
+            boxes[:, k] = image_transform.boxes_to_model(h, boxes[:, k])
+            if kp is not None and kp.ndim == 4:  # a wrong shape is encoder_inputs' to report
+                kp[:, k] = image_transform.keypoints_to_model(h, kp[:, k])
+        return boxes, kp
+
+    def _encoder_inputs(
+        self, boxes: np.ndarray, keypoints: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray]:
         if self.observation == "keypoints":
             if keypoints is None:
                 raise MomlocError("this model uses keypoints: pass keypoints [B, K, J, 3]")
@@ -207,7 +239,7 @@ class MomRuntime:
         geometry's position whatever the policy: the encoder never saw such a row in training
         and maps it into its training area.
         """
-        boxes = self._check_boxes(boxes)
+        boxes, keypoints = self.to_model_frame(boxes, keypoints)
         if len(boxes) == 0:
             return np.zeros((0, 2), dtype=np.float32)
         kp = None if keypoints is None else np.asarray(keypoints, dtype=np.float32)
@@ -223,16 +255,16 @@ class MomRuntime:
 
     def _localize_rows(self, boxes: np.ndarray, keypoints: np.ndarray | None) -> np.ndarray:
         if self.floor_prior is None or (self.setup_area is None and max(self.prior_weights) == 0):
-            return self.encode(boxes, keypoints)  # no geometry to serve: not computed
+            return self._encode(boxes, keypoints)  # no geometry to serve: not computed
         prior_keypoints = keypoints if self.observation == "keypoints" else None
         prior_xy, _ = self.floor_prior.predict(boxes, prior_keypoints)
         weight = self._served_weights(boxes, prior_xy)
         if weight.max(initial=0.0) == 0.0:
-            return self.encode(boxes, keypoints)
+            return self._encode(boxes, keypoints)
         need = ~np.isfinite(prior_xy).all(axis=1) | (weight < 1.0)
         encoder_xy = np.full_like(prior_xy, np.nan)
         if need.any():
-            encoder_xy[need] = self.encode(
+            encoder_xy[need] = self._encode(
                 boxes[need], None if keypoints is None else np.asarray(keypoints)[need]
             )
         return blend(encoder_xy, prior_xy, weight).astype(np.float32)
@@ -252,14 +284,15 @@ class MomRuntime:
         2] from the floor geometry (:meth:`FloorPrior.views`); None without a fitted prior."""
         if self.floor_prior is None:
             return None
+        boxes, keypoints = self.to_model_frame(boxes, keypoints)
         prior_keypoints = keypoints if self.observation == "keypoints" else None
-        return self.floor_prior.views(self._check_boxes(boxes), prior_keypoints)
+        return self.floor_prior.views(boxes, prior_keypoints)
 
     def inside(self, boxes: np.ndarray, world: np.ndarray) -> np.ndarray:
         """[B] bool: the rows' positions [B, 2] lie in the set-up area and some box [B, K, 4]
         where its camera saw training boxes (:class:`~models.mom.setup_area.SetupArea`); all True
         for a model without an area."""
-        boxes = self._check_boxes(boxes)
+        boxes, _ = self.to_model_frame(boxes)
         if self.setup_area is None:
             return np.ones(len(boxes), dtype=bool)
         return self.setup_area.contains(world) & self.setup_area.boxes_in_region(boxes)
@@ -274,7 +307,7 @@ class MomRuntime:
         taken as fully correlated (they read the same boxes). NaN without a fitted prior or
         where it sees nothing (the tracker then uses its own default).
         """
-        boxes = self._check_boxes(boxes)
+        boxes, keypoints = self.to_model_frame(boxes, keypoints)
         if self.floor_prior is None:
             return np.full((len(boxes), 2, 2), np.nan)
         prior_keypoints = keypoints if self.observation == "keypoints" else None
@@ -292,7 +325,10 @@ class MomRuntime:
 
     def encode(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
         """The MoM encoder's floor positions [B, 2] (the D draws averaged in the graph)."""
-        estimators, mask = self.encoder_inputs(boxes, keypoints)
+        return self._encode(*self.to_model_frame(boxes, keypoints))
+
+    def _encode(self, boxes: np.ndarray, keypoints: np.ndarray | None) -> np.ndarray:
+        estimators, mask = self._encoder_inputs(boxes, keypoints)
         if len(mask) == 0:
             return np.zeros((0, 2), dtype=np.float32)
         (world,) = self._session.run(None, {"estimators": estimators, "mask": mask})
@@ -300,14 +336,19 @@ class MomRuntime:
         return world
 
     def reproject(self, world: np.ndarray) -> np.ndarray:
-        """Pixels [B, K, 2] of the body's mean point for floor positions [B, 2] (decoder P̄_k)."""
+        """Pixels [B, K, 2] of the body's mean point for floor positions [B, 2] (decoder P̄_k),
+        in each camera's current image (after its ``image_transforms`` entry)."""
         world = np.asarray(world, dtype=np.float64).reshape(-1, 2)
         # On the floor (z = 0): P (x, y, 0, 1) = P[:, :2] (x, y) + P[:, 3]. Called thousands of
         # times a second on a few points, so no homogeneous array is built.
         projected = np.einsum("kij,bj->bki", self.decoder[:, :, :2], world) + self.decoder[:, :, 3]
         denominator = projected[..., 2:]
         denominator = np.where(np.abs(denominator) < 1e-9, 1e-9, denominator)
-        return (projected[..., :2] / denominator).astype(np.float32)
+        pixels = projected[..., :2] / denominator
+        for k, h in enumerate(self.image_transforms):
+            if h is not None:  # where the repaired camera now sees that point
+                pixels[:, k] = image_transform.apply(h, pixels[:, k])
+        return pixels.astype(np.float32)
 
     def observed_pixels(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
         """Mean pixel per camera [B, K, 2] that the decoder predicts (NaN where unseen)."""

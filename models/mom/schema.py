@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from common.errors import MomlocError, shorten
@@ -24,6 +25,11 @@ _STRICT = ConfigDict(strict=True, extra="ignore")
 Number = Annotated[float, Field(allow_inf_nan=False)]
 Matrix34 = Annotated[
     list[Annotated[list[Number], Field(min_length=4, max_length=4)]],
+    Field(min_length=3, max_length=3),
+]
+
+Matrix33 = Annotated[
+    list[Annotated[list[Number], Field(min_length=3, max_length=3)]],
     Field(min_length=3, max_length=3),
 ]
 
@@ -97,6 +103,8 @@ class ModelSchema(BaseModel):
     floor_prior: FloorPriorSchema | None = None
     world_bounds: WorldBoundsSchema | None = None  # absent in models trained before 2026-12
     setup_area: dict[str, Any] | None = None  # models.mom.setup_area; absent before 2026-12-03
+    # per camera: its image → the model's (models.mom.image_transform); absent: none repaired
+    image_transforms: list[Matrix33 | None] | None = None
 
     @model_validator(mode="after")
     def _one_per_camera(self) -> ModelSchema:
@@ -105,6 +113,12 @@ class ModelSchema(BaseModel):
             raise ValueError(f"image_sizes: {len(self.image_sizes)} entries for {k} cameras")
         if len(self.decoder.matrices) != k:
             raise ValueError(f"decoder.matrices: {len(self.decoder.matrices)} for {k} cameras")
+        transforms = self.image_transforms
+        if transforms is not None and len(transforms) != k:
+            raise ValueError(f"image_transforms: {len(transforms)} for {k} cameras")
+        for camera, h in enumerate(transforms or []):
+            if h is not None and abs(float(np.linalg.det(np.asarray(h)))) < 1e-12:
+                raise ValueError(f"image_transforms: camera {camera}'s is not invertible")
         if self.sampler.observation != self.observation:
             raise ValueError("sampler.observation differs from observation")
         return self

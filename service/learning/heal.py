@@ -5,13 +5,20 @@ When the camera-moved check (:mod:`service.camera_health`) flags camera ``m``, i
 decoder matrix no longer describe where it looks; every other camera still does. So, while ``m``
 stays flagged, each moment where the *other* cameras localize a person alone in ``m``'s view
 pairs that position with ``m``'s box (:func:`heal_samples`); once ``min_positions`` are in,
-:func:`repair` refits ``m``'s maps on them and its decoder matrix (a DLT of the floor onto the
-box's mean pixel), and the repaired model is served when its check passes. Rejected: modelling
-the bump as the image moving under the former maps (a similarity, four unknowns instead of
-eight): a rolled camera's *boxes* are the bounding boxes of a rotated person, whose foot and
-centre points no similarity maps exactly; on ideal boxes and exact references it left camera
-1 of indoor-2cam at 0.27 m single-view error where the refit reached 0.215 m (0.208 m before
-the bump).
+:func:`repair` first fits the bump as one image transform of the former model (the camera's
+boxes mapped back into the image the model learned, :mod:`service.learning.bump`, served as
+``model.json`` ``image_transforms``): a bump turns the camera, the room stays, so its image
+moves by one homography and the former maps, encoder and decoder hold once the boxes are mapped
+back; 3 unknowns (roll and shift) instead of 16 per map, so 120 positions (under a minute of
+walking) bring indoor-2cam back to 1.05-1.07× of its pre-bump error, where the refit reached
+1.18-1.31× from 200-400 (``bench/results/self_healing.md``). Only when no transform explains
+the held-out positions (the camera was moved, not turned) are ``m``'s maps refitted on them
+and its decoder matrix (a DLT of the floor onto the box's mean pixel). An earlier similarity
+of the former maps' points was rejected (it left camera 1 of indoor-2cam at 0.27 m single-view
+error where the refit reached 0.215 m): a rolled camera's boxes are the bounding boxes of a
+rotated person, whose foot and centre points no similarity maps exactly; the transform now
+maps whole boxes (:func:`models.mom.image_transform.boxes_to_model`), which un-boxes their
+size.
 
 Pairing a position with ``m``'s box: ``m``'s former map predicts where the person's feet
 should be in its image; a bump of a few degrees moves them by tens of pixels, less than a box
@@ -41,8 +48,9 @@ expected spread is ``reachable_m = sqrt(single² + (1.18 reference)²)``, ``sing
 Gaussian in per-axis stds). The repair is served when its held-out
 error is within ``TOLERANCE`` of ``reachable_m``; the figure is stated in health either way.
 
-The repaired model serves the floor geometry for every view (policy ``prior``): the encoder
-read ``m``'s boxes as they were before the bump and cannot be refitted in seconds. The next
+A refitted model serves the floor geometry for every view (policy ``prior``): the encoder
+read ``m``'s boxes as they were before the bump and cannot be refitted in seconds (a transform
+keeps the model's policy: its encoder reads the boxes mapped back). The next
 self-improvement run (:mod:`service.learning.improve`) retrains it on post-bump labels.
 """
 
@@ -57,7 +65,10 @@ import numpy as np
 from common.errors import MomlocError
 from models.geometry.dlt import fit_dlt
 from models.geometry.floor_prior import FloorPrior
+from models.mom.image_transform import apply, boxes_to_model
 from models.mom.sampling import SamplerConfig, unit_mean
+from service.learning.bump import DOFS
+from service.learning.bump import fit as fit_bump
 from service.learning.labels import LabelRules
 from service.stages import FrameResult
 
@@ -99,8 +110,10 @@ def heal_samples(
 ) -> int:
     """Add this frame set's pairs for moved ``camera`` to ``into``; how many were added."""
     runtime = result.runtime
-    prior = runtime.floor_prior if runtime is not None else None
-    if prior is None or prior.cameras[camera] is None:
+    if runtime is None or runtime.floor_prior is None:
+        return 0
+    prior = runtime.floor_prior
+    if prior.cameras[camera] is None:
         return 0
     boxes_m = np.asarray(result.detections[camera].boxes, np.float64).reshape(-1, 4)
     if not len(boxes_m) or not result.associations:
@@ -110,9 +123,13 @@ def heal_samples(
     seen: np.ndarray = np.any(np.all(np.isfinite(others), axis=-1), axis=1)
     if not seen.any():
         return 0
+    others = _model_frame(runtime.meta, others)  # another repaired camera's: as its maps saw
     xy, cov = prior.predict_covariance(np.where(seen[:, None, None], others, np.nan))
     std = np.sqrt(np.clip(np.linalg.eigvalsh(np.nan_to_num(cov))[:, -1], 0, None))
     feet = prior.reproject(np.nan_to_num(xy), "foot")[:, camera]
+    former = _transform(runtime.meta, camera)
+    if former is not None:  # a camera repaired before: where its current image shows the feet
+        feet = apply(former, feet)
     box_feet = np.c_[(boxes_m[:, 0] + boxes_m[:, 2]) / 2, boxes_m[:, 3]]
     height = boxes_m[:, 3] - boxes_m[:, 1]
     by_association = {tr.association: tr for tr in result.tracks if tr.association is not None}
@@ -147,12 +164,15 @@ def heal_samples(
 
 @dataclass(frozen=True)
 class Repair:
-    """A repaired ``model.json`` and its check."""
+    """A repaired ``model.json`` and its check; ``how``: ``"transform"`` (the former model with
+    the camera's boxes mapped back, :mod:`service.learning.bump`) or ``"refit"`` (its maps
+    refitted)."""
 
     meta: dict[str, Any]
     positions: int
     error_m: float
     reachable_m: float
+    how: str = "refit"
 
     @property
     def passed(self) -> bool:
@@ -160,15 +180,90 @@ class Repair:
 
 
 def repair(meta: dict[str, Any], camera: int, samples: HealSamples, single_m: float) -> Repair:
-    """``meta`` (a model.json) with camera's floor maps and decoder matrix refitted on the
-    training share of ``samples``, checked on the held-out share (module docstring)."""
-    world = np.asarray(samples.world, np.float64)
-    box = np.asarray(samples.box, np.float64)
-    held = np.arange(samples.n) % HELD_OUT_EVERY == HELD_OUT_EVERY - 1
+    """``meta`` (a model.json) repaired for moved ``camera`` on the training share of
+    ``samples`` and checked on the held-out share (module docstring).
+
+    The first repair that passes its check, in order of unknowns: the bump as the camera's
+    image rolled and shifted under the former model (3), as any homography (8)
+    (:func:`_transform_repair`), its maps refitted (:func:`_refit_repair`, 16 per map). Fewer
+    unknowns first, not the best on the held-out share: with two cameras the references are
+    single views and a fifth of 100 of them cannot tell a homography that fits their noise
+    from the roll and shift that is there (indoor-2cam, 80 positions: 0.17 m and 0.33 m on the
+    dense room, the held-out check preferring the second). The homography is for a larger pan
+    or tilt, the refit for a camera that was moved, not turned: the room then looks different
+    from where it stands, which no image transform undoes. None passing: the one with the
+    smallest held-out error (the caller collects more positions).
+    """
     entry = (meta.get("floor_prior") or {}).get("prior")
     if not entry:
         raise MomlocError("the model has no floor geometry to repair")
-    prior = FloorPrior.from_json(entry)
+    single_views = np.asarray(samples.std, np.float64)[_held(samples.n)]
+    reference = float(np.median(single_views)) if len(single_views) else float("inf")
+    reachable = round(float(np.hypot(single_m, RAYLEIGH_MEDIAN * reference)), 4)
+    tried: list[Repair] = []
+    if len(samples.cov) == samples.n:
+        for dof in DOFS:
+            try:
+                tried.append(_transform_repair(meta, camera, samples, reachable, dof))
+            except MomlocError:
+                continue
+            if tried[-1].passed:
+                return tried[-1]
+    tried.append(_refit_repair(meta, camera, samples, reachable))
+    return tried[-1] if tried[-1].passed else min(tried, key=lambda r: r.error_m)
+
+
+def _held(n: int) -> np.ndarray:
+    return np.arange(n) % HELD_OUT_EVERY == HELD_OUT_EVERY - 1
+
+
+def _model_frame(meta: dict[str, Any], boxes: np.ndarray) -> np.ndarray:
+    """Boxes [B, K, 4] with each repaired camera's mapped back into the image its maps learned
+    (as the runtime does, :meth:`models.mom.runtime.MomRuntime.to_model_frame`)."""
+    out = np.array(boxes, dtype=np.float64, copy=True)
+    for k in range(out.shape[1]):
+        h = _transform(meta, k)
+        if h is not None:
+            out[:, k] = boxes_to_model(h, out[:, k])
+    return out
+
+
+def _transform(meta: dict[str, Any], camera: int) -> np.ndarray | None:
+    """The camera's image transform in ``meta`` (None: none)."""
+    entries = meta.get("image_transforms")
+    h = None if entries is None else entries[camera]
+    return None if h is None else np.asarray(h, np.float64)
+
+
+def _transform_repair(
+    meta: dict[str, Any], camera: int, samples: HealSamples, reachable: float, dof: int
+) -> Repair:
+    """The former model with ``camera``'s boxes mapped back by an image transform of ``dof``
+    unknowns fitted on the training share (:mod:`service.learning.bump`)."""
+    held = _held(samples.n)
+    if (~held).sum() < 4 * dof:  # a few positions per unknown, or it fits their noise
+        raise MomlocError(f"{samples.n} positions are too few for {dof} unknowns")
+    prior = FloorPrior.from_json(meta["floor_prior"]["prior"])
+    world = np.asarray(samples.world, np.float64)
+    box = np.asarray(samples.box, np.float64)
+    cov = np.asarray(samples.cov, np.float64)
+    h = fit_bump(prior, camera, world[~held], cov[~held], box[~held], _transform(meta, camera), dof)
+    error = _lone_error(prior, camera, world[held], boxes_to_model(h, box[held]))
+    out = copy.deepcopy(meta)
+    transforms = out.get("image_transforms") or [None] * int(meta["num_cameras"])
+    transforms[camera] = h.tolist()
+    out["image_transforms"] = transforms
+    return Repair(out, samples.n, round(error, 4), reachable, "transform")
+
+
+def _refit_repair(
+    meta: dict[str, Any], camera: int, samples: HealSamples, reachable: float
+) -> Repair:
+    """``meta`` with camera's floor maps and decoder matrix refitted on the training share."""
+    world = np.asarray(samples.world, np.float64)
+    box = np.asarray(samples.box, np.float64)
+    held = _held(samples.n)
+    prior = FloorPrior.from_json(meta["floor_prior"]["prior"])
     decoder = np.asarray(meta["decoder"]["matrices"], np.float64)
     cov = np.asarray(samples.cov, np.float64) if len(samples.cov) == samples.n else None
     fixed, decoder[camera] = _refit(
@@ -176,7 +271,6 @@ def repair(meta: dict[str, Any], camera: int, samples: HealSamples, single_m: fl
         decoder[camera], meta,
     )  # fmt: skip
     error = _lone_error(fixed, camera, world[held], box[held])
-    reference = float(np.median(np.asarray(samples.std)[held]))
     out = copy.deepcopy(meta)
     out["floor_prior"] = {
         **out["floor_prior"],
@@ -186,8 +280,9 @@ def repair(meta: dict[str, Any], camera: int, samples: HealSamples, single_m: fl
         "reason": f"camera {camera} re-learned from {samples.n} positions after it moved",
     }
     out["decoder"] = {**out["decoder"], "matrices": decoder.tolist()}
-    reachable = float(np.hypot(single_m, RAYLEIGH_MEDIAN * reference))
-    return Repair(out, samples.n, round(error, 4), round(reachable, 4))
+    if out.get("image_transforms"):  # the refitted maps read the camera's boxes as they are
+        out["image_transforms"][camera] = None
+    return Repair(out, samples.n, round(error, 4), reachable, "refit")
 
 
 def _lone_error(prior: FloorPrior, camera: int, world: np.ndarray, box: np.ndarray) -> float:

@@ -40,8 +40,9 @@ from service.setup.training import model_path
 from service.stages import FrameResult
 
 log = logging.getLogger("momloc.learning")
-MIN_POSITIONS = 200
+MIN_POSITIONS = 120
 MAX_POSITIONS = 1600
+HOW = {"transform": "its image turned", "refit": "its floor map refitted"}
 SINGLE_VIEW_FALLBACK_M = 0.3  # a camera with no self-labels before the bump: a typical lone view
 
 
@@ -115,7 +116,8 @@ class Healer:
         moved_at = time.strftime("%H:%M", time.localtime(session.wall))
         session.message = (
             f"camera {session.camera} moved at {moved_at}; re-learned from {fixed.positions} "
-            f"positions; error {fixed.error_m:.2f} m (reachable {fixed.reachable_m:.2f} m)"
+            f"positions ({HOW[fixed.how]}); error {fixed.error_m:.2f} m "
+            f"(reachable {fixed.reachable_m:.2f} m)"
         )
         fixed.meta["learning"] = {  # its own room: the labels of the former one saw m elsewhere
             "repaired": {

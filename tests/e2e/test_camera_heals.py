@@ -77,7 +77,9 @@ def test_a_bumped_camera_is_repaired_and_the_alert_cleared(
         assert "camera 1 moved at" in repair["message"] and "re-learned from" in repair["message"]
         assert srv.daemon.pipeline.model_dir == tmp_path / "model"
         served = json.loads((tmp_path / "model" / "model.json").read_text())
-        assert served["floor_prior"]["policy"] == "prior"
+        # repaired as the camera's image turned (models.mom.image_transform), the maps kept
+        assert served["image_transforms"][0] is None and served["image_transforms"][1]
+        assert "(its image turned)" in repair["message"]
         wait_for(
             lambda: srv.get("/v1/health").json()["cameras"][1]["alignment"]["moved"],
             lambda moved: not moved,

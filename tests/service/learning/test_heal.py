@@ -7,11 +7,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pytest
 
 from models.geometry.floor_prior import FloorPrior
+from models.mom.image_transform import apply, boxes_to_model
 from models.simulate import Perturbation
 from models.simulate.presets import make_scene
-from service.learning.heal import HealSamples, repair
+from service.learning.heal import HealSamples, _refit_repair, repair
 from service.learning.healer import Healer, Session
 from service.learning.listener import SelfLabeler
 from service.settings import DEMO_MODEL_DIR
@@ -145,7 +147,8 @@ def test_a_failing_repair_is_not_served_and_collection_goes_on(tmp_path: Path) -
 def test_references_long_along_a_line_of_sight_are_refined_with_their_covariance() -> None:
     """Two cameras: the references are the other camera's single views, 0.5 m std along its
     line of sight and 5 cm across; their covariances let the moved camera's own boxes place
-    them along it (service.learning.heal, errors-in-variables)."""
+    them along it (service.learning.heal, errors-in-variables). The refit alone: the fallback
+    when no image transform explains the positions."""
     meta = json.loads((DEMO_MODEL_DIR / "model.json").read_text())
     camera0 = np.asarray(make_scene("indoor-2cam", seed=3).cameras[0].position)[:2]
     world, boxes = camera_views(3, range(0, 1500, 5))
@@ -160,7 +163,7 @@ def test_references_long_along_a_line_of_sight_are_refined_with_their_covariance
     for name, covariances in (("plain", []), ("refined", list(cov))):
         t = list(np.arange(len(world), dtype=float))
         samples = HealSamples(t, list(reference), [0.5] * len(world), list(boxes), covariances)
-        fixed = repair(meta, 1, samples, single_m=0.15)
+        fixed = _refit_repair(meta, 1, samples, reachable=0.5)
         after = FloorPrior.from_json(fixed.meta["floor_prior"]["prior"])
         errors[name] = lone_error(after, test_world, test_boxes)
     unbumped = lone_error(
@@ -169,3 +172,98 @@ def test_references_long_along_a_line_of_sight_are_refined_with_their_covariance
     )
     assert errors["refined"] < 0.8 * errors["plain"], errors
     assert errors["refined"] < 1.3 * unbumped, (errors, unbumped)
+
+
+def line_of_sight_references(
+    world: np.ndarray, seed: int, along_m: float = 0.4, across_m: float = 0.05
+) -> tuple[np.ndarray, np.ndarray]:
+    """Camera 0's single views of ``world``: long along its line of sight; and their
+    covariances."""
+    camera0 = np.asarray(make_scene("indoor-2cam", seed=3).cameras[0].position)[:2]
+    sight = (world - camera0) / np.linalg.norm(world - camera0, axis=1, keepdims=True)
+    across = np.c_[-sight[:, 1], sight[:, 0]]
+    rng = np.random.default_rng(seed)
+    reference = (
+        world
+        + rng.normal(0, along_m, len(world))[:, None] * sight
+        + rng.normal(0, across_m, len(world))[:, None] * across
+    )
+    cov = along_m**2 * sight[:, :, None] * sight[:, None]
+    cov += across_m**2 * across[:, :, None] * across[:, None]
+    return reference, cov
+
+
+def test_a_bump_by_a_known_transform_is_recovered_to_a_pixel() -> None:
+    """The bump a known roll and shift of camera 1's image; the references what the former
+    maps said before the bump plus 5 cm of noise (several cameras' positions): 80 positions
+    give the transform back to under a pixel where people are seen (a homography, with four
+    more unknowns, to 3)."""
+    from service.learning.bump import fit
+    from tests.models.test_image_transform import rolled, seen_through
+
+    world, boxes = camera_views(3, range(0, 1500, 5), bumped=False)
+    alone = np.full((len(world), 2, 4), np.nan)
+    alone[:, 1] = boxes
+    prior = FloorPrior.fit_arrays(world, alone, np.array([[640, 480], [640, 480]]), points="both")
+    said, _ = prior.predict(alone)
+    truth = rolled(3.0, (10.0, 0.0), (320.0, 240.0))
+    pick = np.random.default_rng(2).choice(len(world), 80, replace=False)
+    reference = said[pick] + np.random.default_rng(0).normal(0, 0.05, (80, 2))
+    cov = np.tile(np.eye(2) * 0.05**2, (80, 1, 1))
+    bumped = seen_through(truth, boxes[pick])
+    where = (boxes[:, :2] + boxes[:, 2:]) / 2
+    for dof, within in ((3, 1.0), (8, 3.0)):
+        h = fit(prior, 1, reference, cov, bumped, None, dof)
+        off = np.linalg.norm(apply(h, where) - apply(truth, where), axis=1)
+        assert np.percentile(off, 95) < within, (dof, np.percentile(off, 95))
+    assert np.median(np.linalg.norm(apply(truth, where) - where, axis=1)) > 5  # the bump shows
+
+
+def test_a_bumped_camera_is_repaired_as_one_image_transform_from_few_positions() -> None:
+    """The simulator's bump (roll 3°, shift 10 px) seen in ideal boxes; 80 references from the
+    other camera's single views: the repair is the former model with camera 1's boxes mapped
+    back, and its lone views are as good as before the bump."""
+    meta = json.loads((DEMO_MODEL_DIR / "model.json").read_text())
+    before = FloorPrior.from_json(meta["floor_prior"]["prior"])
+    world, boxes = camera_views(3, range(0, 1500, 5))
+    pick = np.random.default_rng(2).choice(len(world), 80, replace=False)
+    reference, cov = line_of_sight_references(world[pick], seed=6)
+    samples = HealSamples(
+        list(np.arange(80, dtype=float)), list(reference), [0.4] * 80, list(boxes[pick]), list(cov)
+    )
+    fixed = repair(meta, 1, samples, single_m=0.15)
+    assert fixed.how == "transform" and fixed.passed, fixed
+    assert fixed.meta["floor_prior"] == meta["floor_prior"]  # the former maps, unchanged
+    assert fixed.meta["decoder"] == meta["decoder"]
+    h = np.asarray(fixed.meta["image_transforms"][1])
+    assert fixed.meta["image_transforms"][0] is None
+    test_world, test_boxes = camera_views(4, range(0, 600, 7))
+    bumped = lone_error(before, test_world, test_boxes)
+    repaired = lone_error(before, test_world, boxes_to_model(h, test_boxes))
+    unbumped = lone_error(before, *camera_views(4, range(0, 600, 7), bumped=False))
+    assert repaired < 1.1 * unbumped and repaired < 0.8 * bumped, (bumped, repaired, unbumped)
+
+
+def test_when_no_image_transform_explains_the_positions_the_maps_are_refitted(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A transform that leaves the bump in place (the identity: as if the camera had been
+    moved, not turned) fails the held-out check, so the camera's maps are refitted instead."""
+    import service.learning.heal
+
+    monkeypatch.setattr(service.learning.heal, "fit_bump", lambda *args, **kwargs: np.eye(3))
+    meta = json.loads((DEMO_MODEL_DIR / "model.json").read_text())
+    world, boxes = camera_views(3, range(0, 1500, 5))
+    cov = np.tile(np.eye(2) * 0.1**2, (len(world), 1, 1))
+    reference = world + np.random.default_rng(0).normal(0, 0.1, world.shape)
+    samples = HealSamples(
+        list(np.arange(len(world), dtype=float)),
+        list(reference),
+        [0.1] * len(world),
+        list(boxes),
+        list(cov),
+    )
+    fixed = repair(meta, 1, samples, single_m=0.15)
+    assert fixed.how == "refit" and fixed.passed, fixed.error_m
+    assert "image_transforms" not in fixed.meta
+    assert fixed.meta["floor_prior"]["prior"] != meta["floor_prior"]["prior"]
