@@ -215,7 +215,7 @@ def truth_snapshots(runtime: Model, scene: Scene, frames: int) -> Snapshots:
     for i in range(frames):
         t = i / scene.fps
         obs = scene.observe(i)
-        postures, seen, rows = _own_postures(runtime, obs.boxes)
+        postures, seen, rows = _own_postures(runtime, obs.boxes, obs.keypoints)
         origins = [Origin(cameras=tuple(int(k) for k in np.flatnonzero(seen[p])), association=j)
                    for j, p in enumerate(rows)]  # fmt: skip
         xy = obs.world[rows, :2] + rng.normal(0.0, NOISE_M, (len(rows), 2))
@@ -244,7 +244,7 @@ def identity_snapshots(runtime: Model, scene: Scene, frames: int) -> Snapshots:
     for i in range(frames):
         t = i / scene.fps
         obs = scene.observe(i)
-        postures, seen, rows = _own_postures(runtime, obs.boxes)
+        postures, seen, rows = _own_postures(runtime, obs.boxes, obs.keypoints)
         xy = obs.world[rows, :2] + rng.normal(0.0, NOISE_M, (len(rows), 2))
         people: list[Person] = []
         for p, (x, y) in zip(rows, xy, strict=True):
@@ -261,12 +261,17 @@ def identity_snapshots(runtime: Model, scene: Scene, frames: int) -> Snapshots:
     return served
 
 
-def _own_postures(runtime: Model, boxes: np.ndarray) -> tuple[BoxPostures, np.ndarray, np.ndarray]:
-    """Every box's posture (per camera, ``boxes`` [P, K, 4] NaN where unseen), which person
-    each camera sees [P, K], and the rows of the people seen at all."""
+def _own_postures(
+    runtime: Model, boxes: np.ndarray, keypoints: np.ndarray
+) -> tuple[BoxPostures, np.ndarray, np.ndarray]:
+    """Every box's posture (per camera, ``boxes`` [P, K, 4] NaN where unseen, with their
+    ``keypoints`` [P, K, 17, 3] as the chain gets them), which person each camera sees [P, K],
+    and the rows of the people seen at all."""
     seen = np.isfinite(boxes).all(-1)
     area, sizes = runtime.setup_area, runtime.image_sizes
-    judged = [box_postures(boxes[:, k], area, k, sizes[k]) for k in range(boxes.shape[1])]
+    judged = [
+        box_postures(boxes[:, k], area, k, sizes[k], keypoints[:, k]) for k in range(boxes.shape[1])
+    ]
     postures = BoxPostures([j[0] for j in judged], [j[1] for j in judged])
     return postures, seen, np.flatnonzero(seen.any(axis=1))
 

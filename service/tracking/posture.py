@@ -84,6 +84,9 @@ WHOLE_BODY_WIDTH = 0.8  # a lying box at the border this wide (of a standing per
 # there) is a body across the view, not a torso cut by the frame (:func:`cut_off`)
 STANDING_ASPECT = 0.4  # width of the standing box that replaces a seated or lying one
 SMOOTHING_S = 1.0  # a track's posture: evidence averaged over this time
+HEAD_DOWN = 0.05  # of the box height: both shoulders this far below both hips reads lying
+KEYPOINT_FOUND = 0.5  # a joint's confidence from which it counts (a guessed hidden one is lower)
+SHOULDERS, HIPS = (5, 6), (11, 12)  # COCO-17
 
 
 @dataclass(frozen=True)
@@ -158,12 +161,32 @@ def standing_boxes(
     return np.where(((labels == SITTING) | (labels == LYING))[:, None], replaced, out)
 
 
+def head_down(boxes: np.ndarray, keypoints: np.ndarray) -> np.ndarray:
+    """How far [M] both shoulders are below both hips in the image, in units of the box height
+    (NaN unless all four are found with confidence ``KEYPOINT_FOUND``), for boxes [M, 4] and
+    their COCO-17 keypoints [M, 17, 3]. Positive: the body lies head towards the camera
+    (module docstring)."""
+    points = np.asarray(keypoints, np.float64).reshape(len(boxes), -1, 3)
+    if points.shape[1] <= max(HIPS):
+        return np.full(len(boxes), np.nan)
+    joints = points[:, SHOULDERS + HIPS]
+    found = (np.isfinite(joints).all(-1) & (joints[..., 2] >= KEYPOINT_FOUND)).all(-1)
+    gap = joints[:, :2, 1].min(-1) - joints[:, 2:, 1].max(-1)
+    height = np.maximum(boxes[:, 3] - boxes[:, 1], 1e-6)
+    return np.where(found, gap / height, np.nan)
+
+
 def box_postures(
-    boxes: np.ndarray, area: SetupArea | None, camera: int, image_size: np.ndarray | None = None
+    boxes: np.ndarray,
+    area: SetupArea | None,
+    camera: int,
+    image_size: np.ndarray | None = None,
+    keypoints: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Labels [M] and confidences [M] of one camera's boxes [M, 4] (NaN rows stay ``unknown``,
     as do boxes at the border of an image of ``image_size`` (width, height); everything
-    ``unknown`` without a height model)."""
+    ``unknown`` without a height model). With their COCO-17 ``keypoints`` [M, 17, 3], a box
+    that reads sitting with the shoulders below the hips reads lying (:func:`head_down`)."""
     boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
     region = None if area is None or camera >= len(area.cameras) else area.cameras[camera]
     bottom = np.stack([0.5 * (boxes[:, 0] + boxes[:, 2]), boxes[:, 3]], 1)
@@ -179,7 +202,17 @@ def box_postures(
         seen &= ~side & ~end
         labels = np.where(lying, LYING, labels)
         seen |= lying
-    return np.where(seen, labels, UNKNOWN), np.where(seen, confidence, 0.0)
+    labels, confidence = np.where(seen, labels, UNKNOWN), np.where(seen, confidence, 0.0)
+    if keypoints is not None:
+        down = np.nan_to_num(head_down(boxes, keypoints), nan=-1.0)
+        flipped = (labels == SITTING) & (down > HEAD_DOWN)
+        labels = np.where(flipped, LYING, labels)
+        confidence = np.where(
+            flipped,
+            np.round(0.5 + 0.5 * np.clip((down - HEAD_DOWN) / 0.15, 0.0, 1.0), 3),
+            confidence,
+        )
+    return labels, confidence
 
 
 def _edges(boxes: np.ndarray, image_size: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -242,11 +275,15 @@ def cut_off(
 
 
 def camera_postures(
-    boxes: np.ndarray, area: SetupArea | None, camera: int, image_size: np.ndarray | None = None
+    boxes: np.ndarray,
+    area: SetupArea | None,
+    camera: int,
+    image_size: np.ndarray | None = None,
+    keypoints: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`box_postures` and the standing boxes [M, 4] that replace seated and lying ones."""
     boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
-    labels, confidence = box_postures(boxes, area, camera, image_size)
+    labels, confidence = box_postures(boxes, area, camera, image_size, keypoints)
     if area is None:
         return labels, confidence, boxes
     return labels, confidence, standing_boxes(boxes, labels, area, camera)
@@ -256,13 +293,14 @@ def normalise(
     detections: Sequence[Detections], area: SetupArea | None, image_sizes: np.ndarray | None = None
 ) -> tuple[list[Detections], BoxPostures]:
     """Each camera's detections with seated and lying boxes replaced by standing ones, and the
-    posture of every box (``unknown`` everywhere without a height model)."""
+    posture of every box (``unknown`` everywhere without a height model; read from the
+    keypoints too where the detections carry them)."""
     labels: list[np.ndarray] = []
     confidence: list[np.ndarray] = []
     out: list[Detections] = []
     for k, det in enumerate(detections):
         size = None if image_sizes is None else image_sizes[k]
-        names, conf, fixed = camera_postures(det.boxes, area, k, size)
+        names, conf, fixed = camera_postures(det.boxes, area, k, size, det.keypoints)
         labels.append(names)
         confidence.append(conf)
         changed = (names != STANDING) & (names != UNKNOWN)

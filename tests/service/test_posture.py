@@ -72,6 +72,54 @@ def test_one_view_of_a_body_across_it_outvotes_a_lengthwise_view() -> None:
     assert postures.of([0, None])[0] == SITTING
 
 
+def _pose(shoulder_y: float, hip_y: float, knee_y: float, ankle_y: float) -> np.ndarray:
+    """COCO-17 keypoints [17, 3] with the shoulders, hips, knees and ankles at these heights
+    (pixels), all found (confidence 0.9); the face and arms missing."""
+    points = np.full((17, 3), np.nan)
+    for joints, y in (((5, 6), shoulder_y), ((11, 12), hip_y), ((13, 14), knee_y),
+                      ((15, 16), ankle_y)):  # fmt: skip
+        for j in joints:
+            points[j] = (340.0 + (j % 2) * 10.0, y, 0.9)
+    return points
+
+
+def test_a_body_lying_head_towards_the_camera_reads_lying_by_its_keypoints() -> None:
+    # 0.45 of a standing height and about as wide as tall: a squat's box, or a body lying along
+    # the line of sight. Lying head towards the camera, the shoulders are below the hips in the
+    # image (nearer points of the floor are lower); a squat, a seated person and a body lying
+    # feet towards the camera keep the shoulders above the hips
+    box = [300.0, 200.0, 390.0, 290.0]
+    head_down = _pose(280.0, 240.0, 220.0, 205.0)
+    squat = _pose(215.0, 255.0, 245.0, 285.0)
+    seated = _pose(210.0, 250.0, 255.0, 285.0)
+    feet_down = _pose(210.0, 230.0, 255.0, 285.0)
+    shoulders_missing = head_down.copy()
+    shoulders_missing[5:7] = np.nan
+    occluded = head_down.copy()
+    occluded[[5, 6, 11, 12], 2] = 0.2  # a pose estimator's guess at hidden joints
+    points = np.stack([head_down, squat, seated, feet_down, shoulders_missing, occluded])
+    boxes = np.array([box] * len(points))
+    size = np.array([640, 480])
+    labels, confidence = posture.box_postures(boxes, _area(), 0, size, points)
+    assert labels.tolist() == [LYING, SITTING, SITTING, SITTING, SITTING, SITTING]
+    assert 0.5 <= confidence[0] <= 1.0
+    assert posture.box_postures(boxes, _area(), 0, size)[0].tolist() == [SITTING] * len(points)
+    # a standing or cut box is not read from its keypoints (a walker's shoulders never drop
+    # below the hips; a cut box is judged by the border rules)
+    tall = np.array([[300.0, 100.0, 380.0, 300.0], [0.0, 200.0, 90.0, 290.0]])
+    labels, _ = posture.box_postures(tall, _area(), 0, size, np.stack([head_down, head_down]))
+    assert labels.tolist() == [STANDING, UNKNOWN]
+
+
+def test_normalise_reads_the_keypoints_of_the_detections() -> None:
+    box = np.array([[300.0, 200.0, 390.0, 290.0]], np.float32)
+    points = _pose(280.0, 240.0, 220.0, 205.0)[None].astype(np.float32)
+    det = Detections(box, np.ones(1, np.float32), points)
+    fixed, postures = posture.normalise([det], _area(), np.array([[640, 480]]))
+    assert postures.of([0])[0] == LYING  # converted as lying: from the box centre
+    assert fixed[0].boxes[0, 3] == pytest.approx(245.0)
+
+
 def test_seated_and_lying_boxes_become_standing_ones() -> None:
     seated = [300.0, 100.0, 380.0, 230.0]  # 130 px tall, 80 wide
     lying = [200.0, 300.0, 360.0, 380.0]  # 80 px tall, 160 wide
