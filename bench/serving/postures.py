@@ -113,9 +113,10 @@ def run(runtime: MomRuntime, config: SceneConfig, seed: int, frames: int, postur
         seen = np.isfinite(obs.boxes).all(-1).any(-1)
         if seen.any():
             rows = obs.boxes[seen]
-            views = box_labels(rows, runtime)
+            points = obs.keypoints[seen]
+            views = box_labels(rows, runtime, points)
             if postures:
-                rows = agreed_rows(rows, runtime.setup_area, runtime.image_sizes)
+                rows = agreed_rows(rows, runtime.setup_area, runtime.image_sizes, points)
             xy = np.asarray(runtime.localize(rows), float)
             errors = np.linalg.norm(xy - obs.world[seen, :2], axis=1)
             for name, err, view in zip(posture[seen], errors, views, strict=True):
@@ -141,11 +142,13 @@ def run(runtime: MomRuntime, config: SceneConfig, seed: int, frames: int, postur
     return tally
 
 
-def box_labels(rows: np.ndarray, runtime: MomRuntime) -> list[str]:
-    """Per row of boxes [N, K, 4]: each camera's posture of its box alone, e.g. ``sitting +
-    standing`` (``-`` where unseen)."""
+def box_labels(rows: np.ndarray, runtime: MomRuntime, keypoints: np.ndarray) -> list[str]:
+    """Per row of boxes [N, K, 4] (and their keypoints [N, K, 17, 3]): each camera's posture
+    of its box alone, e.g. ``sitting + standing`` (``-`` where unseen)."""
     per_camera = [
-        camera_postures(rows[:, k], runtime.setup_area, k, runtime.image_sizes[k])[0]
+        camera_postures(rows[:, k], runtime.setup_area, k, runtime.image_sizes[k], keypoints[:, k])[
+            0
+        ]
         for k in range(rows.shape[1])
     ]
     return [

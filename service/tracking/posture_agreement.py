@@ -114,16 +114,26 @@ def agree(
 
 
 def agreed_rows(
-    boxes: np.ndarray, area: SetupArea | None, image_sizes: np.ndarray | None = None
+    boxes: np.ndarray,
+    area: SetupArea | None,
+    image_sizes: np.ndarray | None = None,
+    keypoints: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Rows of boxes [N, K, 4] (one person per row, NaN where unseen: the true association)
-    as the chain localizes them: every box converted as its posture says
-    (:func:`~service.tracking.posture.camera_postures`), then the short standing boxes of a
-    seated or lying row as the row's vote says (what :func:`agree` does to an association)."""
+    """Rows of boxes [N, K, 4] (one person per row, NaN where unseen: the true association;
+    ``keypoints`` [N, K, 17, 3] when the detections carry them) as the chain localizes them:
+    every box converted as its posture says (:func:`~service.tracking.posture.camera_postures`),
+    then the short standing boxes of a seated or lying row as the row's vote says (what
+    :func:`agree` does to an association)."""
     boxes = np.asarray(boxes, np.float64)
     out = np.array(boxes, copy=True)
     per_camera = [
-        camera_postures(boxes[:, k], area, k, None if image_sizes is None else image_sizes[k])
+        camera_postures(
+            boxes[:, k],
+            area,
+            k,
+            None if image_sizes is None else image_sizes[k],
+            None if keypoints is None else keypoints[:, k],
+        )
         for k in range(boxes.shape[1])
     ]
     postures = BoxPostures([c[0] for c in per_camera], [c[1] for c in per_camera])
