@@ -224,7 +224,7 @@ def truth_snapshots(runtime: Model, scene: Scene, frames: int) -> Snapshots:
             p = None if track.coasting or track.association is None else rows[track.association]
             index = [int(p) if p is not None and seen[p, k] else None for k in range(seen.shape[1])]
             track.posture = (
-                smoother.observe(track.id, t, postures, index)
+                smoother.update(track.id, t, *postures.of(index))
                 if p is not None
                 else smoother.current(track.id)
             )
@@ -249,7 +249,7 @@ def identity_snapshots(runtime: Model, scene: Scene, frames: int) -> Snapshots:
         people: list[Person] = []
         for p, (x, y) in zip(rows, xy, strict=True):
             index = [int(p) if seen[p, k] else None for k in range(seen.shape[1])]
-            label, confidence = smoother.observe(int(p), t, postures, index)
+            label, confidence = smoother.update(int(p), t, *postures.of(index))
             cameras = np.flatnonzero(seen[p]).tolist()
             person: Person = {"id": int(p), "x": float(x), "y": float(y), "vx": 0.0, "vy": 0.0,
                               "confidence": 1.0, "cameras": cameras}  # fmt: skip

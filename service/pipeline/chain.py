@@ -158,7 +158,12 @@ class Chain:
         if self.view_bias is not None:  # learn the offsets from what fed each track
             self.view_bias.learn(t, associations, runtime, tracks)
         if self.postures:
-            self._smooth_postures(t, tracks, associations, box_postures)
+            postures = (
+                [box_postures.of(a.detection_index) for a in associations]
+                if box_postures is not None
+                else []
+            )
+            self._smooth_postures(t, tracks, postures)
         self.timings_ms = {
             "associate": (associated - started) * 1e3,
             "track": (time.perf_counter() - associated) * 1e3,
@@ -173,23 +178,17 @@ class Chain:
         return list(anchors(t)) if self.track_anchors and callable(anchors) else []
 
     def _smooth_postures(
-        self,
-        t: float,
-        tracks: list[Track],
-        associations: list[Association],
-        postures: BoxPostures | None,
+        self, t: float, tracks: list[Track], postures: list[tuple[str, float]]
     ) -> None:
         """Each served track's posture (``Track.posture``: label and confidence), averaged over
-        time from the postures of the associations that fed it (their boxes' ``postures``,
-        :meth:`~service.tracking.posture.PostureSmoother.observe`); a coasting track keeps the
-        last one."""
+        time from the postures of the associations that fed it (``postures``, one per
+        association of this frame set); a coasting track keeps the last one."""
         smoother = self.posture_smoother
         for track in tracks:
             fed = track.association if not track.coasting else None
+            seen = postures[fed] if fed is not None and fed < len(postures) else None
             track.posture = (
-                smoother.observe(track.id, t, postures, associations[fed].detection_index)
-                if postures is not None and fed is not None and fed < len(associations)
-                else smoother.current(track.id)
+                smoother.update(track.id, t, *seen) if seen else smoother.current(track.id)
             )
         smoother.forget({track.id for track in tracks} | set(self.tracker_ids()))
 

@@ -77,7 +77,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections import defaultdict
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -100,7 +100,6 @@ WHOLE_BODY_WIDTH = 0.8  # a lying box at the border this wide (of a standing per
 # there) is a body across the view, not a torso cut by the frame (:func:`cut_off`)
 STANDING_ASPECT = 0.4  # width of the standing box that replaces a seated or lying one
 SMOOTHING_S = 1.0  # a track's posture: evidence averaged over this time
-LYING_MEMORY_S = 1.0  # a camera's lying read of a track holds this long while it misses them
 HEAD_DOWN = 0.05  # of the box height: both shoulders this far below both hips reads lying
 KEYPOINT_FOUND = 0.5  # a joint's confidence from which it counts (a guessed hidden one is lower)
 SHOULDERS, HIPS = (5, 6), (11, 12)  # COCO-17
@@ -120,27 +119,13 @@ class BoxPostures:
     labels: list[np.ndarray]
     confidence: list[np.ndarray]
 
-    def views(self, detection_index: Sequence[int | None]) -> dict[int, tuple[str, float]]:
-        """Per camera that has a box in the association, that box's label and confidence."""
-        return {
-            k: (str(self.labels[k][i]), float(self.confidence[k][i]))
-            for k, i in enumerate(detection_index)
-            if i is not None and k < len(self.labels) and i < len(self.labels[k])
-        }
-
-    def of(
-        self, detection_index: Sequence[int | None], absent: Mapping[int, float] | None = None
-    ) -> tuple[str, float]:
+    def of(self, detection_index: Sequence[int | None]) -> tuple[str, float]:
         """The posture of an association (its boxes' per camera indices): the label with the
-        most confidence summed over its boxes, and the mean confidence of that label.
-        ``absent``: lying reads (confidence by camera) remembered for cameras without a box in
-        the association (:class:`PostureSmoother`)."""
+        most confidence summed over its boxes, and the mean confidence of that label."""
         votes: dict[str, list[float]] = defaultdict(list)
-        for label, confidence in self.views(detection_index).values():
-            votes[label].append(confidence)
-        for k, confidence in (absent or {}).items():
-            if k >= len(detection_index) or detection_index[k] is None:
-                votes[LYING].append(confidence)
+        for k, i in enumerate(detection_index):
+            if i is not None and k < len(self.labels) and i < len(self.labels[k]):
+                votes[str(self.labels[k][i])].append(float(self.confidence[k][i]))
         if not votes:
             return UNKNOWN, 0.0
         if LYING in votes:  # a view across the body outvotes views along it (class docstring)
@@ -343,35 +328,12 @@ def normalise(
 
 class PostureSmoother:
     """A track's posture over time: per label, an exponential average of the confidence its
-    associations gave it over ``SMOOTHING_S``, so one odd box does not flip it.
+    associations gave it over ``SMOOTHING_S``, so one odd box does not flip it."""
 
-    :meth:`observe` also remembers, per track and camera, the last lying read for
-    ``LYING_MEMORY_S``: a camera that saw the body flat and then misses it (a body on the floor
-    is often missed: low, and cut by furniture) still votes lying while another camera, along
-    the body, reads it sitting. Without that, a fallen person's lying share stayed under the
-    fall rule's confidence floor for seconds (``bench/results/falls.md``). A camera that sees
-    the track again votes what it reads."""
-
-    def __init__(self, smoothing_s: float = SMOOTHING_S, memory_s: float = LYING_MEMORY_S) -> None:
+    def __init__(self, smoothing_s: float = SMOOTHING_S) -> None:
         self.smoothing_s = smoothing_s
-        self.memory_s = memory_s
         self._evidence: dict[int, dict[str, float]] = {}
         self._time: dict[int, float] = {}
-        self._lying: dict[int, dict[int, tuple[float, float]]] = {}  # track: camera: (t, conf)
-
-    def observe(
-        self, track_id: int, t: float, postures: BoxPostures, detection_index: Sequence[int | None]
-    ) -> tuple[str, float]:
-        """Fold in the posture of the association ``detection_index`` that fed the track, with
-        the lying reads remembered for its cameras without a box; the track's posture."""
-        memory = self._lying.setdefault(track_id, {})
-        for k, (label, confidence) in postures.views(detection_index).items():
-            if label == LYING:
-                memory[k] = (t, confidence)
-            else:
-                memory.pop(k, None)
-        absent = {k: c for k, (when, c) in memory.items() if 0.0 <= t - when <= self.memory_s}
-        return self.update(track_id, t, *postures.of(detection_index, absent))
 
     def update(self, track_id: int, t: float, label: str, confidence: float) -> tuple[str, float]:
         """Fold one observation in; the track's posture and its confidence (0..1)."""
@@ -392,7 +354,6 @@ class PostureSmoother:
         return label, round(evidence[label] / sum(evidence.values()), 3)
 
     def forget(self, alive: set[int]) -> None:
-        for gone in (set(self._evidence) | set(self._lying)) - alive:
+        for gone in set(self._evidence) - alive:
             self._evidence.pop(gone, None)
             self._time.pop(gone, None)
-            self._lying.pop(gone, None)

@@ -157,33 +157,6 @@ def test_one_odd_box_does_not_flip_a_track_posture() -> None:
     assert smoother.current(7) == (UNKNOWN, 0.0)
 
 
-def test_a_camera_that_saw_the_body_flat_votes_lying_while_it_misses_it() -> None:
-    # camera 0 sees the body lengthwise (sitting), camera 1 across it (flat) in some frames
-    # and misses it in the rest: its lying read holds LYING_MEMORY_S, not longer, and a read
-    # of camera 1 that is not lying ends it
-    smoother = PostureSmoother(smoothing_s=1.0, memory_s=1.0)
-    both = posture.BoxPostures(
-        [np.array([SITTING], object), np.array([LYING], object)], [np.array([0.9]), np.array([0.8])]
-    )
-    assert smoother.observe(1, 0.0, both, [0, 0])[0] == LYING
-    assert smoother.observe(1, 0.5, both, [0, None]) == (LYING, 1.0)
-    assert smoother.observe(1, 0.9, both, [0, None])[0] == LYING
-    smoother.observe(1, 1.6, both, [0, None])  # 1.6 s after camera 1's read: sitting
-    assert smoother.observe(1, 3.5, both, [0, None])[0] == SITTING
-    smoother.observe(1, 4.0, both, [0, 0])
-    seated = posture.BoxPostures(
-        [np.array([SITTING], object), np.array([SITTING], object)], [np.array([0.9])] * 2
-    )
-    smoother.observe(1, 4.1, seated, [0, 0])
-    for t in np.arange(4.2, 6.0, 0.1):
-        label, _ = smoother.observe(1, float(t), both, [0, None])
-    assert label == SITTING
-    # a track it never saw lying: nothing remembered; forgotten tracks lose their memory
-    assert smoother.observe(2, 0.0, seated, [0, None])[0] == SITTING
-    smoother.forget(set())
-    assert smoother.observe(1, 6.1, both, [0, None])[0] == SITTING
-
-
 def test_snapshot_person_carries_the_posture_only_when_known() -> None:
     track = Track(3, 1.0, 2.0, 0.0, 0.0, 0.9, [0, 1], posture=(SITTING, 0.83))
     person = served_person(track)
