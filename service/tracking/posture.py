@@ -302,7 +302,13 @@ def camera_postures(
     labels, confidence = box_postures(boxes, area, camera, image_size, keypoints)
     if area is None:
         return labels, confidence, boxes
-    return labels, confidence, standing_boxes(boxes, labels, area, camera)
+    if keypoints is None:
+        return labels, confidence, standing_boxes(boxes, labels, area, camera)
+    # a box read lying by its keypoints is converted as its shape says (sitting: from its top),
+    # which puts a body lying along the line of sight nearer than its centre (module docstring)
+    shape, _ = box_postures(boxes, area, camera, image_size)
+    convert = np.where((labels == LYING) & (shape == SITTING), SITTING, labels)
+    return labels, confidence, standing_boxes(boxes, convert, area, camera)
 
 
 def normalise(
