@@ -38,8 +38,8 @@ the gate cut the simulated false falls from 20 to 12 in 36 person-hours, for two
 reported late. It did not separate a crouch, whose box below 0.45 of a standing height read
 lying in every view: since 2026-12-04 the posture reads such a compact box as sitting
 (:mod:`service.tracking.posture`), and the simulated false falls are 0-1 in 36 person-hours.
-The falls reported late or missed are bodies no box reads lying (``bench/results/falls.md``):
-no ``lying_s`` or ``min_confidence`` changes them.
+The falls reported late or missed are bodies no box (nor, since 2026-12-04, its keypoints)
+reads lying (``bench/results/falls.md``): no ``lying_s`` or ``min_confidence`` changes them.
 
 A track absent from a snapshot is neither evidence of getting up nor of staying down: its
 candidate waits (dropouts while lying do not reset it) and fires on the next snapshot with it.
