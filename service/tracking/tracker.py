@@ -55,11 +55,13 @@ Output policy (documented for API users):
   kept for ``hold_still_s`` (15 s in ``RECOMMENDED``) instead of ``serve_coast_s`` /
   ``max_missing_s``, and only a detection within ``still_gate_m`` (1 m) of the place takes it
   back (a reappearing person re-identified where they sat; a false box across the room does
-  not drag the held track away). One camera's lone view within that gate keeps the track seen
-  but held at its place (near a seated person it is as often a false box as them); two cameras
-  release it. A track measured within ``still_guard_m`` (1.2 m) of another's still place
-  becomes ``multi_view`` only after ``still_multi_view_s`` (1 s) of two views: a false box of
-  each camera paired for one frame beside a seated person stays under the ghost check. Why: a
+  not drag the held track away); a measurement within ``CLAIM_M`` (0.25 m) of the place is
+  the held track's whatever another track's cost. One camera's lone view within that gate
+  keeps the track seen but held at its place (near a seated person it is as often a false box
+  as them); two cameras release it. A track measured within ``still_guard_m`` (1.2 m) of
+  another's still place becomes ``multi_view`` only after ``still_multi_view_s`` (1 s) of two
+  views: a false box of each camera paired for one frame beside a seated person stays under
+  the ghost check. Why: a
   seated or standing person is the one a detector loses for seconds (half hidden, still, low
   contrast), and each loss used to end their id and empty their zone (issue 27: an hour on the
   sofa with dropouts of seconds, ``bench/results/still_presence.md``,
@@ -135,6 +137,8 @@ from service.tracking.image_continuity import (
 from service.tracking.motion import ConstantVelocity, StandOrWalk
 from service.tracking.stillness import StillMemory, StillRule
 
+_CLAIMED = -1e6  # a held still track's own place (Tracker._claims)
+CLAIM_M = 0.25  # within this of a held still place a measurement is that track's
 _UNASSIGNED = 1e9
 # What the stream benchmark measured best (bench/results/tracker_tuning.md); the daemon's
 # pipeline uses them (with covariances and coverage from service.tracking.measurements). The
@@ -599,6 +603,21 @@ class Tracker:
                 return self.still_multi_view_s
         return self.multi_view_s
 
+    def _claims(self, held: list[np.ndarray | None], positions: np.ndarray) -> np.ndarray:
+        """[T, P]: position p lies within ``CLAIM_M`` of track t's held place. Such a
+        measurement is that still person back where they sat, whatever another track's cost:
+        a false track that had walked in beside the place on false pairs took the sitter's
+        fixes from their held id, whose covariance had grown while held, and both were served
+        for the 15 s hold (``bench/results/still_presence_chain.md``, 1513 s: the fix was
+        0.01 m from the place). A quarter metre, not the still radius (0.5 m): someone
+        standing beside a seated person (handing them a cup) can be half a metre from their
+        place, nobody stands on it."""
+        claims = np.zeros((len(held), len(positions)), dtype=bool)
+        for t, place in enumerate(held):
+            if place is not None:
+                claims[t] = np.linalg.norm(positions - place, axis=1) <= CLAIM_M
+        return claims
+
     def _ghost(self, track: _State) -> bool:
         """Not (yet) a multi-view track, and longer than ``ghost_s`` unseen by a camera that
         should see it: a detector's false positive, not reported."""
@@ -666,6 +685,7 @@ class Tracker:
         # Tentative tracks lose ties to confirmed ones: a small penalty keeps ids stable.
         penalty = np.array([0.0 if tr.confirmed else 0.05 for tr in self._tracks])
         cost = np.where(admit, cost + penalty[:, None], _UNASSIGNED)
+        cost = np.where(self._claims(held, positions), _CLAIMED, cost)
         rows, cols = linear_sum_assignment(cost)
         ok = cost[rows, cols] < _UNASSIGNED
         return rows[ok], cols[ok]

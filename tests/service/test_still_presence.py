@@ -134,6 +134,24 @@ def test_leaving_the_place_ends_stillness() -> None:
     assert memory.place is None
 
 
+def test_a_held_still_track_claims_a_fix_at_its_place() -> None:
+    """The hour's id change (bench/results/still_presence_chain.md, 1513 s): while a sitter was
+    unseen, a track beside their place was fed; the sitter's fix at the place cost less on that
+    fresh track than on their held one (whose covariance grew while held) and went there. A
+    fix within a quarter metre of a held place is the held track's."""
+    fps = 5.0
+    tracker = Tracker(fps_hint=fps, **RECOMMENDED)
+    both = [Origin(cameras=(0, 1))] * 2
+    for i in range(50):  # 10 s: two people side by side on a sofa, 0.4 m apart
+        tracks = tracker.update(i / fps, np.array([[2.0, 2.0], [2.4, 2.0]]), both)
+    ids = {round(tr.x, 1): tr.id for tr in tracks}
+    for i in range(15):  # 3 s: the one at 2.0 unseen, held at their place
+        tracks = tracker.update(10.0 + i / fps, np.array([[2.4, 2.0]]), both[:1])
+    tracks = tracker.update(13.0, np.array([[2.02, 2.0]]), both[:1])  # back; the other missed
+    seen = [tr for tr in tracks if not tr.coasting]
+    assert [tr.id for tr in seen] == [ids[2.0]], tracks
+
+
 def test_stillness_needs_the_window_and_the_share() -> None:
     rule = StillRule(after_s=5.0, window_s=10.0, radius_m=0.5, share=0.6)
     memory = StillMemory()
