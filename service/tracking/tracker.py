@@ -61,10 +61,9 @@ Output policy (documented for API users):
   as them); two cameras release it. A track measured within ``still_guard_m`` (1.2 m) of
   another's still place becomes ``multi_view`` only after ``still_multi_view_s`` (1 s) of two
   views: a false box of each camera paired for one frame beside a seated person stays under
-  the ghost check. Why: a
-  seated or standing person is the one a detector loses for seconds (half hidden, still, low
-  contrast), and each loss used to end their id and empty their zone (issue 27: an hour on the
-  sofa with dropouts of seconds, ``bench/results/still_presence.md``,
+  the ghost check. Why: a seated or standing person is the one a detector loses for seconds
+  (half hidden, still, low contrast), and each loss used to end their id and empty their zone
+  (issue 27: an hour on the sofa with dropouts of seconds, ``bench/results/still_presence.md``,
   ``bench/results/still_presence_chain.md``). The price is a person who stood still and then
   left unseen (out of view) is served where they stood for up to 15 s, one who walks off seen
   by one camera only is served at their place for their first metre (then their lone views
@@ -339,7 +338,7 @@ class Tracker:
         self._still_places = [
             (tr.id, tr.still.place)
             for tr in self._tracks
-            if self._still(tr) and tr.still.place is not None
+            if self._still(tr) and tr.still.place is not None  # (narrowed for the types)
         ]
 
         boxes = [o.boxes for o in kept]
