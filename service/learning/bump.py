@@ -37,22 +37,20 @@ DOFS = (3, 8)  # roll and shift, homography
 
 
 def delta(params: np.ndarray, size: np.ndarray) -> np.ndarray:
-    """The image transform [3, 3] about the image centre for ``params`` (3: roll and shift, 4:
-    similarity, 6: affine, 8: homography; zeros: the identity)."""
+    """The image transform [3, 3] about the image centre for ``params`` (3: roll and shift, 8:
+    homography; zeros: the identity)."""
     p = np.asarray(params, dtype=np.float64)
+    if len(p) not in DOFS:
+        raise ValueError(f"{len(p)} transform parameters: expected one of {DOFS}")
     m = np.eye(3)
     if len(p) == 3:
         c, s = np.cos(p[0]), np.sin(p[0])
         m[:2, :2] = [[c, -s], [s, c]]
         m[:2, 2] = p[1:3]
-    elif len(p) == 4:
-        m[:2, :2] += [[p[0], -p[1]], [p[1], p[0]]]
-        m[:2, 2] = p[2:4]
     else:
         m[:2, :2] += p[:4].reshape(2, 2)
         m[:2, 2] = p[4:6]
-        if len(p) == 8:
-            m[2, :2] = p[6:8] / float(np.hypot(*size))
+        m[2, :2] = p[6:8] / float(np.hypot(*size))
     centre = np.asarray(size, dtype=np.float64) / 2
     to_centre, back = np.eye(3), np.eye(3)
     to_centre[:2, 2], back[:2, 2] = -centre, centre
@@ -66,7 +64,7 @@ def fit(
     cov: np.ndarray,
     box: np.ndarray,
     former: np.ndarray | None = None,
-    dof: int = 4,
+    dof: int = DOFS[0],
 ) -> np.ndarray:
     """``H`` [3, 3] (the model's image → camera ``camera``'s current image) that best explains
     references ``world`` [N, 2] (covariances ``cov`` [N, 2, 2]) by the camera's boxes ``box``
@@ -80,10 +78,7 @@ def fit(
     world = np.asarray(world, dtype=np.float64)
     reference_cov = np.asarray(cov, dtype=np.float64)
     params = np.zeros(dof)
-    scale = {
-        3: np.r_[0.01, 10.0, 10.0],
-        4: np.r_[0.01, 0.01, 10.0, 10.0],
-    }.get(dof, np.r_[[0.01] * 4, 10.0, 10.0, 0.1, 0.1][:dof])
+    scale = {3: np.r_[0.01, 10.0, 10.0], 8: np.r_[[0.01] * 4, 10.0, 10.0, 0.1, 0.1]}[dof]
     for _ in range(ROUNDS):
         h = delta(params, size) @ start
         _, own_cov, ok = _single_views(prior, camera, h, box)
