@@ -65,7 +65,7 @@ import numpy as np
 from common.errors import MomlocError
 from models.geometry.dlt import fit_dlt
 from models.geometry.floor_prior import FloorPrior
-from models.mom.image_transform import apply, boxes_to_model
+from models.mom.image_transform import apply, boxes_to_model, from_json
 from models.mom.sampling import SamplerConfig, unit_mean
 from service.learning.bump import DOFS
 from service.learning.bump import fit as fit_bump
@@ -229,10 +229,8 @@ def _model_frame(meta: dict[str, Any], boxes: np.ndarray) -> np.ndarray:
 
 
 def _transform(meta: dict[str, Any], camera: int) -> np.ndarray | None:
-    """The camera's image transform in ``meta`` (None: none)."""
-    entries = meta.get("image_transforms")
-    h = None if entries is None else entries[camera]
-    return None if h is None else np.asarray(h, np.float64)
+    """The camera's image transform in ``meta`` (None: none), read as the runtime reads it."""
+    return from_json(meta.get("image_transforms"), int(meta["num_cameras"]))[camera]
 
 
 def _transform_repair(
