@@ -1,5 +1,6 @@
 """The fall bench's scripts: falls happen where and when the bench scores them, daily life never
-lies down, and the true-association runner hears a scripted fall."""
+lies down, the true-association runner hears a scripted fall, and a fall no camera sees is told
+apart."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from bench.serving.falls import (
     Fall,
     SetupOnly,
     daily_script,
+    detected_down,
     fall_events,
     fall_script,
     identity_snapshots,
@@ -20,9 +22,11 @@ from bench.serving.falls import (
     truth_snapshots,
 )
 from models.simulate.postures import LYING
+from models.simulate.script import Segment
 from service.outputs.falls import FallRules
 
 FPS = 10.0
+CORNER = (0.1, 3.9)  # a corner of the lounge no camera sees the floor of
 
 
 def test_scripted_falls_are_on_the_floor_at_floor_t_on_free_floor():
@@ -71,3 +75,13 @@ def test_a_fall_event_after_the_person_got_up_is_not_that_falls():
     second = {"t": 34.5, "x": 1.05, "y": 1.0}
     late, wrong = match_falls([second], falls, FallRules())
     assert late == [None, 0.5] and wrong == 0
+
+
+def test_a_fall_is_seen_down_only_where_a_camera_finds_the_body():
+    """A fall on the lounge's open floor is in the cameras' view; the same fall in a corner
+    whose floor neither camera sees is detected by neither: counted, as a fall no camera saw."""
+    room = ROOMS["lounge"]
+    for spot, seen in (((2.5, 1.5), True), (CORNER, False)):
+        route = (Segment(spot, spot, 3.0), Segment(spot, spot, 20.0, "lying", 0.3, ramp_s=0.8))
+        scene = room_scene(room, (route,), FPS, seed=1)
+        assert detected_down(scene, Fall(spot, 3.8)) is seen
