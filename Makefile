@@ -78,7 +78,7 @@ bench-service: $(VENV)/.stamp-dev
 
 # Falls reported in time and false falls per 24 person-hours (bench/results/falls.md).
 bench-falls: $(VENV)/.stamp-dev
-	$(PY) -m bench.serving.falls --jobs 2 --fall-seeds 8 --daily-hours 6 --daily-with identity
+	$(PY) -m bench.serving.falls --jobs 2 --fall-seeds 8 --daily-hours 6 --daily-with chain
 
 # Real data (../shared/data, evaluation only; each bench prints one line and exits 0 without it).
 DATA ?= ../shared/data

@@ -9,7 +9,12 @@ recording replays the same events and tests drive it with any clock they like.
 Rules (per track id; :class:`FallRules`, settings ``falls.*``)
 ---------------------------------------------------------------
 1. **A quick drop**: the first ``lying`` posture no later than ``max_drop_s`` (2 s) after the
-   track last read ``standing`` starts a candidate. Lying down on purpose goes through sitting
+   track last read ``standing``, at the end of at least ``min_standing_s`` (1 s) of reading
+   standing, starts a candidate. Only what a camera sees now counts: a coasting track (the
+   snapshot's ``cameras`` empty) carries its last posture, and through the serving chain such
+   carried ``standing`` reads of tracks that had lost their person, then fed a lying
+   association, raised false falls; so did tracks born a moment before, standing for one
+   snapshot (``bench/results/falls.md``). Lying down on purpose goes through sitting
    for longer than that (onto a sofa, a bed, the floor), and a track that was never seen
    standing (someone already lying when the daemon starts) is never a candidate.
 2. **Down for sure**: the candidate becomes a ``fall`` on the first snapshot that reads lying
@@ -37,9 +42,13 @@ confidence (the track's smoothed share of lying evidence,
 the gate cut the simulated false falls from 20 to 12 in 36 person-hours, for two falls in 48
 reported late. It did not separate a crouch, whose box below 0.45 of a standing height read
 lying in every view: since 2026-12-04 the posture reads such a compact box as sitting
-(:mod:`service.tracking.posture`), and the simulated false falls are 0-1 in 36 person-hours.
-The falls reported late or missed are bodies no box (nor, since 2026-12-04, its keypoints)
-reads lying (``bench/results/falls.md``): no ``lying_s`` or ``min_confidence`` changes them.
+(:mod:`service.tracking.posture`): with each person's own boxes the simulated false falls are
+0-1 in 36 person-hours. Through the serving chain they were 34 per 24 person-hours, from
+mispaired and false boxes fed to coasting or newborn tracks (rule 1's two conditions since
+2026-12-05: 8 per 24 person-hours). The falls reported late or missed are bodies no box (nor
+its keypoints, nor where its track was: :mod:`service.tracking.posture_continuity`) reads
+lying, or that no camera sees down (``bench/results/falls.md``): no ``lying_s`` or
+``min_confidence`` changes them.
 
 A track absent from a snapshot is neither evidence of getting up nor of staying down: its
 candidate waits (dropouts while lying do not reset it) and fires on the next snapshot with it.
@@ -84,6 +93,7 @@ class FallRules:
     clear_s: float = 3.0
     lost_s: float = 120.0
     min_confidence: float = 0.75
+    min_standing_s: float = 1.0
 
 
 @dataclass
@@ -92,6 +102,7 @@ class _Person:
     y: float
     seen: float  # capture time of the last snapshot with this id
     last_standing: float | None = None  # last snapshot that read standing
+    stood_from: float | None = None  # start of the standing streak that ended at last_standing
     standing_since: float | None = None  # start of the current unbroken standing streak
     upright_since: float | None = None  # ... of standing or sitting (not lying)
     lying_since: float | None = None  # the candidate's start (rule 1)
@@ -147,8 +158,13 @@ class FallDetector:
         self, pid: int, p: _Person, t: float, person: Mapping[str, Any]
     ) -> dict[str, Any] | None:
         rules = self.rules
-        posture = person.get("posture")
+        # a track no camera sees now (coasting: ``cameras`` empty) carries its last posture,
+        # which is no evidence of what the person does now (rule 1)
+        seen = person.get("cameras") is None or len(person["cameras"]) > 0
+        posture = person.get("posture") if seen else None
         if posture == STANDING:
+            if p.last_standing is None or p.stood_from is None or p.upright_since is None:
+                p.stood_from = t  # a new standing streak
             p.last_standing = t
             p.standing_since = t if p.standing_since is None else p.standing_since
             p.upright_since = t if p.upright_since is None else p.upright_since
@@ -160,7 +176,12 @@ class FallDetector:
         else:  # lying, or unknown (absent field): no evidence, the upright streaks stand
             if posture == LYING:
                 p.standing_since = p.upright_since = None
-                quick = p.last_standing is not None and t - p.last_standing <= rules.max_drop_s
+                quick = (
+                    p.last_standing is not None
+                    and p.stood_from is not None
+                    and t - p.last_standing <= rules.max_drop_s
+                    and p.last_standing - p.stood_from >= rules.min_standing_s - 1e-9
+                )
                 if p.lying_since is None and p.fallen_at is None and quick:
                     p.lying_since, p.down_s = t, 0.0
             if p.lying_since is not None and p.down_at is not None:

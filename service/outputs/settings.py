@@ -119,10 +119,22 @@ class FallSettings(BaseModel):
         description="A fall whose person is no longer tracked for this long is cleared "
         "(reason 'lost').",
     )
+    min_standing_s: float = Field(
+        _FALL.min_standing_s,
+        ge=0,
+        le=60,
+        description="A fall starts only after the person was seen standing this long "
+        "(seconds; a track born a moment before is not yet known to be standing).",
+    )
 
     def rules(self) -> FallRules:
         return FallRules(
-            self.max_drop_s, self.lying_s, self.clear_s, self.lost_s, self.min_confidence
+            self.max_drop_s,
+            self.lying_s,
+            self.clear_s,
+            self.lost_s,
+            self.min_confidence,
+            self.min_standing_s,
         )
 
 

@@ -11,7 +11,9 @@ Per frame set (time ``t``, one :class:`~models.detector.base.Detections` per cam
 0. **postures**: a seated or lying person's box is replaced by the box a standing person at the
    same place would give (the model was set up on standing people), and every box gets a
    posture that the track carries, smoothed, into the snapshot (:mod:`service.tracking.posture`;
-   ``postures=False``: boxes as detected);
+   ``postures=False``: boxes as detected); after the association, a compact box read seated is
+   read as a body on the floor where only that keeps a tracked person in place
+   (:mod:`service.tracking.posture_continuity`);
 1. **associate** the boxes of all cameras into people (:mod:`service.tracking.association`), with
    the tracker's served tracks predicted to ``t`` as anchors (a tracked person's fragments fold
    into one association; ``track_anchors=False``: the boxes alone); each association says
@@ -56,6 +58,7 @@ from service.tracking.measurements import coverage_function, measurement_covaria
 from service.tracking.posture import LYING, SITTING, BoxPostures, PostureSmoother, cut_off
 from service.tracking.posture import normalise as normalise_postures
 from service.tracking.posture_agreement import agree as agree_postures
+from service.tracking.posture_continuity import reread_lying
 from service.tracking.view_bias import ViewBias
 
 OutsideArea = Literal["drop", "flag"]
@@ -119,11 +122,13 @@ class Chain:
             detected, area = detections, getattr(runtime, "setup_area", None)
             if self.postures:
                 detections, box_postures = normalise_postures(detections, area, runtime.image_sizes)
+            anchors = self._anchors(t)
             found = self.associate(
-                detections, runtime, max_error_px=self.max_error_px, anchors=self._anchors(t)
+                detections, runtime, max_error_px=self.max_error_px, anchors=anchors
             )
             if box_postures is not None:  # one posture per person (its boxes' vote)
                 found = agree_postures(found, detected, box_postures, area, runtime)
+                found = reread_lying(found, detected, box_postures, area, runtime, anchors)
                 doubtful = [
                     a
                     for a in found

@@ -65,6 +65,9 @@ others lie feet towards the camera, or the pose is missing: 32 %, short boxes), 
 4544). Such a box is converted as its shape says (seated, from its top): from its centre, as
 other lying boxes, the simulated lounge's lying person was put 0.46 m off per frame (median)
 against 0.36 m, and from the keypoints' mid-hip 0.42 m (``bench.serving.postures``, 2026-12-04).
+That holds where another view sees the body across; seen by one camera alone, such a box (and
+any compact box read sitting) is converted again from its centre when only that keeps a tracked
+person in place (:mod:`service.tracking.posture_continuity`, after the association).
 Rejected: the feet-towards-the-camera half by the legs' length in the image against
 the trunk's (hip to ankle 1.2 trunks or more: 15 % of the lying boxes, and 14 % of the
 squats', whose trunk bent forward is short in the image and whose ankles a pose estimator

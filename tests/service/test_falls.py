@@ -23,10 +23,13 @@ class Clock:
         self.smoother = PostureSmoother()
 
     def hold(self, seconds: float, posture: str | None, pid: int = 1, present: bool = True,
-             x: float = 2.0, y: float = 1.0, confidence: float | None = None) -> Clock:  # fmt: skip
+             x: float = 2.0, y: float = 1.0, confidence: float | None = None,
+             cameras: list[int] | None = None) -> Clock:  # fmt: skip
         for _ in range(round(seconds * FPS)):
             self.t += 1.0 / FPS
             person: dict[str, Any] = {"id": pid, "x": x, "y": y}
+            if cameras is not None:
+                person["cameras"] = cameras
             if posture is not None:
                 person["posture"] = posture
             if confidence is not None:
@@ -76,6 +79,31 @@ def test_getting_up_clears_the_fall_after_standing_for_clear_s():
     assert cleared["since"] == clock.events[0]["t"]
     assert cleared["duration_s"] == pytest.approx(cleared["t"] - cleared["since"], abs=1e-3)
     assert clock.detector.state()["active"] is False
+
+
+def test_a_coasting_track_s_carried_standing_is_no_evidence_of_a_quick_drop():
+    """A track that lost its person keeps serving their last posture for a while; through the
+    serving chain such a track, fed a lying association seconds later, raised false falls. Only
+    standing that a camera saw counts: 3 s unseen is longer than max_drop_s."""
+    clock = Clock()
+    clock.hold(3, "standing", cameras=[0, 1]).hold(3, "standing", cameras=[])
+    clock.hold(10, "lying", cameras=[0])
+    assert clock.events == []
+    seen = Clock()
+    seen.hold(3, "standing", cameras=[0, 1]).hold(0.5, "standing", cameras=[])
+    seen.hold(10, "lying", cameras=[0])  # unseen for a moment while falling: still a fall
+    assert seen.types() == [FALL]
+
+
+def test_a_track_standing_for_a_moment_is_not_known_to_stand():
+    """A track born standing one snapshot before reading lying (a mispaired or false box) is no
+    quick drop; a second of standing is."""
+    clock = Clock()
+    clock.hold(0.1, "standing").hold(10, "lying")
+    assert clock.events == []
+    clock = Clock()
+    clock.hold(1.2, "standing").hold(10, "lying")
+    assert clock.types() == [FALL]
 
 
 def test_lying_down_slowly_is_not_a_fall():

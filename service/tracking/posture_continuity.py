@@ -1,0 +1,121 @@
+"""A compact box is read as a body on the floor when only that reading keeps a tracked person
+where their track is.
+
+Why: a body lying along a camera's line of sight gives that camera a short, compact box, the
+shape of a seated person's or a squat's (:mod:`service.tracking.posture`), and seen by that
+camera alone it reads sitting. The seated conversion keeps the box's top as a head 0.64 of a
+standing height above the floor, but the top of that box is the far end of a body on the floor,
+so the person was put 1.5-2 m beyond where they lay: in the simulated lounge's held-out falls,
+lone views of lying bodies that read sitting were put 1.68 m off (median) by the seated
+conversion and 0.22 m off by the lying one (from the box centre), and those read lying by their
+keypoints 1.72 and 0.46 m (``bench/results/falls.md``). The fallen person then either left
+their track, or dragged it metres away, and the fall was not reported.
+
+What tells the two readings apart is where the person was a moment ago: nobody moves a metre
+and more while sitting down, squatting or falling. So an association whose boxes were converted
+from their top (read seated, or lying by the keypoints) is converted again as a body on the
+floor (:func:`~service.tracking.posture.standing_boxes` with ``lying``), and that reading is
+taken, with the posture ``lying``, when it lands within ``NEAR_M`` of a tracked person's
+predicted position (a :class:`~service.stages.TrackAnchor`) from which the seated reading is
+more than ``JUMP_M`` away, by a margin of ``GAP_M``, and no other association is already near
+that track. A person who sits down where they stood is nearer their track as seated; a squat's
+two readings are both within a metre or so of it; a new person (no track near) is left alone.
+
+Measured on held bodies of the simulated lounge with the true position standing in for the
+track's (seeds 1-8 of the fall bench and 2 × 20 min of its daily life, each box localized alone;
+``bench/results/falls.md``): the rule takes 85 % of the lone views of
+lying bodies read lying by their keypoints and 69 % of those read sitting, 0.3 % of the squats'
+boxes and none of the sitters'. Rejected: a lower ``JUMP_M`` (1.0 m with ``NEAR_M`` 0.6 and no
+margin took 4 % of the squats' boxes, each a step towards a false fall: a squat goes down as fast
+as a fall).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+
+import numpy as np
+
+from models.detector.base import Detections
+from models.mom.setup_area import SetupArea
+from service.stages import Association, TrackAnchor
+from service.tracking.posture import LYING, SITTING, BoxPostures, standing_boxes
+from service.tracking.posture_agreement import Relocalizing
+
+JUMP_M = 1.2  # the seated reading this far from the track: no sitting down does that
+NEAR_M = 0.6  # ... and the lying reading this near it
+GAP_M = 1.0  # ... nearer by at least this much
+SURE_GAP_M = 0.5  # beyond GAP_M, the lying read's confidence grows to 1 over this
+
+
+def reread_lying(
+    associations: Sequence[Association],
+    detected: Sequence[Detections],
+    postures: BoxPostures,
+    area: SetupArea | None,
+    runtime: Relocalizing,
+    anchors: Sequence[TrackAnchor],
+) -> list[Association]:
+    """``associations`` with each one read as a body on the floor where only that reading keeps
+    a tracked person in place (module docstring); ``postures`` is updated to say ``lying`` for
+    the boxes of each association so read."""
+    out = list(associations)
+    if area is None or not anchors or runtime.observation != "bbox" or not out:
+        return out
+    tracked = np.stack([np.asarray(a.xy, np.float64)[:2] for a in anchors])
+    where = np.stack([np.asarray(a.world, np.float64)[:2] for a in out])
+    for n, association in enumerate(out):
+        boxes = _from_the_top(association, detected, postures, area)
+        if boxes is None:
+            continue
+        rows = np.full_like(np.asarray(association.boxes, np.float64), np.nan)
+        for k, box in boxes.items():
+            rows[k] = standing_boxes(box[None], np.array([LYING], dtype=object), area, k)[0]
+        lying = np.asarray(runtime.localize(rows[None]), np.float64)[0]
+        if not np.isfinite(lying).all():
+            continue
+        near = np.linalg.norm(tracked - lying, axis=1)
+        track = int(np.argmin(near))
+        seated = float(np.linalg.norm(where[n] - tracked[track]))
+        others = np.delete(np.linalg.norm(where - tracked[track], axis=1), n)
+        if not (
+            near[track] < NEAR_M
+            and seated > JUMP_M
+            and seated - near[track] > GAP_M
+            and not (others < NEAR_M).any()
+        ):
+            continue
+        covariance = np.asarray(runtime.covariance(rows[None]), np.float64)[0]
+        out[n] = dataclasses.replace(association, boxes=rows, world=lying, covariance=covariance)
+        where[n] = lying
+        sure = 0.5 + 0.5 * min(max((seated - near[track] - GAP_M) / SURE_GAP_M, 0.0), 1.0)
+        for k in boxes:
+            index = association.detection_index[k]
+            assert index is not None
+            postures.labels[k][index] = LYING
+            postures.confidence[k][index] = round(sure, 3)
+    return out
+
+
+def _from_the_top(
+    association: Association,
+    detected: Sequence[Detections],
+    postures: BoxPostures,
+    area: SetupArea,
+) -> dict[int, np.ndarray] | None:
+    """The association's boxes as detected, by camera, when none of them reads standing and at
+    least one was converted from its top (read sitting, or lying by its keypoints: its
+    replacement is the seated one); else None."""
+    boxes: dict[int, np.ndarray] = {}
+    from_top = False
+    for k, i in enumerate(association.detection_index):
+        if i is None or k >= len(detected) or i >= len(detected[k].boxes):
+            continue
+        if str(postures.labels[k][i]) not in (SITTING, LYING):
+            return None
+        box = np.asarray(detected[k].boxes[i], np.float64)
+        boxes[k] = box
+        seated = standing_boxes(box[None], np.array([SITTING], dtype=object), area, k)[0]
+        from_top |= bool(np.allclose(association.boxes[k], seated, atol=0.5))
+    return boxes if boxes and from_top else None

@@ -1,0 +1,91 @@
+"""A compact box is read as a body on the floor when only that reading keeps a tracked person in
+place (service.tracking.posture_continuity)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from models.detector.base import Detections
+from models.mom.setup_area import CameraRegion, SetupArea
+from service.stages import Association, TrackAnchor
+from service.tracking import posture
+from service.tracking.posture import LYING, SITTING
+from service.tracking.posture_continuity import reread_lying
+
+STANDING_PX = 200.0  # a person standing anywhere looks 200 px tall to this camera
+SIZES = np.array([[640.0, 480.0]])
+COMPACT = [300.0, 200.0, 400.0, 290.0]  # 0.45 of a standing height, as wide as tall: sitting
+
+
+def _area() -> SetupArea:
+    flat = np.array([np.log(STANDING_PX), 0, 0, 0, 0, 0], float)
+    hull = np.array([[0.0, 0.0], [640.0, 0.0], [640.0, 480.0], [0.0, 480.0]])
+    region = CameraRegion(hull, (50.0, 400.0), flat, 0.05)
+    return SetupArea(np.array([[0.0, 0.0], [9.0, 0.0], [9.0, 9.0]]), 0.5, (region,))
+
+
+class _OneCamera:
+    """A localizer double for one camera looking along x: a box's bottom edge at row v stands
+    at x = v / 50 m (a row is 2 cm of floor), its centre column at y = u / 100 m."""
+
+    observation = "bbox"
+
+    def localize(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
+        boxes = np.asarray(boxes, float)
+        return np.stack(
+            [boxes[:, 0, 3] / 50.0, 0.5 * (boxes[:, 0, 0] + boxes[:, 0, 2]) / 100.0], axis=1
+        )
+
+    def covariance(self, boxes: np.ndarray, keypoints: np.ndarray | None = None) -> np.ndarray:
+        return np.tile(0.01 * np.eye(2), (len(boxes), 1, 1))
+
+
+Seen = tuple[list[Detections], list[Association], posture.BoxPostures]
+
+
+def _seen(boxes: list[list[float]]) -> Seen:
+    """Each box detected by the one camera, converted as its shape says and associated alone."""
+    detected = [Detections(np.array(boxes, np.float32), np.ones(len(boxes), np.float32))]
+    normalised, postures = posture.normalise(detected, _area(), SIZES)
+    runtime = _OneCamera()
+    found = []
+    for i, box in enumerate(normalised[0].boxes):
+        rows = np.asarray(box, np.float64).reshape(1, 4)
+        found.append(Association(rows, [0], runtime.localize(rows[None])[0], 0.0, [i]))
+    return detected, found, postures
+
+
+def _anchor(x: float, y: float) -> TrackAnchor:
+    return TrackAnchor(np.array([x, y]), 0.04 * np.eye(2))
+
+
+def test_a_compact_box_where_a_person_stood_is_a_body_on_the_floor() -> None:
+    """Read seated, the box's top is a head 0.64 of a standing height up, so its feet are at
+    row 200 + 128 = 328 (x 6.56 m); read as a body on the floor, its centre row 245 (x 4.9 m)
+    is on the floor. The person was tracked at 5 m: nobody moves 1.5 m while going down."""
+    detected, found, postures = _seen([COMPACT])
+    assert postures.labels[0].tolist() == [SITTING]
+    assert found[0].world[0] == pytest.approx(6.56)
+    (read,) = reread_lying(found, detected, postures, _area(), _OneCamera(), [_anchor(5.0, 3.5)])
+    assert read.world == pytest.approx([4.9, 3.5])
+    assert postures.of(read.detection_index)[0] == LYING
+    assert postures.confidence[0][0] >= 0.9  # 1.56 m against 0.1: far beyond the margin
+
+
+@pytest.mark.parametrize(
+    "anchors, others",
+    [
+        ([_anchor(6.5, 3.5)], []),  # sat down where they stood: the seated reading holds
+        ([_anchor(5.6, 3.5)], []),  # both readings within a metre of the track: a squat's
+        ([], []),  # nobody tracked near: a new person, judged by the box alone
+        ([_anchor(5.0, 3.5)], [[300.0, 50.0, 380.0, 250.0]]),  # a standing person is there
+    ],
+)
+def test_the_seated_reading_stays_unless_only_lying_keeps_the_track(
+    anchors: list[TrackAnchor], others: list[list[float]]
+) -> None:
+    detected, found, postures = _seen([COMPACT, *others])
+    read = reread_lying(found, detected, postures, _area(), _OneCamera(), anchors)
+    assert read[0].world[0] == pytest.approx(6.56)
+    assert postures.labels[0][0] == SITTING
