@@ -9,13 +9,14 @@ recording replays the same events and tests drive it with any clock they like.
 Rules (per track id; :class:`FallRules`, settings ``falls.*``)
 ---------------------------------------------------------------
 1. **A quick drop**: the first ``lying`` posture no later than ``max_drop_s`` (2 s) after the
-   track last read ``standing``, at the end of at least ``min_standing_s`` (1 s) of reading
-   standing, starts a candidate. Only what a camera sees now counts: a coasting track (the
-   snapshot's ``cameras`` empty) carries its last posture, and through the serving chain such
-   carried ``standing`` reads of tracks that had lost their person, then fed a lying
-   association, raised false falls; so did tracks born a moment before, standing for one
-   snapshot (``bench/results/falls.md``). Lying down on purpose goes through sitting
-   for longer than that (onto a sofa, a bed, the floor), and a track that was never seen
+   track last read ``standing``, once it has been upright for at least ``min_standing_s`` (1 s)
+   from its first standing read (sitting in between does not break it: someone who gets up
+   from a chair and falls is a fall), starts a candidate. Only what a camera sees now counts:
+   a coasting track (the snapshot's ``cameras`` empty) carries its last posture, and through
+   the serving chain such carried ``standing`` reads of tracks that had lost their person,
+   then fed a lying association, raised false falls; so did tracks born a moment before,
+   standing for one snapshot (``bench/results/falls.md``). Lying down on purpose goes through
+   sitting for longer than that (onto a sofa, a bed, the floor), and a track that was never seen
    standing (someone already lying when the daemon starts) is never a candidate.
 2. **Down for sure**: the candidate becomes a ``fall`` on the first snapshot that reads lying
    with a posture confidence of at least ``min_confidence`` (0.75) once the track has read lying
@@ -102,7 +103,8 @@ class _Person:
     y: float
     seen: float  # capture time of the last snapshot with this id
     last_standing: float | None = None  # last snapshot that read standing
-    stood_from: float | None = None  # start of the standing streak that ended at last_standing
+    stood_from: float | None = None  # first standing read of the upright streak (standing, or
+    # sitting and standing) that last_standing ends: a sit-stand-fall counts the whole streak
     standing_since: float | None = None  # start of the current unbroken standing streak
     upright_since: float | None = None  # ... of standing or sitting (not lying)
     lying_since: float | None = None  # the candidate's start (rule 1)
@@ -164,7 +166,7 @@ class FallDetector:
         posture = person.get("posture") if seen else None
         if posture == STANDING:
             if p.last_standing is None or p.stood_from is None or p.upright_since is None:
-                p.stood_from = t  # a new standing streak
+                p.stood_from = t  # a new upright streak
             p.last_standing = t
             p.standing_since = t if p.standing_since is None else p.standing_since
             p.upright_since = t if p.upright_since is None else p.upright_since
