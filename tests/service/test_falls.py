@@ -104,6 +104,9 @@ def test_a_track_standing_for_a_moment_is_not_known_to_stand():
     clock = Clock()
     clock.hold(1.2, "standing").hold(10, "lying")
     assert clock.types() == [FALL]
+    up = Clock()  # got up from a chair and fell half a second later: upright all along
+    up.hold(3, "standing").hold(5, "sitting").hold(0.5, "standing").hold(10, "lying")
+    assert up.types() == [FALL]
 
 
 def test_lying_down_slowly_is_not_a_fall():
