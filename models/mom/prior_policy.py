@@ -14,6 +14,16 @@ the same rows and is exact geometry between the marks (0.17 m with 9 marks in th
   of the prior is chosen on the validation rows, separately for people seen by 1, 2 and 3+
   cameras, with the prior fitted on the training rows only, so the choice is not flattered.
 
+- **Rows a model labelled** (``policy="prior"``, ``momloc train --policy prior``; the room's
+  self-improvement, :mod:`service.learning.improve`): the floor marks plus self-labels, whose
+  positions are the serving model's own output. No validation row can then show the encoder
+  beating the geometry: the encoder learns to reproduce the serving model (its errors included)
+  and the marks' rows sit on four positions it has memorized, so validation chose the encoder
+  (0.045 m against the prior's 0.065 m) while on the room's truth the refit prior was the better
+  one by far for people seen by one camera (0.31 against 0.45 m), and even with the labels'
+  true positions (``bench/results/self_learning.md``, "Why the candidate serves the floor
+  geometry"). Such data serves the floor geometry refitted on all rows.
+
 The policy, weights and the prior refitted on all rows are stored in ``model.json`` under
 ``floor_prior``; the runtime (numpy only) applies them. Rows no fitted camera sees use the encoder.
 """
@@ -48,6 +58,7 @@ POLICY_WEIGHTS: dict[str, tuple[float, ...]] = {
     "prior": (1.0,) * 3,
     "blend": (0.5,) * 3,
 }  # if not stored
+POLICIES = ("auto", "prior")  # what a caller may ask of choose_policy
 WEIGHT_GRID = np.round(np.linspace(0.0, 1.0, 11), 2)
 MIN_CLASS_ROWS = 30  # fewer validation rows in a class: it takes the weight chosen on all rows
 
@@ -130,12 +141,16 @@ def choose_policy(
     observation: str,
     val_rows: np.ndarray | None = None,
     encoder_val_xy: np.ndarray | None = None,
+    policy: str = "auto",
 ) -> tuple[dict, FloorPrior | None]:
     """The ``floor_prior`` entry of model.json, and the fitted prior (None: cannot be fitted).
 
     ``val_rows`` and the encoder's positions on them (``encoder_val_xy``) let dense data choose
-    its blend; without them dense data keeps the encoder.
+    its blend; without them dense data keeps the encoder. ``policy`` ``"prior"``: the floor
+    geometry whatever the coverage and validation (rows a model labelled, module docstring).
     """
+    if policy not in POLICIES:
+        raise MomlocError(f"policy {policy!r}: choose one of {', '.join(POLICIES)}")
     coverage = label_coverage(dataset.world)
     entry: dict = {"coverage": round(coverage, 3), "dense_coverage": DENSE_COVERAGE}
     try:
@@ -148,7 +163,10 @@ def choose_policy(
             prior=None,
         )
         return entry, None
-    if coverage < DENSE_COVERAGE:
+    if policy == "prior":
+        weights = POLICY_WEIGHTS["prior"]
+        reason = "positions labelled by a model (policy prior): floor geometry fitted on all rows"
+    elif coverage < DENSE_COVERAGE:
         weights = POLICY_WEIGHTS["prior"]
         reason = f"labels cover {coverage:.0%} of the floor (marks): floor-mark geometry"
     elif val_rows is None or encoder_val_xy is None or len(val_rows) == 0:

@@ -42,6 +42,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="stop after this many seconds of training, keeping the best epoch so far "
         "(default: the adaptive schedule's safety net, 540 s; none with --epochs)",
     )
+    parser.add_argument(
+        "--policy",
+        choices=("auto", "prior"),
+        default="auto",
+        help="which localizer the model serves: auto (chosen from the rows: floor-mark geometry "
+        "for marks, a validated blend for dense walks) or prior (the floor geometry fitted on all "
+        "rows, for rows whose positions a model produced, such as the room's self-labels)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument(
@@ -73,10 +81,11 @@ def run(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         tuning=None if args.time_budget is None else {"time_budget_s": args.time_budget},
         on_epoch=_print_epoch if args.progress_json else None,
+        policy=args.policy,
     )
     summary = {k: v for k, v in metrics.items() if k != "val_history"}
     print(json.dumps(summary))
-    if metrics["floor_prior"]["policy"] == "prior":
+    if metrics["floor_prior"]["policy"] == "prior" and args.policy == "auto":
         print(
             f"note: the validation rows sit on the same floor marks as the training rows, so "
             f"{metrics['val_mean_m']:.3f} m says nothing about the floor between them; the model "

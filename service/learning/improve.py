@@ -8,7 +8,10 @@ When the room has gathered ``every_labels`` new self-labels since the last run, 
    :mod:`service.learning.training_set`) into the room's folder;
 2. runs ``momloc train`` on it in a child process at ``nice`` + ``nice_by`` with a time budget,
    exactly as the set-up page's Train button does (:mod:`service.setup.training`: a child
-   process keeps torch out of the daemon and the CPU cap out of the pipeline's way);
+   process keeps torch out of the daemon and the CPU cap out of the pipeline's way), serving
+   the floor geometry refitted on all rows (``--policy prior``): the labels' positions are the
+   serving model's own, so no validation row can show its encoder beating that geometry
+   (:mod:`models.mom.prior_policy`);
 3. scores the candidate and the model in service on the same floor marks and held-out labels,
    row by row, and lets :func:`service.learning.gate.judge` decide (paired: only a candidate
    shown better beyond the checks' noise is served);
@@ -196,8 +199,8 @@ class Improver:
             raise MomlocError(f"learning.marks: {error}") from None
 
     def _train(self, recording: Path, staging: Path) -> None:
-        budget = ["--time-budget", f"{self.options.time_budget_s:g}"]
-        process = spawn_train(recording, staging, budget, nice_by=self.options.nice_by)
+        options = ["--time-budget", f"{self.options.time_budget_s:g}", "--policy", "prior"]
+        process = spawn_train(recording, staging, options, nice_by=self.options.nice_by)
         errors: deque[str] = deque(maxlen=40)
         reader = threading.Thread(target=drain, args=(process.stderr, errors), daemon=True)
         reader.start()

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from common.errors import MomlocError
 from models.mom.prior_policy import (
     blend,
     choose_policy,
@@ -44,6 +45,33 @@ def test_marks_choose_the_prior_and_dense_data_chooses_mom(tmp_path: Path) -> No
     dense = simulate("indoor-2cam", frames=1500, seed=4).dataset
     entry, _ = choose_policy(dense, "bbox")  # no validation rows to weigh the prior with
     assert entry["policy"] == "mom" and entry["weights"] == [0.0, 0.0, 0.0], entry["reason"]
+
+
+def test_rows_a_model_labelled_serve_the_floor_geometry_whatever_the_validation(
+    tmp_path: Path,
+) -> None:
+    """The room's self-labels carry the serving model's positions: no validation row can show
+    its encoder beating the geometry, so ``policy="prior"`` serves the geometry on dense rows
+    too (and the CLI says so without the floor-mark warning)."""
+    from service.cli import main
+
+    dense = simulate("indoor-2cam", frames=1500, seed=4).dataset
+    val = np.arange(0, dense.n, 7)
+    encoder_xy = dense.world[val, :2].astype(np.float64)  # a perfect encoder on validation
+    chosen, _ = choose_policy(dense, "bbox", val, encoder_xy)
+    assert chosen["policy"] == "mom", chosen["reason"]
+    entry, prior = choose_policy(dense, "bbox", val, encoder_xy, policy="prior")
+    assert entry["policy"] == "prior" and entry["weights"] == [1.0, 1.0, 1.0]
+    assert prior is not None and "labelled by a model" in entry["reason"]
+    with pytest.raises(MomlocError, match="policy 'best'"):
+        choose_policy(dense, "bbox", policy="best")
+
+    path = tmp_path / "dense.npz"
+    dense.subset(np.arange(600)).save(path)
+    out = tmp_path / "m"
+    assert main(["train", str(path), "--out", str(out), "--epochs", "2", "--quiet",
+                 "--policy", "prior"]) == 0  # fmt: skip
+    assert json.loads((out / "model.json").read_text())["floor_prior"]["policy"] == "prior"
 
 
 def _two_localizers(n: int, enc_sigma: float, prior_sigma: float, seed: int = 0):

@@ -31,7 +31,7 @@ from tqdm import tqdm
 
 from common.errors import MomlocError
 from models.data.dataset import MomDataset
-from models.mom.prior_policy import choose_policy, summary
+from models.mom.prior_policy import POLICIES, choose_policy, summary
 from models.mom.sampling import (
     InferenceSampler,
     SamplerConfig,
@@ -254,8 +254,13 @@ def train_model(
     tuning: dict | None = None,
     extra_meta: dict[str, Any] | None = None,
     on_epoch: Callable[[int, int, float, float], None] | None = None,
+    policy: str = "auto",
 ) -> dict:
     """Train on ``dataset``, write ``out_dir`` (encoder.onnx, model.pt, model.json); metrics.
+
+    ``policy``: which localizer the model serves, ``"auto"`` (chosen from the rows) or
+    ``"prior"`` (the floor geometry: rows whose positions a model produced,
+    :func:`models.mom.prior_policy.choose_policy`).
 
     ``tuning`` overrides TrainSettings / SamplerConfig fields (for measurements and sweeps);
     ``extra_meta`` adds top-level entries to ``model.json`` in its one write;
@@ -275,6 +280,8 @@ def train_model(
         raise MomlocError(f"tuning: unknown settings {sorted(unknown)}")
     if epochs is not None and epochs < 1:
         raise MomlocError(f"--epochs {epochs}: must be at least 1")
+    if policy not in POLICIES:
+        raise MomlocError(f"--policy {policy}: choose one of {', '.join(POLICIES)}")
     threads = torch.get_num_threads()
     # One thread: these small MLPs gain nothing from a second one, and on a busy 2-core machine
     # two spinning threads were measured 10x slower (147 s vs 13 s for the same 15 epochs).
@@ -291,6 +298,7 @@ def train_model(
             tuning,
             extra_meta,
             on_epoch,
+            policy,
         )
     finally:
         torch.set_num_threads(threads)
@@ -307,6 +315,7 @@ def _train(
     tuning: dict[str, Any],
     extra_meta: dict[str, Any] | None,
     on_epoch: Callable[[int, int, float, float], None] | None,
+    policy: str,
 ) -> dict:
     torch.manual_seed(seed)
     started = time.monotonic()
@@ -351,7 +360,7 @@ def _train(
         seconds=round(time.monotonic() - started, 1),
         val_history=history,
     )
-    floor_prior, _ = choose_policy(dataset, sampler.observation, val_rows, val_xy)
+    floor_prior, _ = choose_policy(dataset, sampler.observation, val_rows, val_xy, policy)
     write_model_dir(
         out_dir,
         encoder=trainer.encoder,
