@@ -19,10 +19,10 @@ the same rows and is exact geometry between the marks (0.17 m with 9 marks in th
   positions are the serving model's own output. No validation row can then show the encoder
   beating the geometry: the encoder learns to reproduce the serving model (its errors included)
   and the marks' rows sit on four positions it has memorized, so validation chose the encoder
-  (0.045 m against the prior's 0.065 m) while on the room's truth the refit prior was the better
-  one by far for people seen by one camera (0.31 against 0.45 m), and even with the labels'
-  true positions (``bench/results/self_learning.md``, "Why the candidate serves the floor
-  geometry"). Such data serves the floor geometry refitted on all rows.
+  while on the room's truth the refitted geometry was the better localizer, by far for people
+  seen by one camera, even for a candidate trained on the labels' true positions
+  (``bench/results/self_learning_policy.md``). Such data serves the floor geometry refitted on
+  all rows.
 
 The policy, weights and the prior refitted on all rows are stored in ``model.json`` under
 ``floor_prior``; the runtime (numpy only) applies them. Rows no fitted camera sees use the encoder.
