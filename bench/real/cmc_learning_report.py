@@ -46,16 +46,17 @@ def _improvement(results: dict[str, Any]) -> str:
                 r["candidate"],
             )
         )
-        c, n = verdict["current"], verdict["candidate"]
+        # the paired checks of service.learning.gate (None: the check had no rows)
+        marks, views = verdict.get("marks") or {}, verdict.get("labels") or {}
         gates.append(
             [
                 v,
                 f"{labels['CMC1']} + {labels['CMC2']}",
-                _f(c["marks_m"], 4),
-                _f(n["marks_m"], 4),
-                _f(c["labels_m"], 3),
-                _f(n["labels_m"], 3),
-                f"{c['labels']}",
+                _f(marks.get("current_m"), 4),
+                _f(marks.get("candidate_m"), 4),
+                _f(views.get("current_m"), 3),
+                _f(views.get("candidate_m"), 3),
+                f"{views.get('rows', 0)}",
                 "yes" if verdict["serve"] else "no",
                 verdict["reason"],
                 f"{r['train_s']:.0f}",
@@ -67,7 +68,8 @@ def _improvement(results: dict[str, Any]) -> str:
     )
     gate = markdown_table(
         ("start", "self-labels CMC1 + CMC2", "marks check: start m", "candidate m",
-         "held-out labels: start m", "candidate m", "held-out labels", "served", "gate's reason",
+         "held-out views apart: start m", "candidate m", "held-out views", "served",
+         "gate's reason",
          "training s"),
         gates,
     )  # fmt: skip

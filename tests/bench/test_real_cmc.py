@@ -41,3 +41,35 @@ def test_pairing_finds_the_three_people_of_cmc1() -> None:
             paired += int((owner >= 0).sum())
         # measured: 97-99 % of CMC1's people have a paired box in each camera
         assert paired >= 0.9 * sum(len(truth.at(f)) for f in np.unique(truth.frame)[::10])
+
+
+def test_the_learning_report_shows_the_gates_paired_checks() -> None:
+    """The report reads the gate's verdict as :class:`service.learning.gate.Verdict` writes it
+    (it once expected an older format and failed after the whole bench had run)."""
+    from bench.real.cmc_learning_report import report
+    from service.learning.gate import Check, judge
+
+    marks = Check(120, 4, 0.0409, 0.0417, 0.0008, 0.0002)
+    views = Check(40, 3, 0.312, 0.300, -0.012, 0.004)  # too few groups: kept
+    verdict = judge(marks, views).as_dict()
+    scores = {"policy": "prior", "per_frame_m": 0.172, "moda": 83.0, "mota": 78.7}
+    results = {
+        "dense": {"rows": 656, **scores},
+        "improvement": [
+            {
+                "variant": "marks4",
+                "labels": {"CMC1": 16, "CMC2": 5},
+                "verdict": verdict,
+                "mark_rows": 135,
+                "start": scores,
+                "candidate": scores,
+                "train_s": 73.0,
+                "rejected": {"crowded": 1580},
+            }
+        ],
+    }
+    page = report(results, 100.0, "Machine: test.")
+    gate_row = next(line for line in page.splitlines() if line.startswith("| marks4 | 16 + 5"))
+    cells = [cell.strip() for cell in gate_row.strip("|").split("|")]
+    assert cells[2:7] == ["0.0409", "0.0417", "0.312", "0.300", "40"]
+    assert cells[7] == "no" and "too few held-out self-labels" in cells[8]
