@@ -18,6 +18,18 @@ Rules (per track id; :class:`FallRules`, settings ``falls.*``)
    standing for one snapshot (``bench/results/falls.md``). Lying down on purpose goes through
    sitting for longer than that (onto a sofa, a bed, the floor), and a track that was never seen
    standing (someone already lying when the daemon starts) is never a candidate.
+   **1b. A fall the tracker handed to a new track** (``handover_m``, 1.5 m; 0: off): a person
+   falling is what a tracker loses most easily (the body's boxes change shape and place within
+   a second, a lone camera's view of it is read seated metres away), and the body on the floor
+   then often becomes a new track, born lying, which rule 1 never lets fall. So a track never
+   seen standing starts a candidate at its first lying read when another track is a candidate
+   of rule 1 (it saw the drop), last stood within ``max_drop_s`` and within ``handover_m`` of
+   the new track, and has not read standing or sitting since the new track appeared; the older
+   track then gives its candidate up (one fall, one event) until it reads standing again. In
+   the simulated lounge's held-out falls through the chain the older track was dragged 0.7-1.5
+   m away as the new one took the body (``bench/results/falls.md``). Only a candidate donates:
+   a track that stood and then lost its person without a lying read (a walker coasting past, a
+   sitter's track at the scene's start) raised false falls when any standing track could.
 2. **Down for sure**: the candidate becomes a ``fall`` on the first snapshot that reads lying
    with a posture confidence of at least ``min_confidence`` (0.75) once the track has read lying
    for ``lying_s`` (1.5 s) in all since the candidate began. Lying time is the time between two
@@ -75,6 +87,7 @@ with an active fall after the event (the room's fall state).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -95,6 +108,7 @@ class FallRules:
     lost_s: float = 120.0
     min_confidence: float = 0.75
     min_standing_s: float = 1.0
+    handover_m: float = 1.5
 
 
 @dataclass
@@ -102,6 +116,11 @@ class _Person:
     x: float
     y: float
     seen: float  # capture time of the last snapshot with this id
+    born: float  # capture time of the first snapshot with this id
+    stood_x: float = 0.0  # where the last standing read was
+    stood_y: float = 0.0
+    upright_at: float | None = None  # the last snapshot that read standing or sitting
+    handed_over: bool = False  # its fall went to a newer track (rule 1b): no event of its own
     last_standing: float | None = None  # last snapshot that read standing
     stood_from: float | None = None  # first standing read of the upright streak (standing, or
     # sitting and standing) that last_standing ends: a sit-stand-fall counts the whole streak
@@ -143,7 +162,7 @@ class FallDetector:
             pid = int(p["id"])
             person = self._people.get(pid)
             if person is None:
-                person = self._people[pid] = _Person(float(p["x"]), float(p["y"]), t)
+                person = self._people[pid] = _Person(float(p["x"]), float(p["y"]), t, t)
             person.x, person.y, person.seen = float(p["x"]), float(p["y"]), t
             event = self._observe(pid, person, t, p)
             if event is not None:
@@ -164,10 +183,14 @@ class FallDetector:
         # which is no evidence of what the person does now (rule 1)
         seen = person.get("cameras") is None or len(person["cameras"]) > 0
         posture = person.get("posture") if seen else None
+        if posture in (STANDING, SITTING):
+            p.upright_at = t
         if posture == STANDING:
             if p.last_standing is None or p.stood_from is None or p.upright_since is None:
                 p.stood_from = t  # a new upright streak
             p.last_standing = t
+            p.stood_x, p.stood_y = p.x, p.y
+            p.handed_over = False  # a person standing again: their own falls count again
             p.standing_since = t if p.standing_since is None else p.standing_since
             p.upright_since = t if p.upright_since is None else p.upright_since
             p.down_at = None
@@ -184,7 +207,8 @@ class FallDetector:
                     and t - p.last_standing <= rules.max_drop_s
                     and p.last_standing - p.stood_from >= rules.min_standing_s - 1e-9
                 )
-                if p.lying_since is None and p.fallen_at is None and quick:
+                free = p.lying_since is None and p.fallen_at is None and not p.handed_over
+                if free and (quick or (p.last_standing is None and self._take_over(pid, p, t))):
                     p.lying_since, p.down_s = t, 0.0
             if p.lying_since is not None and p.down_at is not None:
                 p.down_s += t - p.down_at
@@ -193,7 +217,7 @@ class FallDetector:
             if p.standing_since is not None and t - p.standing_since >= rules.clear_s:
                 return self._clear(pid, p, t, "stood_up")
             return None
-        if p.lying_since is None:
+        if p.lying_since is None or p.handed_over:
             return None
         if p.upright_since is not None:
             if t - p.upright_since >= rules.clear_s:
@@ -203,6 +227,32 @@ class FallDetector:
         if p.down_s >= rules.lying_s - 1e-9 and sure:
             return self._fall(pid, p, t)
         return None
+
+    def _take_over(self, pid: int, p: _Person, t: float) -> bool:
+        """Rule 1b: whether the lying track ``p``, never seen standing, is a person whose own
+        track lost them as they fell; if so that track hands its fall over to ``p``."""
+        rules = self.rules
+        if rules.handover_m <= 0:
+            return False
+        donors = [
+            (math.hypot(d.stood_x - p.x, d.stood_y - p.y), other)
+            for other, d in self._people.items()
+            if other != pid
+            and not d.handed_over
+            and d.fallen_at is None
+            and d.lying_since is not None  # the donor saw the drop: a candidate of its own
+            and d.last_standing is not None
+            and d.stood_from is not None
+            and t - d.last_standing <= rules.max_drop_s
+            and d.last_standing - d.stood_from >= rules.min_standing_s - 1e-9
+            and (d.upright_at is None or d.upright_at <= p.born)
+        ]
+        near = [(gap, other) for gap, other in donors if gap <= rules.handover_m]
+        if not near:
+            return False
+        donor = self._people[min(near)[1]]
+        donor.handed_over, donor.lying_since = True, None
+        return True
 
     def _zones_at(self, p: _Person) -> list[str]:
         return [z.name for z in self.zones if z.contains(p.x, p.y)]

@@ -243,3 +243,60 @@ def test_time_running_backwards_does_not_fire_early():
         detector.update(t / FPS, [{"id": 1, "x": 0, "y": 0, "posture": "standing"}])
     detector.update(5.1, [{"id": 1, "x": 0, "y": 0, "posture": "lying"}])
     assert detector.update(0.0, [{"id": 1, "x": 0, "y": 0, "posture": "lying"}]) == []
+
+
+def _snapshots(detector: FallDetector, seconds: float, people: list[dict[str, Any]],
+               t: float) -> tuple[float, list[dict[str, Any]]]:  # fmt: skip
+    """``people`` served unchanged for ``seconds`` at FPS from capture time ``t``."""
+    events: list[dict[str, Any]] = []
+    for _ in range(round(seconds * FPS)):
+        t += 1.0 / FPS
+        events += detector.update(t, [dict(p) for p in people])
+    return t, events
+
+
+def _stand(pid: int, x: float = 2.0, y: float = 1.0) -> dict[str, Any]:
+    return {"id": pid, "x": x, "y": y, "posture": "standing", "posture_confidence": 1.0}
+
+
+def _lie(pid: int, x: float, y: float = 1.0, confidence: float = 1.0) -> dict[str, Any]:
+    return {"id": pid, "x": x, "y": y, "posture": "lying", "posture_confidence": confidence}
+
+
+def test_a_fall_the_tracker_hands_to_a_new_track_is_reported_once_by_the_new_one():
+    """The faller's track reads lying unsurely and drifts off; the body becomes track 2."""
+    detector = FallDetector()
+    t, events = _snapshots(detector, 3.0, [_stand(1)], 1000.0)
+    t, more = _snapshots(detector, 0.5, [_lie(1, 2.2, confidence=0.5)], t)
+    events += more
+    t, more = _snapshots(detector, 3.0, [_lie(1, 3.4, confidence=0.6), _lie(2, 2.3)], t)
+    events += more
+    assert [(e["type"], e["id"]) for e in events] == [(FALL, 2)]
+    assert events[0]["t"] - events[0]["since"] == pytest.approx(1.5, abs=0.15)
+
+
+@pytest.mark.parametrize(
+    "before, rules",
+    [
+        ([_stand(1)], FallRules()),  # the old track still stands there: someone else lies
+        ([{**_stand(1), "posture": "sitting"}], FallRules()),  # ... crouches or sits
+        ([_lie(1, 2.2, confidence=0.5)], FallRules(handover_m=0.0)),  # rule 1b off
+    ],
+)
+def test_a_new_lying_track_takes_no_fall_over_from_a_track_that_did_not_drop(
+    before: list[dict[str, Any]], rules: FallRules
+) -> None:
+    detector = FallDetector(rules)
+    t, events = _snapshots(detector, 3.0, [_stand(1)], 1000.0)
+    t, more = _snapshots(detector, 0.5, before, t)
+    events += more
+    t, more = _snapshots(detector, 3.0, [_lie(2, 2.3)], t)
+    assert [e for e in events + more if e["id"] == 2] == []
+
+
+def test_a_drop_far_from_the_new_lying_track_hands_nothing_over():
+    detector = FallDetector()
+    t, _ = _snapshots(detector, 3.0, [_stand(1)], 1000.0)
+    t, _ = _snapshots(detector, 0.5, [_lie(1, 2.0, confidence=0.5)], t)
+    t, events = _snapshots(detector, 3.0, [_lie(2, 4.0)], t)  # 2 m from where 1 stood
+    assert events == []
