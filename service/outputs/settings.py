@@ -126,6 +126,13 @@ class FallSettings(BaseModel):
         description="A fall starts only after the person was seen standing this long "
         "(seconds; a track born a moment before is not yet known to be standing).",
     )
+    handover_m: float = Field(
+        _FALL.handover_m,
+        ge=0,
+        le=5,
+        description="A new track lying within this of where a falling person's track last "
+        "stood takes that fall over (metres; the tracker often loses a falling body; 0: off).",
+    )
 
     def rules(self) -> FallRules:
         return FallRules(
@@ -135,6 +142,7 @@ class FallSettings(BaseModel):
             self.lost_s,
             self.min_confidence,
             self.min_standing_s,
+            self.handover_m,
         )
 
 
