@@ -32,7 +32,11 @@ Rules (per track id; :class:`FallRules`, settings ``falls.*``)
    sitter's track at the scene's start) raised false falls when any standing track could.
 2. **Down for sure**: the candidate becomes a ``fall`` on the first snapshot that reads lying
    with a posture confidence of at least ``min_confidence`` (0.75) once the track has read lying
-   for ``lying_s`` (1.5 s) in all since the candidate began. Lying time is the time between two
+   for ``lying_s`` (1.5 s) in all since the candidate began; a candidate whose track no camera
+   has seen lying for ``lying_gap_s`` (5 s) is dropped. Without that bound a track that read
+   lying once and then went unseen (held at its still place, its posture carried) for tens of
+   seconds fired when a mispaired lying box 0.9 m away fed it (the lounge's daily life through
+   the chain, ``bench/results/falls.md``). Lying time is the time between two
    consecutive snapshots of the track that both read lying (or unknown: no evidence either way;
    a dropout between them counts, the person is still down); time around a sitting or standing
    read does not count, but neither does it reset the sum: a lying body seen lengthwise from a
@@ -64,7 +68,8 @@ lying, or that no camera sees down (``bench/results/falls.md``): no ``lying_s`` 
 ``min_confidence`` changes them.
 
 A track absent from a snapshot is neither evidence of getting up nor of staying down: its
-candidate waits (dropouts while lying do not reset it) and fires on the next snapshot with it.
+candidate waits (dropouts while lying do not reset it) and fires on the next snapshot with it,
+unless no camera has seen it lying for ``lying_gap_s``.
 
 Rejected: a vertical speed of the head or the box top (needs a calibrated height per pixel
 and jitters with the detector's box), requiring the person to be still while down (a fallen
@@ -109,6 +114,7 @@ class FallRules:
     min_confidence: float = 0.75
     min_standing_s: float = 1.0
     handover_m: float = 1.5
+    lying_gap_s: float = 5.0
 
 
 @dataclass
@@ -129,6 +135,7 @@ class _Person:
     lying_since: float | None = None  # the candidate's start (rule 1)
     down_s: float = 0.0  # the candidate's lying time so far (rule 2)
     down_at: float | None = None  # the last snapshot that read lying or unknown (else None)
+    lying_at: float = 0.0  # the last snapshot a camera saw lying
     fallen_at: float | None = None  # the fall event's t while the fall is active
 
 
@@ -201,6 +208,7 @@ class FallDetector:
         else:  # lying, or unknown (absent field): no evidence, the upright streaks stand
             if posture == LYING:
                 p.standing_since = p.upright_since = None
+                p.lying_at = t
                 quick = (
                     p.last_standing is not None
                     and p.stood_from is not None
@@ -218,6 +226,9 @@ class FallDetector:
                 return self._clear(pid, p, t, "stood_up")
             return None
         if p.lying_since is None or p.handed_over:
+            return None
+        if t - p.lying_at > rules.lying_gap_s:
+            p.lying_since = None  # no lying read for long: a stale candidate (rule 2)
             return None
         if p.upright_since is not None:
             if t - p.upright_since >= rules.clear_s:

@@ -126,6 +126,13 @@ class FallSettings(BaseModel):
         description="A fall starts only after the person was seen standing this long "
         "(seconds; a track born a moment before is not yet known to be standing).",
     )
+    lying_gap_s: float = Field(
+        _FALL.lying_gap_s,
+        gt=0,
+        le=600,
+        description="A fall not yet reported is dropped when no camera has seen the person "
+        "lying for this long (seconds; a lying read after so long is no longer that fall).",
+    )
     handover_m: float = Field(
         _FALL.handover_m,
         ge=0,
@@ -143,6 +150,7 @@ class FallSettings(BaseModel):
             self.min_confidence,
             self.min_standing_s,
             self.handover_m,
+            self.lying_gap_s,
         )
 
 

@@ -141,7 +141,8 @@ def test_a_crouch_misread_as_lying_until_just_before_lying_s_is_not_a_fall():
 
 
 def test_dropouts_while_lying_neither_reset_nor_clear_the_fall():
-    clock = Clock(FallDetector(FallRules(lying_s=10.0, lost_s=120.0)))
+    # 7.5 s without a lying read below: within lying_gap_s (the stale-candidate bound)
+    clock = Clock(FallDetector(FallRules(lying_s=10.0, lost_s=120.0, lying_gap_s=8.0)))
     clock.hold(5, "standing").hold(0.5, "sitting").hold(3, "lying")
     since = clock.t - 2.9  # the first lying read
     clock.hold(4, "lying", present=False)  # the detector loses the person on the floor
@@ -300,3 +301,16 @@ def test_a_drop_far_from_the_new_lying_track_hands_nothing_over():
     t, _ = _snapshots(detector, 0.5, [_lie(1, 2.0, confidence=0.5)], t)
     t, events = _snapshots(detector, 3.0, [_lie(2, 4.0)], t)  # 2 m from where 1 stood
     assert events == []
+
+
+@pytest.mark.parametrize("lying_gap_s, expected", [(5.0, []), (1000.0, [FALL])])
+def test_a_candidate_unseen_for_long_is_stale_when_a_lying_read_comes(
+    lying_gap_s: float, expected: list[str]
+) -> None:
+    """Read lying once, then held unseen (coasting: no camera) for 30 s: a lying read now is
+    no fall of 30 s ago."""
+    clock = Clock(FallDetector(FallRules(lying_gap_s=lying_gap_s)))
+    clock.hold(5, "standing").hold(0.2, "lying", confidence=0.5)
+    clock.hold(30, "lying", cameras=[])
+    clock.hold(0.5, "lying", confidence=1.0)
+    assert clock.types() == expected
