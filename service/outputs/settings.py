@@ -133,6 +133,13 @@ class FallSettings(BaseModel):
         description="A fall not yet reported is dropped when no camera has seen the person "
         "lying for this long (seconds; a lying read after so long is no longer that fall).",
     )
+    reach_m: float = Field(
+        _FALL.reach_m,
+        gt=0,
+        le=5,
+        description="... and only where the person lies within this of where they last stood "
+        "(metres; a track dragged further by a misread box is no fall).",
+    )
     handover_m: float = Field(
         _FALL.handover_m,
         ge=0,
@@ -142,16 +149,7 @@ class FallSettings(BaseModel):
     )
 
     def rules(self) -> FallRules:
-        return FallRules(
-            self.max_drop_s,
-            self.lying_s,
-            self.clear_s,
-            self.lost_s,
-            self.min_confidence,
-            self.min_standing_s,
-            self.handover_m,
-            self.lying_gap_s,
-        )
+        return FallRules(**self.model_dump(exclude={"enabled"}))
 
 
 class HomeAssistantSettings(BaseModel):

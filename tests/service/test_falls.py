@@ -314,3 +314,13 @@ def test_a_candidate_unseen_for_long_is_stale_when_a_lying_read_comes(
     clock.hold(30, "lying", cameras=[])
     clock.hold(0.5, "lying", confidence=1.0)
     assert clock.types() == expected
+
+
+def test_a_lying_track_far_from_where_its_person_stood_is_no_fall():
+    """A sitter's track dragged 1.3 m by a misread lone view, then read lying there."""
+    for reach_m, expected in ((1.0, []), (2.0, [FALL])):
+        detector = FallDetector(FallRules(reach_m=reach_m))
+        t, events = _snapshots(detector, 3.0, [_stand(1, 2.0)], 1000.0)
+        t, more = _snapshots(detector, 0.3, [{**_stand(1, 2.0), "posture": "sitting"}], t)
+        t, down = _snapshots(detector, 3.0, [_lie(1, 3.3)], t)
+        assert [e["type"] for e in events + more + down] == expected
