@@ -67,7 +67,9 @@ lying in every view: since 2026-12-04 the posture reads such a compact box as si
 (:mod:`service.tracking.posture`): with each person's own boxes the simulated false falls are
 0-1 in 36 person-hours. Through the serving chain they were 34 per 24 person-hours, from
 mispaired and false boxes fed to coasting or newborn tracks (rule 1's two conditions since
-2026-12-05: 8 per 24 person-hours). The falls reported late or missed are bodies no box (nor
+2026-12-05: 8 per 24 person-hours; with rule 2's reach and stale-candidate bounds, 5 per 24
+person-hours over four seeds, two of them fresh). The falls reported late or missed are bodies
+no box (nor
 its keypoints, nor where its track was: :mod:`service.tracking.posture_continuity`) reads
 lying, or that no camera sees down (``bench/results/falls.md``): no ``lying_s`` or
 ``min_confidence`` changes them.
