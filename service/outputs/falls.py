@@ -22,14 +22,16 @@ Rules (per track id; :class:`FallRules`, settings ``falls.*``)
    falling is what a tracker loses most easily (the body's boxes change shape and place within
    a second, a lone camera's view of it is read seated metres away), and the body on the floor
    then often becomes a new track, born lying, which rule 1 never lets fall. So a track never
-   seen standing starts a candidate at its first lying read when another track is a candidate
-   of rule 1 (it saw the drop), last stood within ``max_drop_s`` and within ``handover_m`` of
-   the new track, and has not read standing or sitting since the new track appeared; the older
-   track then gives its candidate up (one fall, one event) until it reads standing again. In
-   a held-out fall of the simulated lounge through the chain the older track was dragged 1.5 m
-   away as the new one took the body (``bench/results/falls.md``). Only a candidate donates:
-   when any recently standing track could, tracks that had lost their person without a lying
-   read (one a sitter's track at a scene's start) raised fall events matching no fall.
+   seen standing starts a candidate at its first lying read when another track saw the drop (a
+   candidate of rule 1, or its last standing read below ``min_confidence``: lost while going
+   down, its evidence already mixed), last stood within ``max_drop_s`` and within
+   ``handover_m`` of the new track, and has not read standing or sitting since the new track
+   appeared; the older track then gives its candidate up (one fall, one event) until it reads
+   standing again. In a held-out fall of the simulated lounge through the chain the older track
+   was dragged 1.5 m away as the new one took the body (``bench/results/falls.md``). Only such a
+   track donates: when any recently standing track could, tracks that had lost their person
+   without a lying read (one a sitter's track at a scene's start) raised fall events matching
+   no fall.
 2. **Down for sure**: the candidate becomes a ``fall`` on the first snapshot that reads lying
    with a posture confidence of at least ``min_confidence`` (0.75), at most ``reach_m`` (1 m)
    from where the person last stood, once the track has read lying
@@ -135,6 +137,7 @@ class _Person:
     stood_y: float = 0.0
     upright_at: float | None = None  # the last snapshot that read standing or sitting
     handed_over: bool = False  # its fall went to a newer track (rule 1b): no event of its own
+    stood_sure: float = 1.0  # the posture confidence of the last standing read
     last_standing: float | None = None  # last snapshot that read standing
     stood_from: float | None = None  # first standing read of the upright streak (standing, or
     # sitting and standing) that last_standing ends: a sit-stand-fall counts the whole streak
@@ -207,6 +210,7 @@ class FallDetector:
                 p.stood_from = t  # a new upright streak
             p.last_standing = t
             p.stood_x, p.stood_y = p.x, p.y
+            p.stood_sure = _confidence(person)
             p.handed_over = False  # a person standing again: their own falls count again
             p.standing_since = t if p.standing_since is None else p.standing_since
             p.upright_since = t if p.upright_since is None else p.upright_since
@@ -264,7 +268,8 @@ class FallDetector:
             if other != pid
             and not d.handed_over
             and d.fallen_at is None
-            and d.lying_since is not None  # the donor saw the drop: a candidate of its own
+            # the donor saw the drop: a candidate of its own, or its last standing read unsure
+            and (d.lying_since is not None or d.stood_sure < rules.min_confidence)
             and d.last_standing is not None
             and d.stood_from is not None
             and t - d.last_standing <= rules.max_drop_s

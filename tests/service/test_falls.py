@@ -324,3 +324,15 @@ def test_a_lying_track_far_from_where_its_person_stood_is_no_fall():
         t, more = _snapshots(detector, 0.3, [{**_stand(1, 2.0), "posture": "sitting"}], t)
         t, down = _snapshots(detector, 3.0, [_lie(1, 3.3)], t)
         assert [e["type"] for e in events + more + down] == expected
+
+
+def test_a_track_lost_while_going_down_hands_its_fall_over_and_a_sure_stander_does_not():
+    """The faller's track reads standing less and less surely (its boxes already short) and is
+    lost; the body on the floor becomes track 2."""
+    for last_standing, expected in ((0.55, [(FALL, 2)]), (0.95, [])):
+        detector = FallDetector()
+        t, events = _snapshots(detector, 3.0, [_stand(1)], 1000.0)
+        wobbly = {**_stand(1), "posture_confidence": last_standing}
+        t, more = _snapshots(detector, 0.3, [wobbly], t)
+        t, down = _snapshots(detector, 3.0, [_lie(2, 2.4)], t)
+        assert [(e["type"], e["id"]) for e in events + more + down] == expected
