@@ -71,9 +71,8 @@ lying in every view: since 2026-12-04 the posture reads such a compact box as si
 mispaired and false boxes fed to coasting or newborn tracks (rule 1's two conditions since
 2026-12-05: 8 per 24 person-hours; with rule 2's reach and stale-candidate bounds, 5 per 24
 person-hours over four seeds, two of them fresh). The falls reported late or missed are bodies
-no box (nor
-its keypoints, nor where its track was: :mod:`service.tracking.posture_continuity`) reads
-lying, or that no camera sees down (``bench/results/falls.md``): no ``lying_s`` or
+no box (nor its keypoints, nor where its track was: :mod:`service.tracking.posture_continuity`)
+reads lying, or that no camera sees down (``bench/results/falls.md``): no ``lying_s`` or
 ``min_confidence`` changes them.
 
 A track absent from a snapshot is neither evidence of getting up nor of staying down: its

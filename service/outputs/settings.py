@@ -137,8 +137,8 @@ class FallSettings(BaseModel):
         _FALL.reach_m,
         gt=0,
         le=5,
-        description="... and only where the person lies within this of where they last stood "
-        "(metres; a track dragged further by a misread box is no fall).",
+        description="A fall is reported only where the person lies within this of where they "
+        "last stood (metres; a track dragged further by a misread box is no fall).",
     )
     handover_m: float = Field(
         _FALL.handover_m,
