@@ -81,6 +81,22 @@ def test_getting_up_clears_the_fall_after_standing_for_clear_s():
     assert clock.detector.state()["active"] is False
 
 
+def test_getting_up_and_falling_again_before_clear_s_is_a_second_fall():
+    """A person who gets up, stands unsteadily (a seated read breaking the standing streak) and
+    falls again within seconds: the first fall is cleared by the new drop and the second one is
+    reported (the simulated lounge's fall scenes, ``bench/results/falls.md``)."""
+    clock = Clock(FallDetector(FallRules(clear_s=3.0)))
+    clock.hold(5, "standing").hold(15, "lying")
+    clock.hold(2, "standing").hold(0.3, "sitting").hold(1.5, "standing").hold(15, "lying")
+    assert clock.types() == [FALL, FALL_CLEARED, FALL]
+    cleared, again = clock.events[1], clock.events[2]
+    assert cleared["reason"] == "stood_up" and cleared["falls"] == []
+    assert again["since"] == pytest.approx(cleared["t"]) and again["falls"] == [1]
+    short = Clock(FallDetector(FallRules(clear_s=3.0)))  # up for a moment: the same fall
+    short.hold(5, "standing").hold(15, "lying").hold(0.5, "standing").hold(15, "lying")
+    assert short.types() == [FALL]
+
+
 def test_a_coasting_track_s_carried_standing_is_no_evidence_of_a_quick_drop():
     """A track that lost its person keeps serving their last posture for a while; through the
     serving chain such a track, fed a lying association seconds later, raised false falls. Only
