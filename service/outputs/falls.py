@@ -231,7 +231,8 @@ class FallDetector:
                     and t - p.last_standing <= rules.max_drop_s
                     and p.last_standing - p.stood_from >= rules.min_standing_s - 1e-9
                 )
-                if quick and p.fallen_at is not None and p.stood_from > p.fallen_at:
+                up_since_fall = p.fallen_at is not None and (p.stood_from or 0.0) > p.fallen_at
+                if quick and up_since_fall:
                     events.append(self._clear(pid, p, t, "stood_up"))  # up, and down again
                 free = p.lying_since is None and p.fallen_at is None and not p.handed_over
                 if free and quick:
