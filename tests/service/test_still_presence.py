@@ -121,6 +121,26 @@ def test_a_still_person_who_walks_off_and_is_missed_is_not_pulled_back() -> None
     assert len(tracks) == 1 and np.hypot(tracks[0].x - 5.0, tracks[0].y - 5.0) < 0.3, tracks
 
 
+def test_a_held_track_s_coasting_filter_does_not_drop_the_person_s_new_track() -> None:
+    """A still person gets up and walks off seen by one camera (their track held at the place,
+    its filter following the lone views), then is seen by two cameras 2 m on: a new track. The
+    held track's filter, unseen, coasts on at walking speed over the new track; compared by
+    filters, the shadow merge dropped the new track (the younger) and the birth clearance kept
+    a replacement out for a second (a missed fall of the simulated lounge). Compared where
+    they are served, the new track stays."""
+    fps = 10.0
+    tracker = Tracker(fps_hint=fps, **RECOMMENDED)
+    _still_for(tracker, 10.0, fps)
+    for i in range(1, 9):  # up and off at 1 m/s, one camera's views
+        tracker.update(10.0 + i / fps, np.array([[2.0 + 0.1 * i, 2.0]]), [Origin(cameras=(0,))])
+    ids = []
+    for i in range(1, 41):  # 4 s standing 2 m from the place, seen by both cameras
+        tracks = tracker.update(10.8 + i / fps, np.array([[4.0, 2.0]]), [Origin(cameras=(0, 1))])
+        ids.append({t.id for t in tracks if not t.coasting and abs(t.x - 4.0) < 0.2})
+    served = [i for i in ids if i]
+    assert len(served) >= len(ids) - 5 and len(set.union(*served)) == 1, ids
+
+
 def test_leaving_the_place_ends_stillness() -> None:
     rule = StillRule(after_s=5.0, window_s=10.0, radius_m=0.5, share=0.6, leave_m=1.0)
     memory = StillMemory()
