@@ -533,7 +533,9 @@ class Tracker:
         free = [c for c in range(len(positions)) if c not in assigned]
         if self.birth_clearance_m <= 0 or not free or not self._tracks:
             return free
-        held = [self._where(tr) for tr in self._tracks if tr.confirmed or tr.last_seen == self._time]
+        held = [
+            self._where(tr) for tr in self._tracks if tr.confirmed or tr.last_seen == self._time
+        ]
         if not held:
             return free
         gap = np.linalg.norm(positions[free][:, None] - np.stack(held)[None], axis=2).min(axis=1)

@@ -213,6 +213,36 @@ def test_a_seated_person_short_in_one_view_is_read_seated_in_both() -> None:
     assert rows[0, 1, 3] == pytest.approx(100.0 + posture.SEATED_TOP * STANDING_PX)
 
 
+def test_a_box_cut_by_the_border_is_left_out_of_a_lying_person_s_position() -> None:
+    """A body on the floor whole in one view and cut by the frame's edge in the other (its box
+    ``unknown``): the cut box, read as a standing person's, put the body a metre from where it
+    lay; it is left out, and the body localized from its whole view. A seated vote keeps it."""
+    area = SetupArea(_area().floor, 0.5, (_area().cameras[0], _area().cameras[0]))
+    lying = [200.0, 380.0, 400.0, 440.0]  # 0.3 of a standing height, flat
+    cut = [0.0, 150.0, 60.0, 330.0]  # against the left edge: not judged
+    detected = [
+        Detections(np.array([lying], np.float32), np.ones(1, np.float32)),
+        Detections(np.array([cut], np.float32), np.ones(1, np.float32)),
+    ]
+    normalised, postures = posture.normalise(detected, area, np.array([[640, 480]] * 2))
+    assert [postures.labels[0][0], postures.labels[1][0]] == [LYING, UNKNOWN]
+    boxes = np.stack([normalised[0].boxes[0], normalised[1].boxes[0]]).astype(float)
+    runtime = _BoxBottoms()
+    found = Association(boxes, [0, 1], runtime.localize(boxes[None])[0], 0.1, [0, 0])
+    (agreed,) = agree([found], detected, postures, area, runtime)
+    assert (agreed.cameras, agreed.detection_index) == ([0], [0, None])
+    assert agreed.world[0] == pytest.approx(boxes[0, 3])
+    rows = agreed_rows(np.array([[lying, cut]]), area, np.array([[640, 480]] * 2))
+    assert rows[0, 0, 3] == pytest.approx(boxes[0, 3]) and np.isnan(rows[0, 1]).all()
+    seated = [300.0, 100.0, 380.0, 230.0]
+    detected[0] = Detections(np.array([seated], np.float32), np.ones(1, np.float32))
+    normalised, postures = posture.normalise(detected, area, np.array([[640, 480]] * 2))
+    boxes = np.stack([normalised[0].boxes[0], normalised[1].boxes[0]]).astype(float)
+    found = Association(boxes, [0, 1], runtime.localize(boxes[None])[0], 0.1, [0, 0])
+    (agreed,) = agree([found], detected, postures, area, runtime)
+    assert agreed.cameras == [0, 1]
+
+
 class _FloorArea:
     """A set-up area of x < 3 m on the floor."""
 
