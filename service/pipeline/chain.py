@@ -55,11 +55,22 @@ from service.stages import (
 from service.tracking.association import DEFAULT_MAX_ERROR_PX
 from service.tracking.association import associate as associate_people
 from service.tracking.measurements import coverage_function, measurement_covariances
-from service.tracking.posture import LYING, SITTING, BoxPostures, PostureSmoother, cut_off
+from service.tracking.posture import (
+    LYING,
+    SITTING,
+    STANDING,
+    BoxPostures,
+    PostureSmoother,
+    cut_off,
+)
 from service.tracking.posture import normalise as normalise_postures
 from service.tracking.posture_agreement import agree as agree_postures
 from service.tracking.posture_continuity import reread_lying
 from service.tracking.view_bias import ViewBias
+
+STOOD_S = 2.0  # a track's sure standing place is kept this long (:meth:`Chain._stood_at`): a
+# fall's drop (the fall rules' ``max_drop_s``)
+STOOD_SURE = 0.75  # ... a standing posture this sure (the fall rules' ``min_confidence``)
 
 OutsideArea = Literal["drop", "flag"]
 OUTSIDE_AREA_POLICIES: tuple[OutsideArea, ...] = ("drop", "flag")
@@ -97,6 +108,8 @@ class Chain:
         self.posture_smoother = PostureSmoother()
         # the tracks claim their boxes before the rest is clustered (service.tracking.association)
         self.track_anchors = track_anchors
+        # per track id: when and where it last read standing for sure (:meth:`_stood_at`)
+        self._stood: dict[int, tuple[float, np.ndarray]] = {}
 
     def new_model(self) -> None:
         """Forget what was learned about the former model's localizer (lone-view offsets)."""
@@ -128,7 +141,9 @@ class Chain:
             )
             if box_postures is not None:  # one posture per person (its boxes' vote)
                 found = agree_postures(found, detected, box_postures, area, runtime)
-                found = reread_lying(found, detected, box_postures, area, runtime, anchors)
+                found = reread_lying(
+                    found, detected, box_postures, area, runtime, anchors + self._stood_at(t)
+                )
                 doubtful = [
                     a
                     for a in found
@@ -182,20 +197,41 @@ class Chain:
         anchors = getattr(self.tracker, "anchors", None)
         return list(anchors(t)) if self.track_anchors and callable(anchors) else []
 
+    def _stood_at(self, t: float) -> list[TrackAnchor]:
+        """Where tracks read standing for sure (posture confidence ≥ ``STOOD_SURE``) within the
+        last ``STOOD_S``: besides each track's predicted position, the places the lone-view
+        continuity reading (:func:`~service.tracking.posture_continuity.reread_lying`) keeps
+        a person near. Why: a lying body's lone view read seated is put metres along its
+        camera's line of sight, but the first such reads are often only 0.5-0.8 m off, under
+        the rule's jump, and they drag the track; each later read is then near the dragged
+        track and the body was never read lying (a miss of the simulated lounge's falls,
+        ``bench/results/falls.md``). Where the person last stood does not move."""
+        return [
+            TrackAnchor(xy.copy(), np.zeros((2, 2)))
+            for when, xy in self._stood.values()
+            if t - when <= STOOD_S
+        ]
+
     def _smooth_postures(
         self, t: float, tracks: list[Track], postures: list[tuple[str, float]]
     ) -> None:
         """Each served track's posture (``Track.posture``: label and confidence), averaged over
         time from the postures of the associations that fed it (``postures``, one per
-        association of this frame set); a coasting track keeps the last one."""
+        association of this frame set); a coasting track keeps the last one. A track whose
+        boxes read standing now and whose posture is sure of it has its place remembered
+        (:meth:`_stood_at`; the smoothed posture alone lags a drop by a few frames)."""
         smoother = self.posture_smoother
         for track in tracks:
             fed = track.association if not track.coasting else None
             seen = postures[fed] if fed is not None and fed < len(postures) else None
-            track.posture = (
+            label, sure = track.posture = (
                 smoother.update(track.id, t, *seen) if seen else smoother.current(track.id)
             )
-        smoother.forget({track.id for track in tracks} | set(self.tracker_ids()))
+            if seen and seen[0] == label == STANDING and sure >= STOOD_SURE:
+                self._stood[track.id] = (t, np.array([track.x, track.y], np.float64))
+        alive = {track.id for track in tracks} | set(self.tracker_ids())
+        smoother.forget(alive)
+        self._stood = {i: place for i, place in self._stood.items() if i in alive}
 
     def tracker_ids(self) -> list[int]:
         """Ids the tracker still holds (served or not): their postures are kept."""

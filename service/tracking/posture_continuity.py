@@ -16,10 +16,13 @@ and more while sitting down, squatting or falling. So an association whose boxes
 from their top (read seated, or lying by the keypoints) is converted again as a body on the
 floor (:func:`~service.tracking.posture.standing_boxes` with ``lying``), and that reading is
 taken, with the posture ``lying``, when it lands within ``NEAR_M`` of a tracked person's
-predicted position (a :class:`~service.stages.TrackAnchor`) from which the seated reading is
-more than ``JUMP_M`` away, by a margin of ``GAP_M``, and no other association is already near
-that track. A person who sits down where they stood is nearer their track as seated; a squat's
-two readings are both within a metre or so of it; a new person (no track near) is left alone.
+predicted position or of where a track last stood for sure in the last 2 s (both given as
+:class:`~service.stages.TrackAnchor`; the chain's ``Chain._stood_at``: the first seated reads
+of a fall, under the jump, drag the track, never the place it stood) from which the seated
+reading is more than ``JUMP_M`` away, by a margin of ``GAP_M``, and no other association is
+already near that track. A person who sits down where they stood is nearer their track as
+seated; a squat's two readings are both within a metre or so of it; a new person (no track
+near) is left alone.
 
 Measured on held bodies of the simulated lounge with the true position standing in for the
 track's (seeds 1-8 of the fall bench and 2 × 20 min of its daily life, each box localized alone;

@@ -89,3 +89,52 @@ def test_the_seated_reading_stays_unless_only_lying_keeps_the_track(
     read = reread_lying(found, detected, postures, _area(), _OneCamera(), anchors)
     assert read[0].world[0] == pytest.approx(6.56)
     assert postures.labels[0][0] == SITTING
+
+
+class _OneCameraRoom(_OneCamera):
+    """:class:`_OneCamera` as the chain's model: its set-up area (a 9 m floor) and image."""
+
+    num_cameras = 1
+    image_sizes = SIZES
+    setup_area = _area()
+
+    def reproject(self, world: np.ndarray) -> np.ndarray:
+        return np.full((len(world), 1, 2), [320.0, 240.0])
+
+    def inside(self, boxes: np.ndarray, world: np.ndarray) -> np.ndarray:
+        return np.ones(len(world), dtype=bool)
+
+
+def test_a_track_dragged_by_seated_reads_is_read_lying_from_where_it_stood() -> None:
+    """A person stands at x 5 m, then goes down seen lengthwise by the one camera: the first
+    compact boxes read seated 0.8 m beyond them (under the rule's 1.2 m jump) and drag the
+    track there; the later ones read seated 1.56 m beyond where they stood (0.8-1 m from the
+    dragged track) and lying 0.1 m from that place. Measured from where the track last stood
+    for sure, they are read lying and the track comes back; without that place the drag
+    holds."""
+    from service.pipeline.chain import Chain
+    from service.tracking.tracker import RECOMMENDED, Tracker
+    from tests.service.test_posture import _each_box
+
+    standing = [300.0, 50.0, 380.0, 250.0]  # x 5 m
+    dragging = [300.0, 162.0, 400.0, 268.0]  # seated 5.8 m, lying 4.3 m: neither re-read
+    runtime = _OneCameraRoom()
+    ends = []
+    for remember in (True, False):
+        chain = Chain(
+            Tracker(fps_hint=10, **RECOMMENDED),
+            associate=_each_box,  # type: ignore[arg-type]
+            view_bias=None,
+        )
+        if not remember:
+            chain._stood_at = lambda t: []  # type: ignore[method-assign]
+        frames = [standing] * 30 + [dragging] * 5 + [COMPACT] * 20
+        for i, box in enumerate(frames):
+            detected = [Detections(np.array([box], np.float32), np.ones(1, np.float32))]
+            _, tracks = chain(i / 10, detected, runtime, [True], i)  # type: ignore[arg-type]
+            if i == 34:
+                assert len(tracks) == 1 and tracks[0].x > 5.5  # dragged
+        assert len(tracks) == 1 and tracks[0].posture is not None
+        ends.append((tracks[0].x, tracks[0].posture[0]))
+    assert ends[0][0] == pytest.approx(4.9, abs=0.2) and ends[0][1] == LYING
+    assert ends[1][0] > 5.5 and ends[1][1] == SITTING
