@@ -448,12 +448,12 @@ class Tracker:
 
     def _where(self, tr: _State) -> np.ndarray:
         """Where the track is served now: its still place while held there, else its filter's
-        position. Birth clearance and the shadow merge compare these, not the filters: a held
-        track's filter, unseen, coasts on with the velocity its last lone views gave it (a
-        person getting up and walking off seen by one camera), and until 2026-12-05 it passed
-        over the same person's new track, seen by two cameras metres from the still place,
-        which the merge then dropped as the younger and a new birth could not replace for a
-        second (a fall of the simulated lounge missed so: ``bench/results/falls.md``)."""
+        position. The shadow merge compares these, not the filters: a held track's filter,
+        unseen, coasts on with the velocity its last lone views gave it (a person getting up
+        and walking off seen by one camera), and until 2026-12-05 it passed over the same
+        person's new track, seen by two cameras metres from the still place, which the merge
+        then dropped as the younger (a fall of the simulated lounge missed so:
+        ``bench/results/falls.md``)."""
         held = self._held_place(tr, self._time)
         return tr.motion.mean[:2] if held is None else np.asarray(held, np.float64)[:2]
 
@@ -529,13 +529,16 @@ class Tracker:
     def _births(self, positions: np.ndarray, assigned: set[int]) -> list[int]:
         """The unassigned positions that start tracks: none closer than ``birth_clearance_m``
         to a confirmed track or to a track measured this update (a second cluster of a person
-        already tracked, not a second person: two people do not stand in one spot)."""
+        already tracked, not a second person: two people do not stand in one spot). A track held
+        at its still place is both there and where its filter is: the filter follows the lone
+        views of a still person walking off, and a birth there made them a second id while the
+        held track stayed, a phantom that a false lying box then made a false fall (2026-12-05,
+        ``bench/results/falls.md``)."""
         free = [c for c in range(len(positions)) if c not in assigned]
         if self.birth_clearance_m <= 0 or not free or not self._tracks:
             return free
-        held = [
-            self._where(tr) for tr in self._tracks if tr.confirmed or tr.last_seen == self._time
-        ]
+        near = [tr for tr in self._tracks if tr.confirmed or tr.last_seen == self._time]
+        held = [tr.motion.mean[:2] for tr in near] + [self._where(tr) for tr in near]
         if not held:
             return free
         gap = np.linalg.norm(positions[free][:, None] - np.stack(held)[None], axis=2).min(axis=1)
