@@ -446,17 +446,6 @@ class Tracker:
             return False
         return bool(np.hypot(*(np.asarray(tr.still.points[-1]) - place)) <= self.still_gate_m)
 
-    def _where(self, tr: _State) -> np.ndarray:
-        """Where the track is served now: its still place while held there, else its filter's
-        position. The shadow merge compares these, not the filters: a held track's filter,
-        unseen, coasts on with the velocity its last lone views gave it (a person getting up
-        and walking off seen by one camera), and until 2026-12-05 it passed over the same
-        person's new track, seen by two cameras metres from the still place, which the merge
-        then dropped as the younger (a fall of the simulated lounge missed so:
-        ``bench/results/falls.md``)."""
-        held = self._held_place(tr, self._time)
-        return tr.motion.mean[:2] if held is None else np.asarray(held, np.float64)[:2]
-
     def _max_missing(self, tr: _State) -> float:
         return max(self.max_missing_s, self.hold_still_s) if self._still(tr) else self.max_missing_s
 
@@ -529,16 +518,13 @@ class Tracker:
     def _births(self, positions: np.ndarray, assigned: set[int]) -> list[int]:
         """The unassigned positions that start tracks: none closer than ``birth_clearance_m``
         to a confirmed track or to a track measured this update (a second cluster of a person
-        already tracked, not a second person: two people do not stand in one spot). A track held
-        at its still place is both there and where its filter is: the filter follows the lone
-        views of a still person walking off, and a birth there made them a second id while the
-        held track stayed, a phantom that a false lying box then made a false fall (2026-12-05,
-        ``bench/results/falls.md``)."""
+        already tracked, not a second person: two people do not stand in one spot)."""
         free = [c for c in range(len(positions)) if c not in assigned]
         if self.birth_clearance_m <= 0 or not free or not self._tracks:
             return free
-        near = [tr for tr in self._tracks if tr.confirmed or tr.last_seen == self._time]
-        held = [tr.motion.mean[:2] for tr in near] + [self._where(tr) for tr in near]
+        held = [
+            tr.motion.mean[:2] for tr in self._tracks if tr.confirmed or tr.last_seen == self._time
+        ]
         if not held:
             return free
         gap = np.linalg.norm(positions[free][:, None] - np.stack(held)[None], axis=2).min(axis=1)
@@ -547,17 +533,40 @@ class Tracker:
     def _merge_shadows(self, dt: float) -> None:
         """Drop a track that has stayed within ``merge_m`` of an older one for
         ``merge_s``: two tracks on one person (fed by the two halves of a split association)
-        that would otherwise both be served; the older id is kept."""
+        that would otherwise both be served; the older id is kept. When the older one is a
+        held still track whose person walked off (:meth:`_walked_off`) and the younger is seen
+        now, the older takes the younger's state: kept held at the place, it stayed there
+        unseen while its person went on as the younger id, now dropped, and was served nowhere
+        (a fall of the simulated lounge missed so, 2026-12-05, ``bench/results/falls.md``)."""
         kept: list[_State] = []
         for tr in sorted(self._tracks, key=lambda s: s.id):
-            near = any(
-                np.linalg.norm(self._where(tr) - self._where(older)) < self.merge_m
-                for older in kept
+            older = next(
+                (
+                    o
+                    for o in kept
+                    if np.linalg.norm(tr.motion.mean[:2] - o.motion.mean[:2]) < self.merge_m
+                ),
+                None,
             )
-            tr.shadowed_s = tr.shadowed_s + dt if near else 0.0
+            tr.shadowed_s = tr.shadowed_s + dt if older is not None else 0.0
             if tr.shadowed_s <= self.merge_s:
                 kept.append(tr)
+            elif older is not None and tr.last_seen == self._time and self._walked_off(older):
+                _take_over(older, tr)
         self._tracks = kept
+
+    def _walked_off(self, tr: _State) -> bool:
+        """A held still track (unseen now) whose filter has left the still gate: it followed
+        its person's last lone views away from the place (:meth:`_held_place` keeps serving
+        it there), so a new track where the filter went is that person."""
+        place = tr.still.place
+        return (
+            self._time is not None
+            and tr.last_seen < self._time
+            and self._still(tr)
+            and place is not None
+            and float(np.linalg.norm(tr.motion.mean[:2] - place)) > self.still_gate_m
+        )
 
     def _rate_weight(self, dt: float) -> float:
         """Weight of this update in the detection rate: an exponential average over time
@@ -702,3 +711,10 @@ class Tracker:
         rows, cols = linear_sum_assignment(cost)
         ok = cost[rows, cols] < _UNASSIGNED
         return rows[ok], cols[ok]
+
+
+def _take_over(older: _State, younger: _State) -> None:
+    """``older`` continues ``younger``'s track (its filter, views, still memory, last fix)."""
+    older.motion, older.still, older.views = younger.motion, younger.still, younger.views
+    older.last_seen, older.rate = younger.last_seen, younger.rate
+    older.cameras, older.origin = younger.cameras, younger.origin
