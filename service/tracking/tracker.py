@@ -98,7 +98,8 @@ values and the order of the changes are in ``bench/results/tracker_tuning.md`` a
   person; no track is born that close to a confirmed or just-measured one;
 - ``merge_m`` 0.35 / ``merge_s`` 0.5: two tracks that stay that close for half a second are one
   person fed by both halves of a split association; the younger is dropped (0.8 m merged real
-  neighbours in a crowd).
+  neighbours in a crowd); a held still track whose person walked off takes the younger's state
+  instead (:meth:`Tracker._merge_shadows`).
 
 No filter setting reaches a 1 cm standing jitter: the jitter is made of jumps when a second
 camera comes or goes (a lone view's range bias, which :mod:`service.tracking.view_bias`
