@@ -536,9 +536,10 @@ class Tracker:
         ``merge_s``: two tracks on one person (fed by the two halves of a split association)
         that would otherwise both be served; the older id is kept. When the older one is a
         held still track whose person walked off (:meth:`_walked_off`) and the younger is seen
-        now, the older takes the younger's state: kept held at the place, it stayed there
-        unseen while its person went on as the younger id, now dropped, and was served nowhere
-        (a fall of the simulated lounge missed so, 2026-12-05, ``bench/results/falls.md``)."""
+        now, the older takes the younger's state. Until 2026-12-05 the younger was dropped
+        there too and the older stayed held at its place: the person was served nowhere, and
+        a phantom sat at the place for ``hold_still_s`` (a missed fall of the simulated lounge;
+        ``bench/results/falls.md``)."""
         kept: list[_State] = []
         for tr in sorted(self._tracks, key=lambda s: s.id):
             older = next(
