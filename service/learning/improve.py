@@ -4,8 +4,9 @@ model.
 When the room has gathered ``every_labels`` new self-labels since the last run, one run:
 
 1. splits the labels into training and held-out rows (whole blocks, :func:`service.learning.
-   gate.held_out`) and writes the training set (the floor marks plus the weighted labels,
-   :mod:`service.learning.training_set`) into the room's folder;
+   gate.held_out`), refits the training labels' positions with every camera's floor map jointly
+   (:func:`service.learning.training_set.aligned`) and writes the training set (the floor marks
+   plus the weighted labels, :mod:`service.learning.training_set`) into the room's folder;
 2. runs ``momloc train`` on it in a child process at ``nice`` + ``nice_by`` with a time budget,
    exactly as the set-up page's Train button does (:mod:`service.setup.training`: a child
    process keeps torch out of the daemon and the CPU cap out of the pipeline's way), serving
@@ -45,7 +46,7 @@ from models.data.dataset import DatasetError, MomDataset
 from service.learning.gate import Verdict, compare, held_out
 from service.learning.listener import SelfLabeler
 from service.learning.store import room_folder
-from service.learning.training_set import training_set
+from service.learning.training_set import aligned, training_set
 from service.setup.training import drain, failure_reason, model_path, spawn_train
 from service.stages import LocalizationModel
 
@@ -172,7 +173,9 @@ class Improver:
         if not hold.any() or hold.all():
             raise MomlocError(f"{labels.n} self-labels span too short a time to hold some out")
         folder = room_folder(self.data_dir, room)
-        rows = training_set(marks, labels.subset(~hold), seed=int(self.state["runs"]))
+        taught, alignment = aligned(marks, labels.subset(~hold), seed=int(self.state["runs"]))
+        self.state["alignment"] = alignment
+        rows = training_set(marks, taught, seed=int(self.state["runs"]))
         recording = rows.save(folder / "training.npz")
         staging = folder / "candidate"
         shutil.rmtree(staging, ignore_errors=True)

@@ -1,12 +1,18 @@
 """The rows a self-improvement run trains on: the floor marks plus self-labels, weighted.
 
 Marks rows stay as recorded: they are the only ground truth, and they fix the floor frame.
-Self-labels join as ordinary dataset rows (the box of every camera that saw the person, the
-fused position as ``world``), so ``momloc train`` refits the floor geometry
+Self-labels join as ordinary dataset rows (the box of every camera that saw the person, their
+position as ``world``), so ``momloc train`` refits the floor geometry
 (:mod:`models.geometry.floor_prior`, which fits dense rows one by one) and the encoder on them,
 and chooses the served policy on its validation split (:mod:`models.mom.prior_policy`: once
 the labels cover the floor, the encoder and blend are weighed instead of serving the marks'
 geometry alone).
+
+The labels' positions are first refitted (:func:`aligned`): the serving model fused them, so
+they carry its errors, and a floor geometry refitted on them one camera at a time stays close to
+the geometry that made them. :mod:`models.geometry.joint_floor` fits every camera's floor map and
+every label's position together, on the marks and the cameras' agreement; the training rows get
+those positions.
 
 Weighting by covariance: a label enters with probability ``(STD_FULL_M / std)²`` (clipped to
 ``MIN_KEEP``..1), so the weight of a label in the fit is its inverse variance relative to a
@@ -17,10 +23,17 @@ to pass through all three (and the dataset format). Seeded, so a run is reproduc
 
 from __future__ import annotations
 
+import dataclasses
+import logging
+
 import numpy as np
 
+from common.errors import MomlocError
 from models.data.dataset import MomDataset
+from models.geometry.joint_floor import fit_joint_floor
 from service.learning.labels import LabelBatch
+
+log = logging.getLogger("momloc.learning")
 
 STD_FULL_M = 0.05  # labels this sure (or surer) always enter
 MIN_KEEP = 0.05
@@ -31,6 +44,21 @@ def label_weights(labels: LabelBatch) -> np.ndarray:
     """[N] each label's chance to enter the training rows (module docstring)."""
     std = np.maximum(labels.std_m(), 1e-6)
     return np.clip((STD_FULL_M / std) ** 2, MIN_KEEP, 1.0)
+
+
+def aligned(marks: MomDataset, labels: LabelBatch, seed: int = 0) -> tuple[LabelBatch, str]:
+    """``labels`` with the positions of the joint floor fit on ``marks`` and them, and a line
+    saying what it did; the labels as they are (and why) when the fit cannot run."""
+    try:
+        joint = fit_joint_floor(
+            marks.world, marks.boxes, labels.world, labels.boxes, marks.image_size, seed=seed
+        )
+    except MomlocError as error:
+        log.warning("self-improvement: positions as served (%s)", error)
+        return labels, f"positions as served ({error})"
+    return dataclasses.replace(labels, world=joint.world.astype(labels.world.dtype)), (
+        joint.describe()
+    )
 
 
 def training_set(marks: MomDataset, labels: LabelBatch | None, seed: int = 0) -> MomDataset:

@@ -5,7 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from service.learning.training_set import label_weights, training_set
+from models.data.dataset import MomDataset
+from service.learning.training_set import aligned, label_weights, training_set
+from tests.models.test_floor_prior import _marks
+from tests.models.test_joint_floor import SIZES, _bent, _moments
 from tests.service.learning.test_gate import labels_batch, marks_dataset
 
 
@@ -34,3 +37,25 @@ def test_labels_of_another_camera_count_are_refused() -> None:
     labels.boxes = np.concatenate([labels.boxes, labels.boxes[:, :1]], axis=1)
     with pytest.raises(ValueError, match="3 cameras"):
         training_set(marks_dataset(), labels)
+
+
+def test_label_positions_are_refitted_jointly_before_training() -> None:
+    marks_world, marks_boxes = _marks(grid=2)
+    marks = MomDataset(
+        world=marks_world.astype(np.float32),
+        boxes=marks_boxes.astype(np.float32),
+        frame=np.arange(len(marks_world)),
+        track=np.zeros(len(marks_world), np.int64),
+        image_size=SIZES.astype(np.int64),
+    )
+    truth, boxes = _moments(300, seed=4)
+    labels = labels_batch(300)
+    labels.world, labels.boxes = _bent(truth).astype(np.float32), boxes.astype(np.float32)
+    taught, note = aligned(marks, labels)
+    assert "fitted jointly on" in note
+    served_off = np.linalg.norm(labels.world - truth, axis=1).mean()
+    assert np.linalg.norm(taught.world - truth, axis=1).mean() < 0.3 * served_off
+    np.testing.assert_array_equal(taught.boxes, labels.boxes)
+    labels.boxes[:, 1] = np.nan  # one camera: nothing to agree on, the positions stay
+    kept, why = aligned(marks, labels)
+    assert why.startswith("positions as served") and kept is labels
