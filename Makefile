@@ -101,8 +101,9 @@ bench-setup: $(VENV)/.stamp-dev
 	$(PY) -m bench.setup.floor_prior_study
 	$(PY) -m bench.setup.setup_study
 	$(PY) -m bench.setup.setup_stream
+	$(PY) -m bench.setup.joint_floor_study
 	$(PY) -m bench.setup.self_learning
-	$(PY) -m bench.setup.self_learning --never-worse 20
+	$(PY) -m bench.setup.self_learning --never-worse 20 --minutes 5
 	$(PY) -m bench.setup.learning_load
 	$(PY) -m bench.setup.self_healing
 

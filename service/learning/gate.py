@@ -33,12 +33,12 @@ false boxes metres off would otherwise decide a mean.
   plus ``Z`` standard errors. A model fitted to the marks alone is the best possible fit *to the
   marks*, so a model refitted on the whole room gives up some of it there: in the never-worse
   rooms (``bench/setup/self_learning.py --never-worse``, ``bench/results/
-  self_learning_never_worse.md``) candidates whose floor geometry was refitted on 5 minutes of
-  labels lost 3 to 15 mm on the marks and were every one but one better against the truth. What
-  this check is for shows as far more: a floor shifted by 10 cm as a whole raises a 0.099 m mark
-  error by 36 mm (a Rice mean), a shift of 5 cm by 10 mm, i.e. the allowance. (Until 2026-12-05
-  the allowance was 3 mm, set when the candidates still served their encoder: it refused most
-  of the refitted candidates, all better against the truth.) And
+  self_learning_never_worse_as_served.md``) candidates whose floor geometry was refitted on 5
+  minutes of labels lost 3 to 15 mm on the marks and were every one but one better against the
+  truth. What this check is for shows as far more: a floor shifted by 10 cm as a whole raises a
+  0.099 m mark error by 36 mm (a Rice mean), a shift of 5 cm by 10 mm, i.e. the allowance.
+  (Until 2026-12-05 the allowance was 3 mm, set when the candidates still served their encoder:
+  it refused most of the refitted candidates, all better against the truth.) And
 - its cameras agree better on the held-out labels by more than ``Z`` standard errors of the
   paired difference *and* by at least ``min_gain`` (relative), from at least
   ``MIN_CLUSTERS`` independent groups of rows (fewer cannot estimate the noise).

@@ -173,8 +173,8 @@ class Improver:
         if not hold.any() or hold.all():
             raise MomlocError(f"{labels.n} self-labels span too short a time to hold some out")
         folder = room_folder(self.data_dir, room)
-        taught, alignment = aligned(marks, labels.subset(~hold), seed=int(self.state["runs"]))
-        self.state["alignment"] = alignment
+        taught, joint_fit = aligned(marks, labels.subset(~hold), seed=int(self.state["runs"]))
+        self.state["joint_fit"] = joint_fit
         rows = training_set(marks, taught, seed=int(self.state["runs"]))
         recording = rows.save(folder / "training.npz")
         staging = folder / "candidate"
