@@ -13,7 +13,7 @@ labels collected by the daemon's listener while the 4-mark model serves 3 people
 true association). The geometry alone, no encoder and no gate: what the labels' positions do
 to the fit. Code: `bench/setup/joint_floor_study.py`.
 
-Part 2: whether it holds for other set-ups, where the 4-mark geometry is good or poor: 4-mark
+Part 2: Whether it holds for other set-ups, where the 4-mark geometry is good or poor: 4-mark
 recordings of other simulated feeds (seeds 11, the one above, and 1-3; 6 or 20 s per mark),
 each with the same 2000 two-view moments of one walk (simulate seed 5, 3 people) as labels, at
 the positions that recording's 4-mark geometry gives them; every column the per-frame mean on
