@@ -10,7 +10,7 @@ boxes mapped back into the image the model learned, :mod:`service.learning.bump`
 ``model.json`` ``image_transforms``): a bump turns the camera, the room stays, so its image
 moves by one homography and the former maps, encoder and decoder hold once the boxes are mapped
 back; 3 unknowns (roll and shift) instead of 16 per map, so 120 positions (under a minute of
-walking) bring indoor-2cam back to 1.05-1.07× of its pre-bump error, where the refit reached
+walking) bring indoor-2cam back to 1.02-1.04× of its pre-bump error, where the refit reached
 1.18-1.31× from 200-400 (``bench/results/self_healing.md``). Only when no transform explains
 the held-out positions (the camera was moved, not turned) are ``m``'s maps refitted on them
 and its decoder matrix (a DLT of the floor onto the box's mean pixel). An earlier similarity
@@ -22,9 +22,14 @@ size.
 
 Pairing a position with ``m``'s box: ``m``'s former map predicts where the person's feet
 should be in its image; a bump of a few degrees moves them by tens of pixels, less than a box
-height, so the nearest box within ``GATE_HEIGHTS`` box heights is taken when it is the only box
-that near (a second one within twice that: skipped, it could be either) and nobody else is
-within ``min_separation_m`` on the floor.
+height, so the nearest box within ``GATE_HEIGHTS`` box heights is taken when it is clearly the
+nearest (the second nearest at least ``AMBIGUITY_RATIO`` times as far, and farther by
+``AMBIGUITY_HEIGHTS`` box heights: else it could be either) and nobody else is within
+``min_separation_m`` on the floor. The second box is judged against the nearest one's distance,
+not against a fixed share of the box height: until 2026-12-05 any second box within 1.5 box
+heights refused the moment, and in a real room whose cameras see the whole floor (CMC: boxes
+370-680 px high) there always was one, so a bumped camera collected no position at all
+(``bench/results/self_learning_cmc.md``).
 
 Fitting to positions that are themselves uncertain: a map fitted straight to the references
 takes their errors as if they were the camera's (a fit with error in the *given* variable is
@@ -73,6 +78,8 @@ from service.learning.labels import LabelRules
 from service.stages import FrameResult
 
 GATE_HEIGHTS = 0.75
+AMBIGUITY_RATIO = 3.0
+AMBIGUITY_HEIGHTS = 0.5
 REFINE_ROUNDS = 6
 TOLERANCE = 1.25
 HELD_OUT_EVERY = 5
@@ -150,7 +157,10 @@ def heal_samples(
         gate = GATE_HEIGHTS * height[best]
         if not distance[best] <= gate:
             continue
-        if len(order) > 1 and distance[order[1]] <= 2 * gate:
+        clear = max(
+            AMBIGUITY_RATIO * distance[best], distance[best] + AMBIGUITY_HEIGHTS * height[best]
+        )
+        if len(order) > 1 and distance[order[1]] < clear:
             continue
         last[track.id] = result.t_capture
         into.t.append(result.t_capture)

@@ -267,3 +267,40 @@ def test_when_no_image_transform_explains_the_positions_the_maps_are_refitted(
     assert fixed.how == "refit" and fixed.passed, fixed.error_m
     assert "image_transforms" not in fixed.meta
     assert fixed.meta["floor_prior"]["prior"] != meta["floor_prior"]["prior"]
+
+
+def _pairing_frame(second_at_heights: float) -> tuple[Any, float]:
+    """A person at (5, 5) seen by camera 0, camera 1 bumped (their box 20 px off where its
+    former map puts them) and a second box in camera 1 that far beside it (box heights); the
+    model's floor prior fitted on exact marks (``tests.models.test_floor_prior``)."""
+    from tests.models.test_floor_prior import _boxes, _marks
+    from tests.service.learning.frames import Person, frame_result
+
+    world, boxes = _marks(sway=0.0)
+    model = FakeModel()
+    model.floor_prior = FloorPrior.fit_arrays(world, boxes, model.image_sizes)
+    box = _boxes(np.array([[5.0, 5.0]]))[0]
+    bumped = box[1] + np.array([20.0, 0.0, 20.0, 0.0])
+    height = float(bumped[3] - bumped[1])
+    second = bumped + np.array([1.0, 0.0, 1.0, 0.0]) * second_at_heights * height
+    people = [
+        Person(5.0, 5.0, [box[0].tolist(), bumped.tolist()], track=1),
+        Person(8.0, 8.0, [None, second.tolist()], track=2),  # seen by the moved camera only
+    ]
+    return frame_result(people, model=model), float(bumped[0])
+
+
+@pytest.mark.parametrize("apart, paired", [(0.9, True), (0.1, False)])
+def test_the_moved_camera_box_is_paired_when_clearly_the_nearest(
+    apart: float, paired: bool
+) -> None:
+    from service.learning.heal import heal_samples
+    from service.learning.labels import LabelRules
+
+    result, left = _pairing_frame(apart)
+    samples = HealSamples.empty()
+    added = heal_samples(result, 1, LabelRules(), {}, samples)
+    assert added == int(paired)
+    if paired:  # the person's own box, not the one beside it
+        assert samples.box[0][0] == pytest.approx(left)
+        np.testing.assert_allclose(samples.world[0], [5.0, 5.0], atol=0.05)
