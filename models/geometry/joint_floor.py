@@ -11,9 +11,10 @@ point and each moment's floor position are fitted together so that every camera'
 where its map puts the shared position, and every camera's map puts each floor mark where that
 camera saw the person standing on it. The marks fix the floor frame (where the origin is, the
 metre, the axes); the moments fix the maps between and beyond the marks, through the cameras'
-agreement alone. Measured on the simulated 2-camera room (4 marks, 3 people walking;
-``bench/results/self_learning.md``): the refitted geometry went from the one-step refit's error
-to the level of a model fitted on the true positions of a dense recording.
+agreement alone. Measured on the simulated 2-camera room (4 marks, 3 people walking, and 8 other
+4-mark recordings; ``bench/results/joint_floor.md``): the refitted geometry went from the
+one-camera refit's error to about that of a geometry fitted on a dense recording's true
+positions, and was never worse than the one-camera refit.
 
 Model: residuals in box heights in each camera's image (the detector's edge noise grows with the
 box; an image residual is isotropic where a floor one is long along the line of sight), a
@@ -27,9 +28,11 @@ moment's 2) over at most ``MAX_MOMENTS`` moments (the maps have 8 unknowns each;
 moments fix them, and the solve stays a few seconds in the daemon's background thread); every
 moment's position is then triangulated with the fitted maps.
 
-Rejected: iterating the one-camera refit (refit, fuse again, refit): it climbs to the same
-agreement slowly, one refit per step, each a full fit of every map; and scoring positions
-against the marks only (the marks are where the model is already right).
+Rejected: iterating the one-camera refit (refit, fuse each label again with the refitted
+geometry, refit): it improved one set-up and made two others worse
+(``bench/results/self_learning_policy.md``): each round fuses with the floor error model's
+weights, long along each line of sight, and refits each map to its own fused positions, where
+the joint solve weighs every view's image residual alike and moves maps and positions at once.
 """
 
 from __future__ import annotations
@@ -174,7 +177,8 @@ def _solve(
     usable: np.ndarray,
 ) -> dict[int, np.ndarray]:
     """The sparse least-squares solve: 8 parameters per camera (a multiplicative update of its
-    starting map, scaled so every parameter moves pixels by about its own size), 2 per moment."""
+    starting map in a floor frame normalised to unit spread, so the 8 are of one scale), 2 per
+    moment (metres)."""
     cams = sorted(first)
     slot = {k: i for i, k in enumerate(cams)}
     mark_cam = np.array([slot[m[0]] for m in marks])
