@@ -3,10 +3,9 @@
 Marks rows stay as recorded: they are the only ground truth, and they fix the floor frame.
 Self-labels join as ordinary dataset rows (the box of every camera that saw the person, their
 position as ``world``), so ``momloc train`` refits the floor geometry
-(:mod:`models.geometry.floor_prior`, which fits dense rows one by one) and the encoder on them,
-and chooses the served policy on its validation split (:mod:`models.mom.prior_policy`: once
-the labels cover the floor, the encoder and blend are weighed instead of serving the marks'
-geometry alone).
+(:mod:`models.geometry.floor_prior`, which fits dense rows one by one) and the encoder on them.
+The improvement run serves the refitted geometry (``--policy prior``,
+:mod:`service.learning.improve` says why), not a policy chosen on validation rows.
 
 The labels' positions are first refitted (:func:`aligned`): the serving model fused them, so
 they carry its errors, and a floor geometry refitted on them one camera at a time stays close to
