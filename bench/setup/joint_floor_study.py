@@ -37,11 +37,8 @@ from bench.setup.setup_stream import collect_marks
 from models.data.dataset import MomDataset
 from models.geometry.floor_prior import FloorPrior
 from models.geometry.joint_floor import fit_joint_floor
-from models.simulate import get_config, simulate
+from models.simulate import simulate
 from service.offline.stream_eval import scene_config
-from service.setup.collector import DatasetAppender, collect, plan_steps
-from service.setup.feeds import SyntheticFeed
-from service.setup.marks import grid_marks
 
 PROFILE = "nanodet"
 WALK_SEED, WALK_FRAMES, WALK_LABELS = 5, 3000, 2000
@@ -102,7 +99,6 @@ def rooms(
 def recordings(feeds: list[int], test: MomDataset, work: Path) -> list[list[object]]:
     """Part 2: other floor-mark recordings (feed seeds, 6 or 20 s per mark), each with the same
     walk's two-view moments as labels at the positions its 4-mark geometry gives them."""
-    room = get_config(PRESET).room
     walk = simulate(PRESET, WALK_FRAMES, WALK_SEED, detector_profile=PROFILE).dataset
     two = np.flatnonzero(np.isfinite(walk.boxes).all(axis=-1).sum(axis=1) >= 2)
     pick = np.random.default_rng(0).choice(two, min(WALK_LABELS, len(two)), replace=False)
@@ -111,12 +107,7 @@ def recordings(feeds: list[int], test: MomDataset, work: Path) -> list[list[obje
     for feed_seed in feeds:
         for seconds in (6.0, 20.0):
             path = work / f"marks-{feed_seed}-{seconds:g}.npz"
-            feed = SyntheticFeed(PRESET, feed_seed, detector_profile=PROFILE)
-            steps = plan_steps(grid_marks("2x2", f"{room[0]}x{room[1]}"), seconds,
-                               start=(room[0] / 2, room[1] / 2))  # fmt: skip
-            feed.prepare(steps)
-            collect(feed, steps, DatasetAppender(path, feed.image_sizes))
-            marks = MomDataset.load(path)
+            marks = collect_marks("2x2", seconds, PROFILE, path, seed=feed_seed)
             start = FloorPrior.fit(marks)
             served, _ = start.predict(boxes)
             ok = np.isfinite(served).all(axis=1)

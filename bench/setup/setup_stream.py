@@ -37,12 +37,18 @@ COLLECT_SEED = 11
 
 
 def collect_marks(
-    grid: str, seconds: float, profile: str | None, out: Path, preset: str = PRESET
+    grid: str,
+    seconds: float,
+    profile: str | None,
+    out: Path,
+    preset: str = PRESET,
+    seed: int = COLLECT_SEED,
 ) -> MomDataset:
-    """The set-up recording: one simulated person standing on each mark of ``grid``."""
+    """The set-up recording: one simulated person standing on each mark of ``grid`` (the
+    simulated feed's ``seed``)."""
     room = get_config(preset).room
     marks = grid_marks(grid, f"{room[0]}x{room[1]}")
-    feed = SyntheticFeed(preset, COLLECT_SEED, detector_profile=profile)
+    feed = SyntheticFeed(preset, seed, detector_profile=profile)
     steps = plan_steps(marks, seconds, start=(room[0] / 2, room[1] / 2))
     feed.prepare(steps)
     collect(feed, steps, DatasetAppender(out, feed.image_sizes))

@@ -45,13 +45,12 @@ from scipy.sparse import coo_matrix
 
 from common.errors import MomlocError
 from models.geometry.calibrated_baseline import truncated
-from models.geometry.floor_prior import FloorPrior, image_points
+from models.geometry.floor_prior import DISTINCT_M, FloorPrior, image_points
 from models.geometry.homography import apply_homography, homography_jacobian
 
 LOSS_SCALE = 0.05  # box heights: about the detector's bottom-edge noise (robust knee)
 MAX_MOMENTS = 3000
 MAX_EVALUATIONS = 400
-DISTINCT_M = 0.05  # mark rows this close count as one mark (as the floor prior)
 TRIANGULATE_STEPS = 8
 
 
@@ -151,13 +150,14 @@ def fit_joint_floor(
     )  # fmt: skip
     cams = [k for k, c in enumerate(start.cameras) if c is not None]
     first = {k: np.linalg.inv(start.cameras[k].maps[0]) for k in cams}  # type: ignore[union-attr]
+    unfitted = [k for k in range(boxes.shape[1]) if k not in first]
     pixels, height, usable = _foot(boxes, size)
-    usable[:, [k for k in range(boxes.shape[1]) if k not in first]] = False
+    usable[:, unfitted] = False
     chosen = np.flatnonzero(usable.sum(axis=1) >= 2)
     if len(chosen) > max_moments:
         chosen = np.sort(np.random.default_rng(seed).choice(chosen, max_moments, replace=False))
     m_pix, m_height, m_usable = _foot(marks_boxes, size)
-    m_usable[:, [k for k in range(boxes.shape[1]) if k not in first]] = False
+    m_usable[:, unfitted] = False
     marks = _mark_points(marks_world, m_pix, m_height, m_usable)
     if not len(chosen) or not marks:
         raise MomlocError("joint floor fit: no moment seen by two cameras, or no mark")
