@@ -25,8 +25,9 @@ the centre map holds for one person's height, and the moments are of people of a
 Boxes cut at the left, right or bottom border leave the foot point out. A sparse trust-region
 solve (``scipy.optimize.least_squares``, each residual touches one camera's 8 parameters and one
 moment's 2) over at most ``MAX_MOMENTS`` moments (the maps have 8 unknowns each; thousands of
-moments fix them, and the solve stays a few seconds in the daemon's background thread); every
-moment's position is then triangulated with the fitted maps.
+moments fix them, and the solve stays a few seconds in the daemon's background thread), started
+from a one-camera fit on the marks and those moments only (a full store holds ~100 000 labels);
+every moment's position is then triangulated with the fitted maps.
 
 Rejected: iterating the one-camera refit (refit, fuse each label again with the refitted
 geometry, refit): it improved one set-up and made two others worse
@@ -144,18 +145,19 @@ def fit_joint_floor(
     marks_world = np.asarray(marks_world, np.float64)[:, :2]
     world = np.asarray(world, np.float64)[:, :2]
     marks_boxes, boxes = np.asarray(marks_boxes, np.float64), np.asarray(boxes, np.float64)
+    pixels, height, usable = _foot(boxes, size)
+    chosen = np.flatnonzero(usable.sum(axis=1) >= 2)
+    if len(chosen) > max_moments:
+        chosen = np.sort(np.random.default_rng(seed).choice(chosen, max_moments, replace=False))
     start = FloorPrior.fit_arrays(
-        np.concatenate([marks_world, world]), np.concatenate([marks_boxes, boxes]), size,
-        points=("foot",),
+        np.concatenate([marks_world, world[chosen]]),
+        np.concatenate([marks_boxes, boxes[chosen]]), size, points=("foot",),
     )  # fmt: skip
     cams = [k for k, c in enumerate(start.cameras) if c is not None]
     first = {k: np.linalg.inv(start.cameras[k].maps[0]) for k in cams}  # type: ignore[union-attr]
     unfitted = [k for k in range(boxes.shape[1]) if k not in first]
-    pixels, height, usable = _foot(boxes, size)
     usable[:, unfitted] = False
-    chosen = np.flatnonzero(usable.sum(axis=1) >= 2)
-    if len(chosen) > max_moments:
-        chosen = np.sort(np.random.default_rng(seed).choice(chosen, max_moments, replace=False))
+    chosen = chosen[usable[chosen].sum(axis=1) >= 2]
     m_pix, m_height, m_usable = _foot(marks_boxes, size)
     m_usable[:, unfitted] = False
     marks = _mark_points(marks_world, m_pix, m_height, m_usable)

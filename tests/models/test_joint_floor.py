@@ -76,3 +76,23 @@ def test_moments_seen_by_one_camera_keep_their_position() -> None:
     boxes[:, 0] = np.nan
     with pytest.raises(MomlocError, match="two cameras"):
         fit_joint_floor(marks_world, marks_boxes, served, boxes, SIZES)
+
+
+def test_the_start_fit_reads_the_chosen_moments_not_the_whole_store(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A full store holds ~100 000 labels: the one-camera start fit must not read them all in
+    the daemon's background thread, only the marks and the moments the solve uses."""
+    marks_world, marks_boxes = _marks(grid=2)
+    truth, boxes = _moments(900, seed=4)
+    rows: list[int] = []
+    fit = FloorPrior.fit_arrays
+
+    def counted(world: np.ndarray, *args: object, **kwargs: object) -> FloorPrior:
+        rows.append(len(world))
+        return fit(world, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(FloorPrior, "fit_arrays", staticmethod(counted))
+    joint = fit_joint_floor(marks_world, marks_boxes, _bent(truth), boxes, SIZES, max_moments=200)
+    assert rows == [len(marks_world) + 200] and joint.moments == 200
+    assert np.linalg.norm(joint.world - truth, axis=1).mean() < 0.05  # all 900 placed
