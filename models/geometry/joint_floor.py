@@ -60,6 +60,7 @@ class JointFloor:
     """The jointly fitted foot maps and every moment's position on them."""
 
     world: np.ndarray  # [N, 2] metres; the given position where fewer than 2 usable views
+    placed: np.ndarray  # [N] bool: triangulated with the fitted maps (2 or more usable views)
     maps: tuple[np.ndarray | None, ...]  # per camera floor → image homography of the foot point
     moments: int  # moments in the joint solve
     moved_m: float  # median distance the positions moved from the given ones
@@ -167,7 +168,7 @@ def fit_joint_floor(
     fitted = tuple(maps.get(k) for k in range(boxes.shape[1]))
     refined = triangulate(fitted, pixels, height, usable, world)
     moved = float(np.median(np.linalg.norm(refined - world, axis=1)))
-    return JointFloor(refined, fitted, len(chosen), moved)
+    return JointFloor(refined, usable.sum(axis=1) >= 2, fitted, len(chosen), moved)
 
 
 def _solve(

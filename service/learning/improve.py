@@ -173,9 +173,11 @@ class Improver:
         if not hold.any() or hold.all():
             raise MomlocError(f"{labels.n} self-labels span too short a time to hold some out")
         folder = room_folder(self.data_dir, room)
-        taught, joint_fit = aligned(marks, labels.subset(~hold), seed=int(self.state["runs"]))
+        taught, placed, joint_fit = aligned(
+            marks, labels.subset(~hold), seed=int(self.state["runs"])
+        )
         self.state["joint_fit"] = joint_fit
-        rows = training_set(marks, taught, seed=int(self.state["runs"]))
+        rows = training_set(marks, taught, seed=int(self.state["runs"]), placed=placed)
         recording = rows.save(folder / "training.npz")
         staging = folder / "candidate"
         shutil.rmtree(staging, ignore_errors=True)

@@ -13,11 +13,15 @@ the geometry that made them. :mod:`models.geometry.joint_floor` fits every camer
 every label's position together, on the marks and the cameras' agreement; the training rows get
 those positions.
 
-Weighting by covariance: a label enters with probability ``(STD_FULL_M / std)²`` (clipped to
-``MIN_KEEP``..1), so the weight of a label in the fit is its inverse variance relative to a
-well-placed two-view position. Why thinning and not a loss weight: ``momloc train``,
-the floor prior's fit and the policy choice all take plain rows; a per-row weight would have
-to pass through all three (and the dataset format). Seeded, so a run is reproducible.
+Weighting by covariance: a label whose position is still the one served enters with
+probability ``(STD_FULL_M / std)²`` (clipped to ``MIN_KEEP``..1), so the weight of a label in the
+fit is its inverse variance relative to a well-placed two-view position. A label the joint fit
+placed enters whole: the covariance the serving model gave its fused position does not describe
+a position triangulated with the jointly fitted maps, and thinning those by it cost the refitted
+geometry 4-6 mm per frame after 5 minutes of walking (``bench/results/joint_floor.md``). Why
+thinning and not a loss weight: ``momloc train``, the floor prior's fit and the policy choice
+all take plain rows; a per-row weight would have to pass through all three (and the dataset
+format). Seeded, so a run is reproducible.
 """
 
 from __future__ import annotations
@@ -39,30 +43,39 @@ MIN_KEEP = 0.05
 FRAME_RATE = 30.0  # label times -> the dataset's integer frame index
 
 
-def label_weights(labels: LabelBatch) -> np.ndarray:
-    """[N] each label's chance to enter the training rows (module docstring)."""
+def label_weights(labels: LabelBatch, placed: np.ndarray | None = None) -> np.ndarray:
+    """[N] each label's chance to enter the training rows; 1 for the ``placed`` ones ([N] bool,
+    positions the joint fit triangulated; module docstring)."""
     std = np.maximum(labels.std_m(), 1e-6)
-    return np.clip((STD_FULL_M / std) ** 2, MIN_KEEP, 1.0)
+    weights = np.clip((STD_FULL_M / std) ** 2, MIN_KEEP, 1.0)
+    return weights if placed is None else np.where(placed, 1.0, weights)
 
 
-def aligned(marks: MomDataset, labels: LabelBatch, seed: int = 0) -> tuple[LabelBatch, str]:
-    """``labels`` with the positions of the joint floor fit on ``marks`` and them, and a line
-    saying what it did; the labels as they are (and why) when the fit cannot run."""
+def aligned(
+    marks: MomDataset, labels: LabelBatch, seed: int = 0
+) -> tuple[LabelBatch, np.ndarray, str]:
+    """``labels`` with the positions of the joint floor fit on ``marks`` and them, which of
+    them it placed ([N] bool), and a line saying what it did; the labels as they are, none
+    placed (and why), when the fit cannot run."""
     try:
         joint = fit_joint_floor(
             marks.world, marks.boxes, labels.world, labels.boxes, marks.image_size, seed=seed
         )
     except MomlocError as error:
         log.warning("self-improvement: positions as served (%s)", error)
-        return labels, f"positions as served ({error})"
-    return dataclasses.replace(labels, world=joint.world.astype(labels.world.dtype)), (
-        joint.describe()
-    )
+        return labels, np.zeros(labels.n, bool), f"positions as served ({error})"
+    taught = dataclasses.replace(labels, world=joint.world.astype(labels.world.dtype))
+    return taught, joint.placed, joint.describe()
 
 
-def training_set(marks: MomDataset, labels: LabelBatch | None, seed: int = 0) -> MomDataset:
-    """``marks`` with the (weighted) ``labels`` appended as rows; labels of another camera
-    count are refused with ``ValueError``."""
+def training_set(
+    marks: MomDataset,
+    labels: LabelBatch | None,
+    seed: int = 0,
+    placed: np.ndarray | None = None,
+) -> MomDataset:
+    """``marks`` with the (weighted) ``labels`` appended as rows (the ``placed`` ones whole);
+    labels of another camera count are refused with ``ValueError``."""
     if labels is None or labels.n == 0:
         return marks
     if labels.num_cameras != marks.num_cameras:
@@ -70,7 +83,7 @@ def training_set(marks: MomDataset, labels: LabelBatch | None, seed: int = 0) ->
             f"self-labels have {labels.num_cameras} cameras, the marks {marks.num_cameras}"
         )
     rng = np.random.default_rng(seed)
-    kept = labels.subset(rng.random(labels.n) < label_weights(labels))
+    kept = labels.subset(rng.random(labels.n) < label_weights(labels, placed))
     if kept.n == 0:
         return marks
     dims = marks.world.shape[1]

@@ -72,7 +72,8 @@ def test_moments_seen_by_one_camera_keep_their_position() -> None:
     served = _bent(truth)
     joint = fit_joint_floor(marks_world, marks_boxes, served, boxes, SIZES)
     np.testing.assert_array_equal(joint.world[:50], served[:50])
-    assert 140 <= joint.moments <= 150
+    assert 140 <= joint.moments <= 150 and not joint.placed[:50].any()
+    assert joint.placed[50:].sum() == joint.moments
     boxes[:, 0] = np.nan
     with pytest.raises(MomlocError, match="two cameras"):
         fit_joint_floor(marks_world, marks_boxes, served, boxes, SIZES)
