@@ -37,7 +37,7 @@ from service.learning.labels import FIELDS, LabelBatch
 
 LEARNING = "learning"
 CHUNK = re.compile(r"labels-(\d{6,})\.npz")
-DEFAULT_MAX_BYTES = 50 * 1024 * 1024
+DEFAULT_MAX_BYTES = 50_000_000  # learning.max_mb's default; health reports MB of 10^6 bytes
 
 
 def room_key(meta: dict[str, Any]) -> str:

@@ -9,7 +9,8 @@ import pytest
 
 import common.atomic
 from service.learning.labels import LabelBatch
-from service.learning.store import SelfLabelStore, room_key
+from service.learning.store import DEFAULT_MAX_BYTES, SelfLabelStore, room_key
+from service.settings import LearningSettings
 from tests.service.learning.frames import SIZES
 
 
@@ -118,3 +119,9 @@ def test_a_model_learned_by_the_room_keeps_its_room() -> None:
     assert room_key(dict(first)) == room
     assert room_key({**first, "metrics": {"val_mean_m": 0.1}}) != room  # new marks: new room
     assert room_key({"num_cameras": 2, "learning": {"room": room}}) == room
+
+
+def test_the_default_cap_is_the_settings_default_in_the_units_health_reports() -> None:
+    """Issue 26 caps the store at 50 MB; health reports megabytes of 10^6 bytes, and a library
+    default of 50 MiB showed 52.4 there."""
+    assert DEFAULT_MAX_BYTES == LearningSettings().max_mb * 1e6 <= 50e6
