@@ -18,10 +18,10 @@ probability ``(STD_FULL_M / std)²`` (clipped to ``MIN_KEEP``..1), so the weight
 fit is its inverse variance relative to a well-placed two-view position. A label the joint fit
 placed enters whole: the covariance the serving model gave its fused position does not describe
 a position triangulated with the jointly fitted maps, and thinning those by it cost the refitted
-geometry 4-6 mm per frame after 5 minutes of walking (``bench/results/joint_floor.md``). Why
-thinning and not a loss weight: ``momloc train``, the floor prior's fit and the policy choice
-all take plain rows; a per-row weight would have to pass through all three (and the dataset
-format). Seeded, so a run is reproducible.
+geometry 3-6 mm per frame after 5 minutes of walking, 1-8 mm over 2-10 minutes
+(``bench/results/joint_floor.md``). Why thinning and not a loss weight: ``momloc train``, the
+floor prior's fit and the policy choice all take plain rows; a per-row weight would have to pass
+through all three (and the dataset format). Seeded, so a run is reproducible.
 """
 
 from __future__ import annotations
