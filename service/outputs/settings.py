@@ -147,6 +147,13 @@ class FallSettings(BaseModel):
         description="A new track lying within this of where a falling person's track last "
         "stood takes that fall over (metres; the tracker often loses a falling body; 0: off).",
     )
+    beside_m: float = Field(
+        _FALL.beside_m,
+        ge=0,
+        le=5,
+        description="One camera's lying read within this of someone two cameras see standing "
+        "or sitting is not reported (metres; most often an extra box of that person; 0: off).",
+    )
 
     def rules(self) -> FallRules:
         return FallRules(**self.model_dump(exclude={"enabled"}))
