@@ -31,7 +31,16 @@ Rules (per track id; :class:`FallRules`, settings ``falls.*``)
    was dragged 1.5 m away as the new one took the body (``bench/results/falls.md``). Only such a
    track donates: when any recently standing track could, tracks that had lost their person
    without a lying read (one a sitter's track at a scene's start) raised fall events matching
-   no fall.
+   no fall. Nor does a donor still on the body: one seen lying within ``ON_THE_BODY_S`` and
+   nearer where it stood than the new track is keeps its candidate (the new track is a second
+   track of the body; taking the fall over, it fired past the 3 s in one of the 96 falls).
+   **1c. A candidate whose track is lost** (the tracker gave the body to another track, often
+   one held nearby from before, which rule 1b never lets take over: it was not born lying)
+   goes to the nearest track within ``handover_m`` that reads lying in a snapshot without the
+   candidate's track, within ``max_drop_s`` of its last snapshot; a fall still active on that
+   track (its person got up, and the track was held where they lay) is cleared first. In one
+   of the 96 falls the faller's track, a candidate for 1.5 s, was lost and the track held at
+   an earlier fall's place took the body, read lying by both cameras, and no event came.
 2. **Down for sure**: the candidate becomes a ``fall`` on the first snapshot that reads lying
    with a posture confidence of at least ``min_confidence`` (0.75), at most ``reach_m`` (1 m)
    from where the person last stood, once the track has read lying
@@ -119,6 +128,7 @@ from typing import Any
 from service.outputs.zones import EVENT_VERSION, Zone
 
 FALL, FALL_CLEARED = "fall", "fall_cleared"
+ON_THE_BODY_S = 0.5  # a donor seen lying this recently still tracks the body (rule 1b)
 STANDING, SITTING, LYING = "standing", "sitting", "lying"
 
 
@@ -171,6 +181,7 @@ class FallDetector:
         self.zones = list(zones)
         self._people: dict[int, _Person] = {}
         self._upright: list[tuple[int, float, float]] = []  # this snapshot's (rule 2)
+        self._present: set[int] = set()  # this snapshot's ids (rule 1c)
         self.last_t: float | None = None
         self.changed_t: float | None = None  # capture time of the last fall or clearing
 
@@ -191,6 +202,7 @@ class FallDetector:
         self.last_t = t
         events: list[dict[str, Any]] = []
         people = list(people)
+        self._present = {int(q["id"]) for q in people}
         self._upright = [
             (int(q["id"]), float(q["x"]), float(q["y"]))
             for q in people
@@ -254,6 +266,14 @@ class FallDetector:
                     p.lying_since, p.down_s, p.drop_x, p.drop_y = t, 0.0, p.stood_x, p.stood_y
                 elif free and p.last_standing is None and self._take_over(pid, p, t):
                     p.lying_since, p.down_s = t, 0.0
+                elif p.lying_since is None and not p.handed_over:
+                    donor = self._lost_candidate(pid, p, t)
+                    if donor is not None and p.fallen_at is not None:  # up and down again
+                        events.append(self._clear(pid, p, t, "stood_up"))
+                    if donor is not None:  # rule 1c: the body went to this track
+                        p.lying_since, p.down_s = donor.lying_since, donor.down_s
+                        p.drop_x, p.drop_y = donor.drop_x, donor.drop_y
+                        donor.handed_over, donor.lying_since = True, None
             if p.lying_since is not None and p.down_at is not None:
                 p.down_s += t - p.down_at
             p.down_at = t
@@ -307,6 +327,7 @@ class FallDetector:
             and t - d.last_standing <= rules.max_drop_s
             and d.last_standing - d.stood_from >= rules.min_standing_s - 1e-9
             and (d.upright_at is None or d.upright_at <= p.born)
+            and not _still_on_the_body(d, p, t)
         ]
         near = [(gap, other) for gap, other in donors if gap <= rules.handover_m]
         if not near:
@@ -315,6 +336,26 @@ class FallDetector:
         donor.handed_over, donor.lying_since = True, None
         p.drop_x, p.drop_y = donor.stood_x, donor.stood_y
         return True
+
+    def _lost_candidate(self, pid: int, p: _Person, t: float) -> _Person | None:
+        """Rule 3's second fall on another track: a candidate that began after ``p``'s fall,
+        absent from this snapshot (the tracker gave its body to ``p``), last seen within
+        ``max_drop_s`` and within ``handover_m`` of ``p``; the nearest, or None."""
+        rules = self.rules
+        if rules.handover_m <= 0:
+            return None
+        lost = [
+            (math.hypot(d.x - p.x, d.y - p.y), other)
+            for other, d in self._people.items()
+            if other != pid
+            and d.lying_since is not None
+            and not d.handed_over
+            and (p.fallen_at is None or d.lying_since > p.fallen_at)
+            and other not in self._present
+            and t - d.seen <= rules.max_drop_s
+        ]
+        near = [(gap, other) for gap, other in lost if gap <= rules.handover_m]
+        return self._people[min(near)[1]] if near else None
 
     def _zones_at(self, p: _Person) -> list[str]:
         return [z.name for z in self.zones if z.contains(p.x, p.y)]
@@ -333,6 +374,15 @@ class FallDetector:
                 "reason": reason, "duration_s": round(t - (since or t), 3),
                 "x": round(p.x, 3), "y": round(p.y, 3), "zones": self._zones_at(p),
                 "falls": self.active}  # fmt: skip
+
+
+def _still_on_the_body(donor: _Person, newcomer: _Person, t: float) -> bool:
+    """Rule 1b's exception: ``donor`` was seen lying a moment ago nearer where it stood than
+    ``newcomer`` is: it is on the body and ``newcomer`` a second track of it."""
+    if t - donor.lying_at > ON_THE_BODY_S:
+        return False
+    own = math.hypot(donor.x - donor.stood_x, donor.y - donor.stood_y)
+    return own <= math.hypot(newcomer.x - donor.stood_x, newcomer.y - donor.stood_y)
 
 
 def _confidence(person: Mapping[str, Any]) -> float:

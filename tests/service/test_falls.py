@@ -391,3 +391,36 @@ def test_the_lone_view_rule_is_off_at_beside_m_0() -> None:
     t, events = _snapshots(detector, 3.0, [{**_stand(1), "cameras": [0, 1]}], 1000.0)
     t, more = _snapshots(detector, 3.0, [{**_lie(1, 2.5), "cameras": [0]}, other], t)
     assert [e["type"] for e in events + more] == [FALL]
+
+
+def _seen(person: dict[str, Any], cameras: list[int] | None = None) -> dict[str, Any]:
+    return {**person, "cameras": [0, 1] if cameras is None else cameras}
+
+
+def test_a_faller_still_tracked_on_the_body_keeps_its_fall_from_a_second_track() -> None:
+    """Rule 1b's exception: a duplicate track born lying beside the body, while the faller's
+    own track still reads lying on it, does not take the fall over (it fired late there)."""
+    detector = FallDetector()
+    t, events = _snapshots(detector, 3.0, [_seen(_stand(1))], 1000.0)
+    t, more = _snapshots(detector, 0.5, [_seen(_lie(1, 2.1))], t)
+    events += more
+    t, more = _snapshots(detector, 2.5, [_seen(_lie(1, 2.1)), _seen(_lie(2, 2.7))], t)
+    assert [(e["type"], e["id"]) for e in events + more] == [(FALL, 1)]
+    assert more[0]["t"] - 1000.0 - 3.0 < 1.7  # 1.5 s of lying reads after the first
+
+
+@pytest.mark.parametrize("faller_still_served, expected", [(False, [(FALL, 3)]), (True, [])])
+def test_a_candidate_whose_track_is_lost_goes_to_the_track_that_took_the_body(
+    faller_still_served: bool, expected: list[tuple[str, int]]
+) -> None:
+    """Rule 1c: the faller's track drops and is lost; an older track held nearby (a sitter's
+    read, coasting) takes the body and reads lying: the fall is its. While the faller's track is
+    still served (coasting here) it is not lost, and nothing is handed over."""
+    detector = FallDetector()
+    held = {"id": 3, "x": 2.6, "y": 1.0, "posture": "sitting", "posture_confidence": 0.9}
+    t, events = _snapshots(detector, 3.0, [_seen(_stand(1)), _seen(held)], 1000.0)
+    t, more = _snapshots(detector, 0.8, [_seen(_lie(1, 2.1)), _seen(held, [])], t)
+    events += more
+    faller = [_seen(_lie(1, 2.1), [])] if faller_still_served else []
+    t, more = _snapshots(detector, 2.0, [*faller, _seen(_lie(3, 2.5))], t)
+    assert [(e["type"], e["id"]) for e in events + more] == expected
