@@ -157,7 +157,7 @@ class _Person:
     stood_x: float = 0.0  # where the last standing read was
     stood_y: float = 0.0
     upright_at: float | None = None  # the last snapshot that read standing or sitting
-    handed_over: bool = False  # its fall went to a newer track (rule 1b): no event of its own
+    handed_over: bool = False  # its fall went to another track (rules 1b, 1c): no own event
     stood_sure: float = 1.0  # the posture confidence of the last standing read
     last_standing: float | None = None  # last snapshot that read standing
     stood_from: float | None = None  # first standing read of the upright streak (standing, or
@@ -338,9 +338,9 @@ class FallDetector:
         return True
 
     def _lost_candidate(self, pid: int, p: _Person, t: float) -> _Person | None:
-        """Rule 3's second fall on another track: a candidate that began after ``p``'s fall,
-        absent from this snapshot (the tracker gave its body to ``p``), last seen within
-        ``max_drop_s`` and within ``handover_m`` of ``p``; the nearest, or None."""
+        """Rule 1c: the nearest candidate within ``handover_m`` of ``p`` that is absent from
+        this snapshot (the tracker gave its body to ``p``), was last seen within ``max_drop_s``
+        and began after ``p``'s active fall, if any; or None."""
         rules = self.rules
         if rules.handover_m <= 0:
             return None

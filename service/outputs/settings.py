@@ -144,8 +144,8 @@ class FallSettings(BaseModel):
         _FALL.handover_m,
         ge=0,
         le=5,
-        description="A new track lying within this of where a falling person's track last "
-        "stood takes that fall over (metres; the tracker often loses a falling body; 0: off).",
+        description="A track lying within this of a falling person's track that lost them "
+        "takes that fall over (metres; the tracker often loses a falling body; 0: off).",
     )
     beside_m: float = Field(
         _FALL.beside_m,
