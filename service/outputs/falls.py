@@ -17,7 +17,13 @@ Rules (per track id; :class:`FallRules`, settings ``falls.*``)
    then fed a lying association, raised false falls; so did tracks born a moment before,
    standing for one snapshot (``bench/results/falls.md``). Lying down on purpose goes through
    sitting for longer than that (onto a sofa, a bed, the floor), and a track that was never seen
-   standing (someone already lying when the daemon starts) is never a candidate.
+   standing (someone already lying when the daemon starts) is never a candidate. The drop must
+   also come within ``max_drop_s`` of a *sure* standing read (posture confidence at least
+   ``min_confidence``): a sitter's track left at the sofa when its person walked off read
+   standing only unsurely (0.42-0.72), was held there, and a false box read lying at the sofa
+   made it a fall (the lounge's daily life through the chain, ``bench/results/falls.md``). The
+   price: someone who falls while getting up, before their standing reads sure, is no candidate
+   (the simulated falls are from standing: none lost).
    **1b. A fall the tracker handed to a new track** (``handover_m``, 1.5 m; 0: off): a person
    falling is what a tracker loses most easily (the body's boxes change shape and place within
    a second, a lone camera's view of it is read seated metres away), and the body on the floor
@@ -159,6 +165,7 @@ class _Person:
     upright_at: float | None = None  # the last snapshot that read standing or sitting
     handed_over: bool = False  # its fall went to another track (rules 1b, 1c): no own event
     stood_sure: float = 1.0  # the posture confidence of the last standing read
+    sure_standing: float | None = None  # the last standing read at least min_confidence sure
     last_standing: float | None = None  # last snapshot that read standing
     stood_from: float | None = None  # first standing read of the upright streak (standing, or
     # sitting and standing) that last_standing ends: a sit-stand-fall counts the whole streak
@@ -240,6 +247,8 @@ class FallDetector:
             p.last_standing = t
             p.stood_x, p.stood_y = p.x, p.y
             p.stood_sure = _confidence(person)
+            if p.stood_sure >= rules.min_confidence:
+                p.sure_standing = t
             p.handed_over = False  # a person standing again: their own falls count again
             p.standing_since = t if p.standing_since is None else p.standing_since
             p.upright_since = t if p.upright_since is None else p.upright_since
@@ -256,6 +265,8 @@ class FallDetector:
                     p.last_standing is not None
                     and p.stood_from is not None
                     and t - p.last_standing <= rules.max_drop_s
+                    and p.sure_standing is not None
+                    and t - p.sure_standing <= rules.max_drop_s
                     and p.last_standing - p.stood_from >= rules.min_standing_s - 1e-9
                 )
                 up_since_fall = p.fallen_at is not None and (p.stood_from or 0.0) > p.fallen_at

@@ -424,3 +424,18 @@ def test_a_candidate_whose_track_is_lost_goes_to_the_track_that_took_the_body(
     faller = [_seen(_lie(1, 2.1), [])] if faller_still_served else []
     t, more = _snapshots(detector, 2.0, [*faller, _seen(_lie(3, 2.5))], t)
     assert [(e["type"], e["id"]) for e in events + more] == expected
+
+
+@pytest.mark.parametrize("standing_confidence, expected", [(0.6, []), (0.9, [FALL])])
+def test_a_drop_is_from_a_sure_standing_read(
+    standing_confidence: float, expected: list[str]
+) -> None:
+    """A sitter's track left at the sofa when its person walked off reads standing only unsurely
+    (0.42-0.72 in the daily life through the chain), is held there, and a false box read lying
+    at the sofa made it a fall: a drop must come within ``max_drop_s`` of a sure standing read."""
+    clock = Clock()
+    clock.hold(5, "sitting", confidence=1.0, cameras=[0, 1])
+    clock.hold(1.2, "standing", confidence=standing_confidence, cameras=[0])
+    clock.hold(0.6, "standing", cameras=[])  # held at the still place, its posture carried
+    clock.hold(3, "lying", confidence=0.95, cameras=[0])
+    assert clock.types() == expected
