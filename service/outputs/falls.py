@@ -325,7 +325,7 @@ class FallDetector:
         rules = self.rules
         if rules.handover_m <= 0:
             return False
-        donors = [
+        donor = self._nearest(
             (math.hypot(d.stood_x - p.x, d.stood_y - p.y), other)
             for other, d in self._people.items()
             if other != pid
@@ -339,11 +339,9 @@ class FallDetector:
             and d.last_standing - d.stood_from >= rules.min_standing_s - 1e-9
             and (d.upright_at is None or d.upright_at <= p.born)
             and not _still_on_the_body(d, p, t)
-        ]
-        near = [(gap, other) for gap, other in donors if gap <= rules.handover_m]
-        if not near:
+        )
+        if donor is None:
             return False
-        donor = self._people[min(near)[1]]
         donor.handed_over, donor.lying_since = True, None
         p.drop_x, p.drop_y = donor.stood_x, donor.stood_y
         return True
@@ -355,7 +353,7 @@ class FallDetector:
         rules = self.rules
         if rules.handover_m <= 0:
             return None
-        lost = [
+        return self._nearest(
             (math.hypot(d.x - p.x, d.y - p.y), other)
             for other, d in self._people.items()
             if other != pid
@@ -364,8 +362,11 @@ class FallDetector:
             and (p.fallen_at is None or d.lying_since > p.fallen_at)
             and other not in self._present
             and t - d.seen <= rules.max_drop_s
-        ]
-        near = [(gap, other) for gap, other in lost if gap <= rules.handover_m]
+        )
+
+    def _nearest(self, gaps: Iterable[tuple[float, int]]) -> _Person | None:
+        """The person of the smallest (gap, id) within ``handover_m``, or None."""
+        near = [(gap, other) for gap, other in gaps if gap <= self.rules.handover_m]
         return self._people[min(near)[1]] if near else None
 
     def _zones_at(self, p: _Person) -> list[str]:
