@@ -63,9 +63,11 @@ def train(data: MomDataset, out: Path, budget_s: float = TRAIN_BUDGET_S) -> MomR
 class Judge:
     """Per-frame and streamed error of a model on the dense test room (cached per model)."""
 
-    def __init__(self, profile: str, test_frames: int, stream_frames: int) -> None:
-        self.test = simulate(PRESET, test_frames, TEST_SEED, detector_profile=profile).dataset
-        self.config = scene_config(PRESET, 3, profile)
+    def __init__(
+        self, profile: str, test_frames: int, stream_frames: int, preset: str = PRESET
+    ) -> None:
+        self.test = simulate(preset, test_frames, TEST_SEED, detector_profile=profile).dataset
+        self.config = scene_config(preset, 3, profile)
         self.stream_frames = stream_frames
 
     def per_frame(self, model: LocalizationModel) -> float:
@@ -94,7 +96,6 @@ def improvement_run(
     work: Path,
     judge: Judge,
     minutes: list[float],
-    profile: str,
     budget_s: float = TRAIN_BUDGET_S,
     streamed: bool = True,
     trained: Path | None = None,
@@ -115,7 +116,7 @@ def improvement_run(
     else:
         shutil.copytree(trained, data_dir / "model")
         start = MomRuntime.load(data_dir / "model")
-    room = RoomRun(scene_config(PRESET, 3, profile), seed, start, data_dir)
+    room = RoomRun(judge.config, seed, start, data_dir)
     options = ImproveOptions(nice_by=10, time_budget_s=budget_s)
     kept = None if keep is None else keep / f"seed-{seed}"
 
@@ -234,8 +235,8 @@ def never_worse(args: argparse.Namespace) -> Path:
             shutil.copytree(trained, args.keep / "start", dirs_exist_ok=True)
         for seed in seeds:
             improvement_run(
-                seed, marks4, work, judge, args.minutes[:1], args.profile,
-                NEVER_WORSE_BUDGET_S, streamed=False, trained=trained,
+                seed, marks4, work, judge, args.minutes[:1], NEVER_WORSE_BUDGET_S,
+                streamed=False, trained=trained,
                 decisions=decisions, save=save, keep=args.keep,
             )  # fmt: skip
             shutil.rmtree(work / f"room-{seed}", ignore_errors=True)
@@ -293,10 +294,12 @@ def run(args: argparse.Namespace) -> Path:
         return never_worse(args)
     quick = args.quick
     seeds = args.seeds[:1] if quick else args.seeds
-    judge = Judge(args.profile, 300 if quick else 900, 300 if quick else 600)
+    judge = Judge(args.profile, 300 if quick else 900, 300 if quick else 600, args.preset)
     rows: list[list[str]] = []
     decisions: list[dict[str, Any]] = []
-    path = RESULTS / "self_learning.md"
+    path = RESULTS / (
+        "self_learning.md" if args.preset == PRESET else f"self_learning_{args.preset}.md"
+    )
     baselines = (
         "The 9-mark and dense-label models were not retrained in this run (`--no-baselines`): "
         "see the run before it for theirs.\n\n"
@@ -313,7 +316,7 @@ def run(args: argparse.Namespace) -> Path:
         path.write_text(
             "# The room that learns: self-improvement from people walking\n\n"
             f"{machine_line()}\n\n"
-            f"indoor-2cam, detector profile `{args.profile}`; floor marks × {args.seconds:g} s "
+            f"{args.preset}, detector profile `{args.profile}`; floor marks × {args.seconds:g} s "
             f"collected by the set-up plan; 3 people walk (seeds {', '.join(map(str, seeds))}); "
             f"each training run capped at {args.budget:g} s. Per-frame: dense test room "
             f"(simulate seed {TEST_SEED}, {judge.test.n} person instances, true association); "
@@ -327,18 +330,19 @@ def run(args: argparse.Namespace) -> Path:
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         marks4 = work / "marks4.npz"
-        collect_marks("2x2", args.seconds, args.profile, marks4)
+        collect_marks("2x2", args.seconds, args.profile, marks4, args.preset)
         if not args.no_baselines:
-            nine = collect_marks("3x3", args.seconds, args.profile, work / "marks9.npz")
+            nine = collect_marks("3x3", args.seconds, args.profile, work / "marks9.npz",
+                                 args.preset)  # fmt: skip
             frames = 600 if quick else 3000
-            dense = simulate(PRESET, frames, DENSE_SEED, detector_profile=args.profile)
+            dense = simulate(args.preset, frames, DENSE_SEED, detector_profile=args.profile)
             rows.append(judge.row("9 marks", train(nine, work / "nine", args.budget)))
             dense_model = train(dense.dataset, work / "dense", args.budget)
             rows.append(judge.row("dense labels", dense_model))
             save()
         for seed in seeds:
             improvement_run(
-                seed, marks4, work, judge, args.minutes, args.profile, args.budget,
+                seed, marks4, work, judge, args.minutes, args.budget,
                 rows=rows, decisions=decisions, save=save,
             )  # fmt: skip
     return path
@@ -350,6 +354,7 @@ def main() -> None:
     parser.add_argument("--no-baselines", action="store_true", help="no 9-mark/dense models")
     parser.add_argument("--budget", type=float, default=TRAIN_BUDGET_S, help="s per training")
     parser.add_argument("--profile", default="nanodet")
+    parser.add_argument("--preset", default=PRESET, help="the simulated room (not --never-worse)")
     parser.add_argument("--seconds", type=float, default=20.0, help="per floor mark")
     parser.add_argument("--seeds", type=int, nargs="+", default=[21, 22])
     parser.add_argument("--minutes", type=float, nargs="+", default=[2.0, 5.0, 10.0])
