@@ -1,8 +1,10 @@
 """The room that learns, measured (writes bench/results/self_learning.md).
 
-``python -m bench.setup.self_learning [--quick] [--minutes 2 5 10] [--no-baselines]``
+``python -m bench.setup.self_learning [--quick] [--minutes 2 5 10] [--no-baselines]
+[--preset indoor-4cam]``
 
-(a) **Self-improvement** (indoor-2cam, detector ``--profile``, default nanodet): a model set up
+(a) **Self-improvement** (``--preset``, default indoor-2cam: bench/results/self_learning.md,
+others self_learning_<preset>.md; detector ``--profile``, default nanodet): a model set up
 on 4 floor marks (2 × 2, one simulated person following the ``momloc collect`` plan) serves a
 room where 3 people walk; the self-label listener (:mod:`service.learning.listener`) collects
 while it serves, and after 2, 5 and 10 simulated minutes one self-improvement run
