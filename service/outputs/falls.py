@@ -165,7 +165,7 @@ class _Person:
     upright_at: float | None = None  # the last snapshot that read standing or sitting
     handed_over: bool = False  # its fall went to another track (rules 1b, 1c): no own event
     stood_sure: float = 1.0  # the posture confidence of the last standing read
-    sure_standing: float | None = None  # the last standing read at least min_confidence sure
+    stood_sure_at: float | None = None  # the last standing read at least min_confidence sure
     last_standing: float | None = None  # last snapshot that read standing
     stood_from: float | None = None  # first standing read of the upright streak (standing, or
     # sitting and standing) that last_standing ends: a sit-stand-fall counts the whole streak
@@ -248,7 +248,7 @@ class FallDetector:
             p.stood_x, p.stood_y = p.x, p.y
             p.stood_sure = _confidence(person)
             if p.stood_sure >= rules.min_confidence:
-                p.sure_standing = t
+                p.stood_sure_at = t
             p.handed_over = False  # a person standing again: their own falls count again
             p.standing_since = t if p.standing_since is None else p.standing_since
             p.upright_since = t if p.upright_since is None else p.upright_since
@@ -265,8 +265,8 @@ class FallDetector:
                     p.last_standing is not None
                     and p.stood_from is not None
                     and t - p.last_standing <= rules.max_drop_s
-                    and p.sure_standing is not None
-                    and t - p.sure_standing <= rules.max_drop_s
+                    and p.stood_sure_at is not None
+                    and t - p.stood_sure_at <= rules.max_drop_s
                     and p.last_standing - p.stood_from >= rules.min_standing_s - 1e-9
                 )
                 up_since_fall = p.fallen_at is not None and (p.stood_from or 0.0) > p.fallen_at
@@ -279,9 +279,9 @@ class FallDetector:
                     p.lying_since, p.down_s = t, 0.0
                 elif p.lying_since is None and not p.handed_over:
                     donor = self._lost_candidate(pid, p, t)
-                    if donor is not None and p.fallen_at is not None:  # up and down again
-                        events.append(self._clear(pid, p, t, "stood_up"))
                     if donor is not None:  # rule 1c: the body went to this track
+                        if p.fallen_at is not None:  # up and down again
+                            events.append(self._clear(pid, p, t, "stood_up"))
                         p.lying_since, p.down_s = donor.lying_since, donor.down_s
                         p.drop_x, p.drop_y = donor.drop_x, donor.drop_y
                         donor.handed_over, donor.lying_since = True, None
