@@ -105,9 +105,10 @@ def triangulate(
     height: np.ndarray,
     usable: np.ndarray,
     start: np.ndarray,
-) -> np.ndarray:
+) -> tuple[np.ndarray, np.ndarray]:
     """[N, 2] floor positions minimising the views' squared foot-pixel error (box heights),
-    Gauss-Newton from ``start``; ``start`` where fewer than two usable views."""
+    Gauss-Newton from ``start``, and [N] which of them it placed; ``start`` (not placed) where
+    fewer than two usable views, or where the solve came out non-finite."""
     z = np.asarray(start, np.float64).copy()
     cams = [k for k, h in enumerate(maps) if h is not None]
     two = usable[:, cams].sum(axis=1) >= 2
@@ -125,7 +126,8 @@ def triangulate(
         safe = np.where(two[:, None, None], normal, np.eye(2))
         step = np.linalg.solve(safe + np.eye(2) * 1e-12, gradient[..., None])[..., 0]
         z = np.where(two[:, None], z - step, z)
-    return np.where(np.isfinite(z).all(axis=1, keepdims=True), z, start)
+    placed = two & np.isfinite(z).all(axis=1)
+    return np.where(placed[:, None], z, start), placed
 
 
 def fit_joint_floor(
@@ -166,9 +168,9 @@ def fit_joint_floor(
         raise MomlocError("joint floor fit: no moment seen by two cameras, or no mark")
     maps = _solve(first, marks, world[chosen], pixels[chosen], height[chosen], usable[chosen])
     fitted = tuple(maps.get(k) for k in range(boxes.shape[1]))
-    refined = triangulate(fitted, pixels, height, usable, world)
+    refined, placed = triangulate(fitted, pixels, height, usable, world)
     moved = float(np.median(np.linalg.norm(refined - world, axis=1)))
-    return JointFloor(refined, usable.sum(axis=1) >= 2, fitted, len(chosen), moved)
+    return JointFloor(refined, placed, fitted, len(chosen), moved)
 
 
 def _solve(

@@ -7,7 +7,7 @@ import pytest
 
 from common.errors import MomlocError
 from models.geometry.floor_prior import FloorPrior
-from models.geometry.joint_floor import fit_joint_floor
+from models.geometry.joint_floor import _foot, fit_joint_floor, triangulate
 from tests.models.test_floor_prior import SIZE, _boxes, _marks
 
 SIZES = np.array([SIZE, SIZE], np.float64)
@@ -97,3 +97,20 @@ def test_the_start_fit_reads_the_chosen_moments_not_the_whole_store(
     joint = fit_joint_floor(marks_world, marks_boxes, _bent(truth), boxes, SIZES, max_moments=200)
     assert rows == [len(marks_world) + 200] and joint.moments == 200
     assert np.linalg.norm(joint.world - truth, axis=1).mean() < 0.05  # all 900 placed
+
+
+def test_a_moment_whose_solve_is_not_finite_keeps_its_position_and_is_not_placed() -> None:
+    """``placed`` is what the training set trusts whole: a moment Gauss-Newton could not place
+    (here a non-finite start) keeps its position and must not count as placed, even with two
+    usable views."""
+    marks_world, marks_boxes = _marks(grid=2)
+    truth, boxes = _moments(300, seed=5)
+    joint = fit_joint_floor(marks_world, marks_boxes, _bent(truth), boxes, SIZES)
+    pixels, height, usable = _foot(boxes, SIZES)
+    start = _bent(truth)
+    start[:10] = np.nan
+    world, placed = triangulate(joint.maps, pixels, height, usable, start)
+    assert not placed[:10].any() and np.isnan(world[:10]).all()
+    two = usable.sum(axis=1) >= 2
+    assert two[:10].all() and (placed[10:] == two[10:]).all() and placed.sum() > 250
+    assert np.linalg.norm(world[placed] - truth[placed], axis=1).mean() < 0.03
