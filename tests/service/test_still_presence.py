@@ -143,6 +143,28 @@ def test_a_still_person_who_walks_off_keeps_their_id_and_leaves_no_phantom() -> 
     assert [t.id for t in tracks] == [1] and tracks[0].x == pytest.approx(4.0, abs=0.05)
 
 
+def test_a_still_person_who_walks_off_is_served_where_their_held_filter_creeps_behind() -> None:
+    """A still person gets up and walks off slowly, their first steps one camera's views within
+    ``still_gate_m`` (1 m) of the place (the track held there, its filter following them);
+    then both cameras see them 1.1 m from the place, walking slowly on, then standing. The assignment expects the held track at
+    its place (nothing beyond ``still_gate_m`` of it), and births used to be kept clear of its
+    filter, which crept along behind the walker: they were served nowhere for seconds (a missed
+    fall of the simulated lounge). They must be served within the confirmation time, and
+    keep their id."""
+    fps = 10.0
+    tracker = Tracker(fps_hint=fps, **RECOMMENDED)
+    _still_for(tracker, 10.0, fps)
+    for i in range(1, 17):  # up and off at 0.5 m/s, one camera's views
+        tracker.update(10.0 + i / fps, np.array([[2.0 + 0.05 * i, 2.0]]), [Origin(cameras=(0,))])
+    served = []
+    for i in range(1, 41):  # 1.1 m off at 0.3 m/s, then standing 1.3 m from the place
+        x = min(3.07 + 0.03 * i, 3.3)
+        tracks = tracker.update(11.6 + i / fps, np.array([[x, 2.0]]), [Origin(cameras=(0, 1))])
+        served.append([t.id for t in tracks if not t.coasting and abs(t.x - x) < 0.3])
+    assert all(served[12:]), served  # within 1.2 s, and from then on
+    assert [t.id for t in tracks] == [1], tracks
+
+
 def test_leaving_the_place_ends_stillness() -> None:
     rule = StillRule(after_s=5.0, window_s=10.0, radius_m=0.5, share=0.6, leave_m=1.0)
     memory = StillMemory()
