@@ -146,11 +146,11 @@ def test_a_still_person_who_walks_off_keeps_their_id_and_leaves_no_phantom() -> 
 def test_a_still_person_who_walks_off_is_served_where_their_held_filter_creeps_behind() -> None:
     """A still person gets up and walks off slowly, their first steps one camera's views within
     ``still_gate_m`` (1 m) of the place (the track held there, its filter following them);
-    then both cameras see them 1.1 m from the place, walking slowly on, then standing. The assignment expects the held track at
-    its place (nothing beyond ``still_gate_m`` of it), and births used to be kept clear of its
-    filter, which crept along behind the walker: they were served nowhere for seconds (a missed
-    fall of the simulated lounge). They must be served within the confirmation time, and
-    keep their id."""
+    then both cameras see them 1.1 m from the place, walking slowly on, then standing. The
+    assignment expects the held track at its place (nothing beyond ``still_gate_m`` of it), and
+    births used to be kept clear of its filter, which crept along behind the walker: they were
+    served nowhere for seconds (a missed fall of the simulated lounge). They must be served
+    within the confirmation time, and keep their id."""
     fps = 10.0
     tracker = Tracker(fps_hint=fps, **RECOMMENDED)
     _still_for(tracker, 10.0, fps)
