@@ -42,11 +42,17 @@ Rules (per track id; :class:`FallRules`, settings ``falls.*``)
    track of the body; taking the fall over, it fired past the 3 s in one of the 96 falls).
    **1c. A candidate whose track is lost** (the tracker gave the body to another track, often
    one held nearby from before, which rule 1b never lets take over: it was not born lying)
-   goes to the nearest track within ``handover_m`` that reads lying in a snapshot without the
-   candidate's track, within ``max_drop_s`` of its last snapshot; a fall still active on that
-   track (its person got up, and the track was held where they lay) is cleared first. In one
-   of the 96 falls the faller's track, a candidate for 1.5 s, was lost and the track held at
-   an earlier fall's place took the body, read lying by both cameras, and no event came.
+   goes to the nearest track within ``handover_m`` that reads lying in a snapshot no camera
+   sees the candidate's track in, within ``max_drop_s`` of the last one that did; a fall still
+   active on that track (its person got up, and the track was held where they lay) is cleared
+   first. Lost is absent from the snapshot, or coasting (served, no camera) without a lying
+   read for ``ON_THE_BODY_S``: a track coasting a moment is still on the body. In one of the 96
+   falls the faller's track, a candidate for 1.5 s, was lost and the track held at an earlier
+   fall's place took the body, read lying by both cameras, and no event came; in another the
+   faller's track coasted for a second while a track born 0.7 m away took the body, and the
+   fall came 4.7 s late, once the coasting track was dropped. Taken at the first snapshot
+   without it, a candidate coasting for 0.3 s went to a track held at an earlier fall's place
+   1.1 m off, and that fall came 4.8 s late.
 2. **Down for sure**: the candidate becomes a ``fall`` on the first snapshot that reads lying
    with a posture confidence of at least ``min_confidence`` (0.75), at most ``reach_m`` (1 m)
    from where the person last stood, once the track has read lying
@@ -160,6 +166,7 @@ class _Person:
     y: float
     seen: float  # capture time of the last snapshot with this id
     born: float  # capture time of the first snapshot with this id
+    measured: float | None = None  # ... of the last snapshot a camera saw it in (not coasting)
     stood_x: float = 0.0  # where the last standing read was
     stood_y: float = 0.0
     upright_at: float | None = None  # the last snapshot that read standing or sitting
@@ -189,6 +196,7 @@ class FallDetector:
         self._people: dict[int, _Person] = {}
         self._upright: list[tuple[int, float, float]] = []  # this snapshot's (rule 2)
         self._present: set[int] = set()  # this snapshot's ids (rule 1c)
+        self._measured: set[int] = set()  # ... that a camera sees
         self.last_t: float | None = None
         self.changed_t: float | None = None  # capture time of the last fall or clearing
 
@@ -210,6 +218,7 @@ class FallDetector:
         events: list[dict[str, Any]] = []
         people = list(people)
         self._present = {int(q["id"]) for q in people}
+        self._measured = {int(q["id"]) for q in people if _measured(q)}
         self._upright = [
             (int(q["id"]), float(q["x"]), float(q["y"]))
             for q in people
@@ -237,7 +246,9 @@ class FallDetector:
         events: list[dict[str, Any]] = []
         # a track no camera sees now (coasting: ``cameras`` empty) carries its last posture,
         # which is no evidence of what the person does now (rule 1)
-        seen = person.get("cameras") is None or len(person["cameras"]) > 0
+        seen = _measured(person)
+        if seen:
+            p.measured = t
         posture = person.get("posture") if seen else None
         if posture in (STANDING, SITTING):
             p.upright_at = t
@@ -347,9 +358,10 @@ class FallDetector:
         return True
 
     def _lost_candidate(self, pid: int, p: _Person, t: float) -> _Person | None:
-        """Rule 1c: the nearest candidate within ``handover_m`` of ``p`` that is absent from
-        this snapshot (the tracker gave its body to ``p``), was last seen within ``max_drop_s``
-        and began after ``p``'s active fall, if any; or None."""
+        """Rule 1c: the nearest candidate within ``handover_m`` of ``p`` that no camera sees in
+        this snapshot (absent, or coasting and not seen lying for ``ON_THE_BODY_S``: the tracker
+        gave its body to ``p``), was last seen by one within ``max_drop_s`` and began after
+        ``p``'s active fall, if any; or None."""
         rules = self.rules
         if rules.handover_m <= 0:
             return None
@@ -360,8 +372,10 @@ class FallDetector:
             and d.lying_since is not None
             and not d.handed_over
             and (p.fallen_at is None or d.lying_since > p.fallen_at)
-            and other not in self._present
-            and t - d.seen <= rules.max_drop_s
+            and other not in self._measured
+            and (other not in self._present or t - d.lying_at > ON_THE_BODY_S)
+            and d.measured is not None
+            and t - d.measured <= rules.max_drop_s
         )
 
     def _nearest(self, gaps: Iterable[tuple[float, int]]) -> _Person | None:
@@ -395,6 +409,13 @@ def _still_on_the_body(donor: _Person, newcomer: _Person, t: float) -> bool:
         return False
     own = math.hypot(donor.x - donor.stood_x, donor.y - donor.stood_y)
     return own <= math.hypot(newcomer.x - donor.stood_x, newcomer.y - donor.stood_y)
+
+
+def _measured(person: Mapping[str, Any]) -> bool:
+    """Whether a camera sees ``person`` in the snapshot (a coasting track's ``cameras`` is
+    empty; a person without the field counts as seen)."""
+    cameras = person.get("cameras")
+    return cameras is None or len(cameras) > 0
 
 
 def _confidence(person: Mapping[str, Any]) -> float:

@@ -409,21 +409,45 @@ def test_a_faller_still_tracked_on_the_body_keeps_its_fall_from_a_second_track()
     assert more[0]["t"] - 1000.0 - 3.0 < 1.7  # 1.5 s of lying reads after the first
 
 
-@pytest.mark.parametrize("faller_still_served, expected", [(False, [(FALL, 3)]), (True, [])])
+@pytest.mark.parametrize(
+    "faller, expected",
+    [
+        ("lost", [(FALL, 3)]),
+        ("coasting", [(FALL, 3)]),  # served, but no camera has seen it lying for 0.5 s
+        ("on the body", [(FALL, 1)]),  # a camera still sees it lying: it keeps its fall
+    ],
+)
 def test_a_candidate_whose_track_is_lost_goes_to_the_track_that_took_the_body(
-    faller_still_served: bool, expected: list[tuple[str, int]]
+    faller: str, expected: list[tuple[str, int]]
 ) -> None:
-    """Rule 1c: the faller's track drops and is lost; an older track held nearby (a sitter's
-    read, coasting) takes the body and reads lying: the fall is its. While the faller's track is
-    still served (coasting here) it is not lost, and nothing is handed over."""
+    """Rule 1c: the faller's track drops and is lost, or coasts (the simulated lounge: the body
+    went to a track born 0.7 m away while the faller's track coasted for a second, and the
+    fall came 4.7 s late); an older track held nearby (a sitter's read, coasting) takes the
+    body and reads lying: the fall is its. While a camera still sees the faller's track lying
+    on the body, it keeps its fall."""
     detector = FallDetector()
     held = {"id": 3, "x": 2.6, "y": 1.0, "posture": "sitting", "posture_confidence": 0.9}
     t, events = _snapshots(detector, 3.0, [_seen(_stand(1)), _seen(held)], 1000.0)
     t, more = _snapshots(detector, 0.8, [_seen(_lie(1, 2.1)), _seen(held, [])], t)
     events += more
-    faller = [_seen(_lie(1, 2.1), [])] if faller_still_served else []
-    t, more = _snapshots(detector, 2.0, [*faller, _seen(_lie(3, 2.5))], t)
+    own = {"lost": [], "coasting": [_seen(_lie(1, 2.1), [])], "on the body": [_seen(_lie(1, 2.1))]}
+    t, more = _snapshots(detector, 2.0, [*own[faller], _seen(_lie(3, 2.5))], t)
     assert [(e["type"], e["id"]) for e in events + more] == expected
+
+
+def test_a_faller_unseen_for_a_moment_keeps_its_fall() -> None:
+    """Rule 1c waits ``ON_THE_BODY_S`` before taking a coasting track's candidate away: in the
+    simulated lounge the faller's track coasted for 0.3 s while a track held at an earlier
+    fall's place 1.1 m away read lying, took the candidate, and fired 4.8 s late."""
+    detector = FallDetector()
+    held = {"id": 3, "x": 3.1, "y": 1.0, "posture": "lying", "posture_confidence": 0.9}
+    t, events = _snapshots(detector, 3.0, [_seen(_stand(1)), _seen(held, [])], 1000.0)
+    t, more = _snapshots(detector, 0.2, [_seen(_lie(1, 2.1)), _seen(held, [])], t)
+    events += more
+    t, more = _snapshots(detector, 0.3, [_seen(_lie(1, 2.1), []), _seen(held, [0])], t)
+    events += more
+    t, more = _snapshots(detector, 2.0, [_seen(_lie(1, 2.1)), _seen(held, [0])], t)
+    assert [(e["type"], e["id"]) for e in events + more] == [(FALL, 1)]
 
 
 @pytest.mark.parametrize("standing_confidence, expected", [(0.6, []), (0.9, [FALL])])
