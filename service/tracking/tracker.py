@@ -95,7 +95,8 @@ values and the order of the changes are in ``bench/results/tracker_tuning.md`` a
   :mod:`service.tracking.measurements`); trusted as given, tracks of people passing each other
   swapped ids even with the true association;
 - ``birth_clearance_m`` 0.8: a person whose boxes split into two clusters is not a second
-  person; no track is born that close to a confirmed or just-measured one;
+  person; no track is born that close to a confirmed or just-measured one (to a still track
+  held unseen: its place, where the assignment expects it, not its coasting filter);
 - ``merge_m`` 0.35 / ``merge_s`` 0.5: two tracks that stay that close for half a second are one
   person fed by both halves of a split association; the younger is dropped (0.8 m merged real
   neighbours in a crowd); a held still track whose person walked off takes the younger's state

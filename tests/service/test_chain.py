@@ -75,6 +75,25 @@ def test_flagged_people_are_tracked_and_marked_but_zones_and_counts_ignore_them(
     assert monitor.occupancy()[0]["count"] == 1
 
 
+@pytest.mark.parametrize("policy, served", [("drop", [1]), ("flag", [1, 2])])
+def test_a_track_served_beyond_the_area_is_outside_whatever_fed_it(runtime, policy, served):
+    """A track fed inside the area whose filter is served beyond it (a lone view's correction,
+    its velocity) is outside: dropped, or flagged so that zones, counts and falls skip it."""
+    from service.pipeline.chain import gate_tracks_to_area
+    from service.pipeline.live import served_person
+
+    def track(pid: int, x: float) -> Track:
+        return Track(id=pid, x=x, y=2.0, vx=0.0, vy=0.0, confidence=1.0, cameras=[0])
+
+    kept = gate_tracks_to_area(
+        [track(1, INSIDE_X - 0.1), track(2, INSIDE_X + 0.1)], runtime, policy
+    )
+    assert [tr.id for tr in kept] == served
+    people = [served_person(tr) for tr in kept]
+    assert [p.get("outside", False) for p in people] == [False, True][: len(served)]
+    assert [p["id"] for p in Snapshot.build(1, 0.0, people).inside_only().people] == [1]
+
+
 def test_a_model_without_an_area_keeps_everyone(runtime):
     plain = OracleRuntime(room_cameras(2))
     tracks = _run(Chain(Tracker(fps_hint=10, **RECOMMENDED)), plain, PEOPLE)

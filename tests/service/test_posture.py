@@ -262,8 +262,11 @@ class _RowMap:
         return np.stack([bottom / 100.0, np.zeros(len(bottom))], 1)
 
     def inside(self, boxes: np.ndarray, world: np.ndarray) -> np.ndarray:
-        tall = np.nanmax(np.asarray(boxes, float)[:, :, 3] - np.asarray(boxes, float)[:, :, 1], 1)
-        return self.setup_area.contains(world) & (tall >= 160.0)
+        boxes = np.asarray(boxes, float)
+        seen = np.isfinite(boxes).all(axis=2).any(axis=1)  # none seen: in the region, as
+        # MomRuntime.inside says (SetupArea.boxes_in_region)
+        tall = np.nanmax(np.where(seen[:, None], boxes[:, :, 3] - boxes[:, :, 1], 0.0), 1)
+        return self.setup_area.contains(world) & ((tall >= 160.0) | ~seen)
 
 
 def test_a_replaced_box_is_not_carried_into_the_set_up_area() -> None:
