@@ -26,7 +26,9 @@ Per frame set (time ``t``, one :class:`~models.detector.base.Detections` per cam
    room learns from people beyond the area (:mod:`service.learning.labels`);
 3. **correct** single-view positions by their track's lone-view offset
    (:mod:`service.tracking.view_bias`) and **track** with each position's covariance and the
-   cameras' coverage (:mod:`service.tracking.measurements`, :mod:`service.tracking.tracker`).
+   cameras' coverage (:mod:`service.tracking.measurements`, :mod:`service.tracking.tracker`);
+   a track served beyond the set-up area is outside as in step 2, whatever fed it
+   (:func:`gate_tracks_to_area`).
 
 The chain keeps per-model state (the lone-view offsets): :meth:`Chain.new_model` forgets it when
 the model is swapped.

@@ -527,7 +527,10 @@ class Tracker:
         crept along behind them while the assignment, holding the track at the place, admitted
         nothing beyond ``still_gate_m`` of it, so the walker was neither assigned nor born for
         seconds, served nowhere (a missed fall of the simulated lounge, then standing 3 s on
-        the spot, 1.3 m from where they had lain: ``bench/results/falls.md``)."""
+        the spot, 1.3 m from where they had lain: ``bench/results/falls.md``). On 2026-12-05
+        births were kept clear of both, because a birth beside the filter left the held track
+        at the place, a phantom; since then the shadow merge gives the held id the walker's new
+        track (:meth:`_merge_shadows`)."""
         free = [c for c in range(len(positions)) if c not in assigned]
         if self.birth_clearance_m <= 0 or not free or not self._tracks:
             return free
