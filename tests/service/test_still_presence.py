@@ -130,17 +130,27 @@ def test_a_still_person_who_walks_off_keeps_their_id_and_leaves_no_phantom() -> 
     and a phantom sat at the place for 15 s (a missed fall and false falls of the simulated
     lounge). Now the old id takes the new track's state: the person keeps their id, served
     where they are, and nothing is left at the place."""
-    fps = 10.0
-    tracker = Tracker(fps_hint=fps, **RECOMMENDED)
-    _still_for(tracker, 10.0, fps)
-    for i in range(1, 9):  # up and off at 1 m/s, one camera's views
-        tracker.update(10.0 + i / fps, np.array([[2.0 + 0.1 * i, 2.0]]), [Origin(cameras=(0,))])
-    served = []
-    for i in range(1, 41):  # 4 s standing 2 m from the place, seen by both cameras
-        tracks = tracker.update(10.8 + i / fps, np.array([[4.0, 2.0]]), [Origin(cameras=(0, 1))])
-        served.append([t.id for t in tracks if not t.coasting and abs(t.x - 4.0) < 0.2])
+    lone = 2.0 + 0.1 * np.arange(1, 9)  # up and off at 1 m/s
+    served, tracks = _walk_off(lone, np.full(40, 4.0))  # 4 s standing 2 m from the place
     assert sum(1 for ids in served if ids) >= len(served) - 5, served
     assert [t.id for t in tracks] == [1] and tracks[0].x == pytest.approx(4.0, abs=0.05)
+
+
+def _walk_off(lone: np.ndarray, seen: np.ndarray, fps: float = 10.0) -> tuple[list, list]:
+    """10 s still at (2, 2), then the x positions ``lone`` seen by one camera and ``seen`` by
+    both: per frame of ``seen``, the ids served (not coasting) within 0.2 m of the person, and
+    the last frame's tracks."""
+    tracker = Tracker(fps_hint=fps, **RECOMMENDED)
+    _still_for(tracker, 10.0, fps)
+    t, served, tracks = 10.0, [], []
+    for x in lone:
+        t += 1.0 / fps
+        tracker.update(t, np.array([[x, 2.0]]), [Origin(cameras=(0,))])
+    for x in seen:
+        t += 1.0 / fps
+        tracks = tracker.update(t, np.array([[x, 2.0]]), [Origin(cameras=(0, 1))])
+        served.append([tr.id for tr in tracks if not tr.coasting and abs(tr.x - x) < 0.2])
+    return served, tracks
 
 
 def test_a_still_person_who_walks_off_is_served_where_their_held_filter_creeps_behind() -> None:
@@ -151,16 +161,9 @@ def test_a_still_person_who_walks_off_is_served_where_their_held_filter_creeps_b
     births used to be kept clear of its filter, which crept along behind the walker: they were
     served nowhere for seconds (a missed fall of the simulated lounge). They must be served
     within the confirmation time, and keep their id."""
-    fps = 10.0
-    tracker = Tracker(fps_hint=fps, **RECOMMENDED)
-    _still_for(tracker, 10.0, fps)
-    for i in range(1, 17):  # up and off at 0.5 m/s, one camera's views
-        tracker.update(10.0 + i / fps, np.array([[2.0 + 0.05 * i, 2.0]]), [Origin(cameras=(0,))])
-    served = []
-    for i in range(1, 41):  # 1.1 m off at 0.3 m/s, then standing 1.3 m from the place
-        x = min(3.07 + 0.03 * i, 3.3)
-        tracks = tracker.update(11.6 + i / fps, np.array([[x, 2.0]]), [Origin(cameras=(0, 1))])
-        served.append([t.id for t in tracks if not t.coasting and abs(t.x - x) < 0.3])
+    lone = 2.0 + 0.05 * np.arange(1, 17)  # up and off at 0.5 m/s
+    seen = np.minimum(3.07 + 0.03 * np.arange(1, 41), 3.3)  # 1.1 m off at 0.3 m/s, then still
+    served, tracks = _walk_off(lone, seen)
     assert all(served[12:]), served  # within 1.2 s, and from then on
     assert [t.id for t in tracks] == [1], tracks
 
