@@ -12,7 +12,14 @@ set's shapes are few and fixed, so each new shape is compiled once on first use.
 model is kept next to its request so neither outlives the other.
 
 The CPU settings mirror :mod:`common.onnx_session`: ``threads`` inference threads, one stream,
-latency first, no pinning (the cameras' threads share these cores).
+latency first, no pinning (the cameras' threads share these cores), and FP32 arithmetic where a
+graph is not quantized. Why the last: on a CPU with native bfloat16 (Intel AMX or AVX512-BF16)
+OpenVINO computes FP32 graphs in bfloat16 unless told otherwise; on such a machine (an Intel
+Xeon with AMX, 2026-12-06) the "fp32" detector's scores drifted from the TensorFlow graph by up
+to 0.0056 and the keypoint network's joints by more than their recorded tolerance, while
+onnxruntime and the earlier AMD machines matched (``tests/models/test_detector_runtimes.py``,
+``tests/models/test_keypoints_blazepose.py``). The engine a user picks must compute what its
+name says on every machine; its speed is measured in ``bench/results/detector_runtimes.md``.
 """
 
 from __future__ import annotations
@@ -60,6 +67,7 @@ class CompiledPerShape:
             "NUM_STREAMS": 1,
             "PERFORMANCE_HINT": "LATENCY",
             "ENABLE_CPU_PINNING": False,
+            "INFERENCE_PRECISION_HINT": "f32",
         }
         self._compiled: dict[tuple[int, ...], tuple[Any, Any]] = {}
 
