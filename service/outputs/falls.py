@@ -134,7 +134,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from service.outputs.zones import EVENT_VERSION, Zone
@@ -158,6 +158,7 @@ class FallRules:
     reach_m: float = 1.0
     lying_gap_s: float = 5.0
     beside_m: float = 1.2
+    stayed_m: float = 0.5
 
 
 @dataclass
@@ -185,6 +186,9 @@ class _Person:
     drop_x: float = 0.0  # where the candidate's person last stood (rule 2's reach)
     drop_y: float = 0.0
     fallen_at: float | None = None  # the fall event's t while the fall is active
+    stood_path: list[tuple[float, float, float]] = field(default_factory=list)  # (t, x, y) of
+    # the seen standing reads of the last max_drop_s
+    drop_path: tuple[tuple[float, float], ...] = ()  # ... before the candidate began (stayed_m)
 
 
 class FallDetector:
@@ -195,6 +199,7 @@ class FallDetector:
         self.zones = list(zones)
         self._people: dict[int, _Person] = {}
         self._upright: list[tuple[int, float, float]] = []  # this snapshot's (rule 2)
+        self._standing: list[tuple[int, float, float]] = []  # ... sure standing (stayed_m)
         self._present: set[int] = set()  # this snapshot's ids (rule 1c)
         self._measured: set[int] = set()  # ... that a camera sees
         self.last_t: float | None = None
@@ -223,6 +228,12 @@ class FallDetector:
             (int(q["id"]), float(q["x"]), float(q["y"]))
             for q in people
             if q.get("posture") in (STANDING, SITTING) and len(q.get("cameras") or ()) >= 2
+        ]
+        self._standing = [
+            (int(q["id"]), float(q["x"]), float(q["y"]))
+            for q in people
+            if q.get("posture") == STANDING and _measured(q)
+            and _confidence(q) >= self.rules.min_confidence
         ]
         for p in people:
             pid = int(p["id"])
@@ -257,6 +268,8 @@ class FallDetector:
                 p.stood_from = t  # a new upright streak
             p.last_standing = t
             p.stood_x, p.stood_y = p.x, p.y
+            p.stood_path = [r for r in p.stood_path if t - r[0] <= rules.max_drop_s]
+            p.stood_path.append((t, p.x, p.y))
             p.stood_sure = _confidence(person)
             if p.stood_sure >= rules.min_confidence:
                 p.stood_sure_at = t
@@ -286,6 +299,9 @@ class FallDetector:
                 free = p.lying_since is None and p.fallen_at is None and not p.handed_over
                 if free and quick:
                     p.lying_since, p.down_s, p.drop_x, p.drop_y = t, 0.0, p.stood_x, p.stood_y
+                    p.drop_path = tuple(
+                        (x, y) for at, x, y in p.stood_path if t - at <= rules.max_drop_s
+                    )
                 elif free and p.last_standing is None and self._take_over(pid, p, t):
                     p.lying_since, p.down_s = t, 0.0
                 elif p.lying_since is None and not p.handed_over:
@@ -295,6 +311,7 @@ class FallDetector:
                             events.append(self._clear(pid, p, t, "stood_up"))
                         p.lying_since, p.down_s = donor.lying_since, donor.down_s
                         p.drop_x, p.drop_y = donor.drop_x, donor.drop_y
+                        p.drop_path = donor.drop_path
                         donor.handed_over, donor.lying_since = True, None
             if p.lying_since is not None and p.down_at is not None:
                 p.down_s += t - p.down_at
@@ -315,6 +332,7 @@ class FallDetector:
         sure = posture == LYING and _confidence(person) >= rules.min_confidence
         sure = sure and math.hypot(p.x - p.drop_x, p.y - p.drop_y) <= rules.reach_m
         sure = sure and not self._beside_upright(pid, p, person)
+        sure = sure and not self._still_standing_there(pid, p)
         if p.down_s >= rules.lying_s - 1e-9 and sure:
             events.append(self._fall(pid, p, t))
         return events
@@ -328,6 +346,17 @@ class FallDetector:
         return any(
             other != pid and math.hypot(x - p.x, y - p.y) <= self.rules.beside_m
             for other, x, y in self._upright
+        )
+
+    def _still_standing_there(self, pid: int, p: _Person) -> bool:
+        """Rule 2's stayed stander: another track reads standing (surely, seen now) within
+        ``stayed_m`` of a place ``p`` stood on in the ``max_drop_s`` before its candidate."""
+        if self.rules.stayed_m <= 0:
+            return False
+        return any(
+            other != pid and math.hypot(x - sx, y - sy) <= self.rules.stayed_m
+            for other, x, y in self._standing
+            for sx, sy in p.drop_path
         )
 
     def _take_over(self, pid: int, p: _Person, t: float) -> bool:
@@ -353,8 +382,11 @@ class FallDetector:
         )
         if donor is None:
             return False
-        donor.handed_over, donor.lying_since = True, None
         p.drop_x, p.drop_y = donor.stood_x, donor.stood_y
+        p.drop_path = donor.drop_path if donor.lying_since is not None else tuple(
+            (x, y) for at, x, y in donor.stood_path if t - at <= rules.max_drop_s
+        )
+        donor.handed_over, donor.lying_since = True, None
         return True
 
     def _lost_candidate(self, pid: int, p: _Person, t: float) -> _Person | None:

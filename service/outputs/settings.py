@@ -154,6 +154,13 @@ class FallSettings(BaseModel):
         description="One camera's lying read within this of someone two cameras see standing "
         "or sitting is not reported (metres; most often an extra box of that person; 0: off).",
     )
+    stayed_m: float = Field(
+        _FALL.stayed_m,
+        ge=0,
+        le=5,
+        description="A fall is not reported while someone stands within this of where the "
+        "falling track stood (metres; its person is still up, the track drifted off; 0: off).",
+    )
 
     def rules(self) -> FallRules:
         return FallRules(**self.model_dump(exclude={"enabled"}))

@@ -50,12 +50,13 @@ class StillRule:
     share: float = 0.6  # of the window's measurements within ``radius_m``
     leave_m: float = 1.0  # the recent measurements' median this far from the place: left it
     recent_s: float = 0.5  # the measurements of this last span are the recent ones
+    leave_seen_m: float = 0.5  # ... this far, when two cameras or more gave each of them
 
     def __post_init__(self) -> None:
         if not (0.0 < self.share <= 1.0 and self.radius_m > 0 and self.window_s >= self.after_s):
             raise ValueError("still rule: need 0 < share <= 1, radius_m > 0, window_s >= after_s")
-        if not (self.leave_m > 0 and self.recent_s >= 0):
-            raise ValueError("still rule: need leave_m > 0 and recent_s >= 0")
+        if not (self.leave_m > 0 and self.leave_seen_m > 0 and self.recent_s >= 0):
+            raise ValueError("still rule: need leave_m, leave_seen_m > 0 and recent_s >= 0")
 
 
 @dataclass
@@ -64,15 +65,19 @@ class StillMemory:
 
     times: deque[float] = field(default_factory=deque)
     points: deque[tuple[float, float]] = field(default_factory=deque)
+    views: deque[int] = field(default_factory=deque)  # how many cameras gave each point
     place: np.ndarray | None = None  # the still place when last judged; None: not still
 
-    def remember(self, t: float, z: np.ndarray, rule: StillRule) -> None:
-        """Add the measurement ``z`` [2] of time ``t`` and judge again (sets :attr:`place`)."""
+    def remember(self, t: float, z: np.ndarray, rule: StillRule, views: int = 1) -> None:
+        """Add the measurement ``z`` [2] of time ``t``, from ``views`` cameras, and judge
+        again (sets :attr:`place`)."""
         self.times.append(float(t))
         self.points.append((float(z[0]), float(z[1])))
+        self.views.append(int(views))
         while self.times and t - self.times[0] > rule.window_s + 1e-9:
             self.times.popleft()
             self.points.popleft()
+            self.views.popleft()
         self.place = self._judge(rule)
 
     def _judge(self, rule: StillRule) -> np.ndarray | None:
@@ -83,6 +88,9 @@ class StillMemory:
         near = np.linalg.norm(points - median, axis=1) <= rule.radius_m
         if near.mean() < rule.share:
             return None
-        recent = points[np.asarray(self.times) >= self.times[-1] - rule.recent_s - 1e-9]
-        left = np.linalg.norm(np.median(recent, axis=0) - median) > rule.leave_m
+        is_recent = np.asarray(self.times) >= self.times[-1] - rule.recent_s - 1e-9
+        recent = points[is_recent]
+        seen = len(recent) >= 2 and min(np.asarray(self.views)[is_recent]) >= 2
+        leave = rule.leave_seen_m if seen else rule.leave_m
+        left = np.linalg.norm(np.median(recent, axis=0) - median) > leave
         return None if left else median

@@ -272,6 +272,7 @@ class Tracker:
             float(still_radius_m),
             float(still_share),
             leave_m=float(still_gate_m),  # beyond the gate that takes a held track back: left
+            leave_seen_m=float(still_radius_m),  # ... or, two cameras seeing, beyond the radius
         )
         self.still_gate_m = float(still_gate_m)
         self.still_guard_m = float(still_guard_m)
@@ -508,7 +509,7 @@ class Tracker:
         track.last_seen = t
         track.hits += 1
         if self.hold_still_s > 0:
-            track.still.remember(t, z, self.still_rule)
+            track.still.remember(t, z, self.still_rule, len(origin.cameras))
         weight = self._rate_weight(self._frame_dt)
         track.rate = track.rate * (1.0 - weight) + weight
         track.cameras = [int(k) for k in origin.cameras]
@@ -680,7 +681,7 @@ class Tracker:
             origin=origin,
         )
         if self.hold_still_s > 0:
-            state.still.remember(t, z, self.still_rule)
+            state.still.remember(t, z, self.still_rule, len(origin.cameras))
         state.views.remember(origin.boxes, t)
         # credited for one frame interval, as measured (the hint before a second update)
         self._count_views(state, self._frame_dt if self._frame_dt > 0 else 1.0 / self.fps_hint, z)

@@ -463,3 +463,29 @@ def test_a_drop_is_from_a_sure_standing_read(
     clock.hold(0.6, "standing", cameras=[])  # held at the still place, its posture carried
     clock.hold(3, "lying", confidence=0.95, cameras=[0])
     assert clock.types() == expected
+
+
+@pytest.mark.parametrize(
+    "stander_x, stander_posture, stayed_m, expected",
+    [
+        (2.1, "standing", 0.5, []),  # the person still stands where the track stood
+        (2.1, "standing", 0.0, [FALL]),  # the rule off
+        (2.7, "standing", 0.5, [FALL]),  # 0.7 m away: someone else, beside the fall
+        (2.1, "sitting", 0.5, [FALL]),  # only a standing read says the person is still up
+    ],
+)
+def test_a_track_that_drifts_off_someone_still_standing_there_is_no_fall(
+    stander_x: float, stander_posture: str, stayed_m: float, expected: list[str]
+) -> None:
+    """The phantoms of the lounge's daily life through the chain (``bench/results/falls.md``):
+    a standing person's track is pulled off them by a ghost pair of two cameras' boxes, which
+    reads lying 0.8 m away, while the person, still standing, gets a new track where they stood
+    (one camera sees them there)."""
+    detector = FallDetector(FallRules(stayed_m=stayed_m))
+    t, events = _snapshots(detector, 3.0, [_seen(_stand(1))], 1000.0)
+    stander = {**_seen(_stand(2, stander_x), [1]), "posture": stander_posture}
+    t, more = _snapshots(detector, 3.0, [_seen(_lie(1, 2.8)), stander], t)
+    assert [e["type"] for e in events + more] == expected
+    # once the stander walks off, a candidate still down fires (it only waited)
+    t, later = _snapshots(detector, 0.5, [_seen(_lie(1, 2.8)), _seen(_stand(2, 4.0))], t)
+    assert [e["type"] for e in events + more + later] == [FALL]

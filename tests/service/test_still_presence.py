@@ -181,6 +181,40 @@ def test_leaving_the_place_ends_stillness() -> None:
     assert memory.place is None
 
 
+def test_two_cameras_placing_the_person_beyond_the_radius_end_stillness() -> None:
+    """Two cameras' fixes are where the person is: 0.9 m from the place, within the still gate,
+    they have left it. One camera's views as far off leave it still (a lone view's range is
+    poorly known; its neighbour may be a false box)."""
+    rule = StillRule(after_s=5.0, window_s=10.0, radius_m=0.5, share=0.6, leave_m=1.0,
+                     leave_seen_m=0.5)  # fmt: skip
+    for views, left in ((2, True), (1, False)):
+        memory = StillMemory()
+        for i in range(40):  # 8 s in one spot, two cameras
+            memory.remember(i * 0.2, np.array([1.0, 1.0]), rule, 2)
+        for i in range(1, 4):  # three fixes 0.9 m off
+            memory.remember(8.0 + i * 0.2, np.array([1.9, 1.0]), rule, views)
+        assert (memory.place is None) == left, (views, memory.place)
+
+
+def test_a_still_person_two_cameras_see_walk_off_is_not_held_back_at_the_place() -> None:
+    """Seed 101's false fall in the lounge's daily life (``bench/results/falls.md``): a person
+    who had stood still walked 0.95 m, seen by both cameras, and crouched there; unseen for a
+    moment, their track was held back at the place they had left (within the still gate), a
+    new track was born for the crouch, and a false box's lone view read lying on the held
+    phantom. Now the track is not held at the place: it stays with the person and keeps
+    their id when they are seen again."""
+    fps = 5.0
+    tracker = Tracker(fps_hint=fps, **RECOMMENDED)
+    _still_for(tracker, 10.0, fps)
+    path = np.stack([2.0 + 0.19 * np.arange(1, 6), np.full(5, 2.0)], 1)  # 0.95 m in 1 s
+    tracks = _feed(tracker, path, fps, start=10.0)
+    for i in range(1, 6):  # unseen for 1 s
+        tracks = tracker.update(11.0 + i / fps, np.zeros((0, 2)))
+        assert all(np.hypot(t.x - 2.0, t.y - 2.0) > 0.5 for t in tracks), tracks
+    tracks = _feed(tracker, np.tile([2.95, 2.0], (10, 1)), fps, start=12.2)  # seen again
+    assert [t.id for t in tracks] == [1], tracks
+
+
 def test_a_held_still_track_claims_a_fix_at_its_place() -> None:
     """The hour's id change (bench/results/still_presence_chain.md, 1513 s): while a sitter was
     unseen, a track beside their place was fed; the sitter's fix at the place cost less on that
