@@ -71,7 +71,15 @@ Rules (per track id; :class:`FallRules`, settings ``falls.*``)
    was. Two of the three false falls traced on a seed set through the chain were this, the
    person's own track 0.99-1.1 m away; the candidate only waits, so a fall beside a bystander
    fires once the second camera sees the body or the bystander steps away (no fall of 96 lost,
-   one 0.3 s later). Lying time is the time between two
+   one 0.3 s later). Nor does any snapshot fire while another track, seen now, reads standing
+   for sure within ``stayed_m`` (0.5 m) of a place the candidate's track stood on in the
+   ``max_drop_s`` before the candidate began: the person it followed is still up where it
+   left them, and the track is a phantom pulled off them by a ghost pair of two cameras' boxes
+   or a false box (two of the six false falls traced on four seed sets through the chain; the
+   standing person had a new track 0.15-0.4 m from where the phantom stood). Only a standing
+   read counts (a crouch, or a lying body seen lengthwise, reads sitting), and the candidate
+   only waits: the price is a fall right beside someone who stands still where the faller
+   stood, reported once they crouch to help or step aside. Lying time is the time between two
    consecutive snapshots of the track that both read lying (or unknown: no evidence either way;
    a dropout between them counts, the person is still down); time around a sitting or standing
    read does not count, but neither does it reset the sum: a lying body seen lengthwise from a
@@ -232,7 +240,8 @@ class FallDetector:
         self._standing = [
             (int(q["id"]), float(q["x"]), float(q["y"]))
             for q in people
-            if q.get("posture") == STANDING and _measured(q)
+            if q.get("posture") == STANDING
+            and _measured(q)
             and _confidence(q) >= self.rules.min_confidence
         ]
         for p in people:
@@ -383,8 +392,10 @@ class FallDetector:
         if donor is None:
             return False
         p.drop_x, p.drop_y = donor.stood_x, donor.stood_y
-        p.drop_path = donor.drop_path if donor.lying_since is not None else tuple(
-            (x, y) for at, x, y in donor.stood_path if t - at <= rules.max_drop_s
+        p.drop_path = (
+            donor.drop_path
+            if donor.lying_since is not None
+            else tuple((x, y) for at, x, y in donor.stood_path if t - at <= rules.max_drop_s)
         )
         donor.handed_over, donor.lying_since = True, None
         return True
