@@ -26,8 +26,9 @@ and was then missed for a second (a stalled pipeline, a dropout) was held back a
 had left and served there for the whole hold, while they themselves became a new track beyond
 the gate: the set-up check failed a fresh-clone CI run this way. A median of the recent
 measurements, not the last one: a mispaired view 2 m off just before a dropout must not end a
-sitter's stillness. When two cameras or more gave every recent measurement, their median beyond
-``leave_seen_m`` (the still radius) is enough: such fixes are where the person is. A person who
+sitter's stillness. The median of the recent fixes of two cameras or more (at least two of
+them) beyond ``leave_seen_m`` (the still radius) is enough: such fixes are where the person is,
+and a lone view among them does not undo that. A person who
 had stood still walked 0.95 m, seen by both cameras, and crouched; unseen a moment, their track
 was held back at the place they had left (within the gate), the crouch became a new track, and
 a false box read lying on the held phantom fired a fall (``bench/results/falls.md``). Lone views
@@ -55,7 +56,7 @@ class StillRule:
     share: float = 0.6  # of the window's measurements within ``radius_m``
     leave_m: float = 1.0  # the recent measurements' median this far from the place: left it
     recent_s: float = 0.5  # the measurements of this last span are the recent ones
-    leave_seen_m: float = 0.5  # ... this far, when two cameras or more gave each of them
+    leave_seen_m: float = 0.5  # ... or those of them two cameras or more gave this far
 
     def __post_init__(self) -> None:
         if not (0.0 < self.share <= 1.0 and self.radius_m > 0 and self.window_s >= self.after_s):
@@ -95,7 +96,8 @@ class StillMemory:
             return None
         is_recent = np.asarray(self.times) >= self.times[-1] - rule.recent_s - 1e-9
         recent = points[is_recent]
-        seen = len(recent) >= 2 and min(np.asarray(self.views)[is_recent]) >= 2
-        leave = rule.leave_seen_m if seen else rule.leave_m
-        left = np.linalg.norm(np.median(recent, axis=0) - median) > leave
+        left = np.linalg.norm(np.median(recent, axis=0) - median) > rule.leave_m
+        seen = recent[np.asarray(self.views)[is_recent] >= 2]  # fixes of two cameras or more
+        if len(seen) >= 2:
+            left = left or np.linalg.norm(np.median(seen, axis=0) - median) > rule.leave_seen_m
         return None if left else median

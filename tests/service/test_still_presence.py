@@ -183,16 +183,18 @@ def test_leaving_the_place_ends_stillness() -> None:
 
 def test_two_cameras_placing_the_person_beyond_the_radius_end_stillness() -> None:
     """Two cameras' fixes are where the person is: 0.9 m from the place, within the still gate,
-    they have left it. One camera's views as far off leave it still (a lone view's range is
-    poorly known; its neighbour may be a false box)."""
+    they have left it, and a lone view after them does not undo that (a faller of the lounge
+    was held back at the place they had left, a metre behind them, when one camera lost them).
+    One camera's views as far off leave it still (a lone view's range is poorly known; its
+    neighbour may be a false box)."""
     rule = StillRule(after_s=5.0, window_s=10.0, radius_m=0.5, share=0.6, leave_m=1.0,
                      leave_seen_m=0.5)  # fmt: skip
-    for views, left in ((2, True), (1, False)):
+    for views, left in (((2, 2, 2), True), ((2, 2, 1), True), ((1, 1, 2), False)):
         memory = StillMemory()
         for i in range(40):  # 8 s in one spot, two cameras
             memory.remember(i * 0.2, np.array([1.0, 1.0]), rule, 2)
-        for i in range(1, 4):  # three fixes 0.9 m off
-            memory.remember(8.0 + i * 0.2, np.array([1.9, 1.0]), rule, views)
+        for i, count in enumerate(views, 1):  # three fixes 0.9 m off (a lone view last)
+            memory.remember(8.0 + i * 0.2, np.array([1.9, 1.0]), rule, count)
         assert (memory.place is None) == left, (views, memory.place)
 
 
