@@ -75,8 +75,9 @@ Rules (per track id; :class:`FallRules`, settings ``falls.*``)
    for sure within ``stayed_m`` (0.5 m) of a place the candidate's track stood on in the
    ``max_drop_s`` before the candidate began: the person it followed is still up where it
    left them, and the track is a phantom pulled off them by a ghost pair of two cameras' boxes
-   or a false box (two of the six false falls traced on four seed sets through the chain; the
-   standing person had a new track 0.15-0.4 m from where the phantom stood). Only a standing
+   or a false box (two of the six false falls traced on four seed sets through the chain, the
+   standing person on a new track 0.15-0.4 m from where the phantom stood; none of the six of
+   two fresh seed sets was of this kind). Only a standing
    read counts (a crouch, or a lying body seen lengthwise, reads sitting), and the candidate
    only waits: the price is a fall right beside someone who stands still where the faller
    stood, reported once they crouch to help or step aside. Lying time is the time between two

@@ -28,11 +28,11 @@ the gate: the set-up check failed a fresh-clone CI run this way. A median of the
 measurements, not the last one: a mispaired view 2 m off just before a dropout must not end a
 sitter's stillness. The median of the recent fixes of two cameras or more (at least two of
 them) beyond ``leave_seen_m`` (the still radius) is enough: such fixes are where the person is,
-and a lone view among them does not undo that. A person who
-had stood still walked 0.95 m, seen by both cameras, and crouched; unseen a moment, their track
-was held back at the place they had left (within the gate), the crouch became a new track, and
-a false box read lying on the held phantom fired a fall (``bench/results/falls.md``). Lone views
-keep the wide bound: their range is poorly known.
+and a lone view among them does not undo that. A person who had stood still walked 0.95 m, seen
+by both cameras, and crouched; unseen a moment, their track was held back at the place they had
+left (within the gate), the crouch became a new track, and a false box read lying on the held
+phantom fired a fall (``bench/results/falls.md``). Lone views keep the wide bound: their range
+is poorly known.
 
 Times are the measurements' timestamps (no clock); the rule is in seconds and metres, so it
 means the same at any frame rate.
