@@ -77,10 +77,10 @@ Rules (per track id; :class:`FallRules`, settings ``falls.*``)
    left them, and the track is a phantom pulled off them by a ghost pair of two cameras' boxes
    or a false box (two of the six false falls traced on four seed sets through the chain, the
    standing person on a new track 0.15-0.4 m from where the phantom stood; none of the six of
-   two fresh seed sets was of this kind). Only a standing
-   read counts (a crouch, or a lying body seen lengthwise, reads sitting), and the candidate
-   only waits: the price is a fall right beside someone who stands still where the faller
-   stood, reported once they crouch to help or step aside. Lying time is the time between two
+   two fresh seed sets was of this kind). Only a standing read counts (a crouch, or a lying
+   body seen lengthwise, reads sitting), and the candidate only waits: the price is a fall
+   right beside someone who stands still where the faller stood, reported once they crouch
+   to help or step aside. Lying time is the time between two
    consecutive snapshots of the track that both read lying (or unknown: no evidence either way;
    a dropout between them counts, the person is still down); time around a sitting or standing
    read does not count, but neither does it reset the sum: a lying body seen lengthwise from a
@@ -199,6 +199,10 @@ class _Person:
     # the seen standing reads of the last max_drop_s
     drop_path: tuple[tuple[float, float], ...] = ()  # ... before the candidate began (stayed_m)
 
+    def stood_at(self, t: float, span_s: float) -> tuple[tuple[float, float], ...]:
+        """Where the seen standing reads of the ``span_s`` before ``t`` were."""
+        return tuple((x, y) for at, x, y in self.stood_path if t - at <= span_s)
+
 
 class FallDetector:
     """Per-track fall state; ``update`` returns the events one snapshot confirms."""
@@ -309,9 +313,7 @@ class FallDetector:
                 free = p.lying_since is None and p.fallen_at is None and not p.handed_over
                 if free and quick:
                     p.lying_since, p.down_s, p.drop_x, p.drop_y = t, 0.0, p.stood_x, p.stood_y
-                    p.drop_path = tuple(
-                        (x, y) for at, x, y in p.stood_path if t - at <= rules.max_drop_s
-                    )
+                    p.drop_path = p.stood_at(t, rules.max_drop_s)
                 elif free and p.last_standing is None and self._take_over(pid, p, t):
                     p.lying_since, p.down_s = t, 0.0
                 elif p.lying_since is None and not p.handed_over:
@@ -396,7 +398,7 @@ class FallDetector:
         p.drop_path = (
             donor.drop_path
             if donor.lying_since is not None
-            else tuple((x, y) for at, x, y in donor.stood_path if t - at <= rules.max_drop_s)
+            else donor.stood_at(t, rules.max_drop_s)
         )
         donor.handed_over, donor.lying_since = True, None
         return True
