@@ -161,6 +161,7 @@ def build_learning(
             every_labels=learning.improve_every_labels,
             nice_by=learning.improve_nice,
             time_budget_s=learning.improve_time_budget_s,
+            epochs=learning.improve_epochs,
         )
         improver = Improver(
             settings.data_dir,

@@ -299,7 +299,18 @@ class LearningSettings(BaseModel):
         19, ge=0, le=19, description="CPU priority cap of the training child (nice increment)."
     )
     improve_time_budget_s: float = Field(
-        120.0, gt=0, le=3600, description="CPU-time cap: training stops after this long."
+        120.0,
+        gt=0,
+        le=3600,
+        description="Wall-clock cap of the adaptive schedule: training stops after this long, "
+        "keeping its best epoch (not with improve_epochs).",
+    )
+    improve_epochs: int | None = Field(
+        None,
+        ge=1,
+        le=10_000,
+        description="Train at most this many epochs (early stopping may end sooner) instead of the "
+        "adaptive schedule and its time budget: the same work on a busy machine as on an idle one.",
     )
     heal: bool = Field(
         True,

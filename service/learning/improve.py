@@ -7,12 +7,14 @@ When the room has gathered ``every_labels`` new self-labels since the last run, 
    gate.held_out`), refits the training labels' positions with every camera's floor map jointly
    (:func:`service.learning.training_set.aligned`) and writes the training set (the floor marks
    plus the weighted labels, :mod:`service.learning.training_set`) into the room's folder;
-2. runs ``momloc train`` on it in a child process at ``nice`` + ``nice_by`` with a time budget,
-   exactly as the set-up page's Train button does (:mod:`service.setup.training`: a child
-   process keeps torch out of the daemon and the CPU cap out of the pipeline's way), serving
+2. runs ``momloc train`` on it in a child process at ``nice`` + ``nice_by`` with a time budget
+   (or a fixed number of epochs: the same work whatever the machine's load), exactly as the
+   set-up page's Train button does (:mod:`service.setup.training`: a child process keeps torch
+   out of the daemon and the CPU cap out of the pipeline's way), serving
    the floor geometry refitted on all rows (``--policy prior``): the labels' positions are the
    serving model's own, so no validation row can show its encoder beating that geometry
-   (:mod:`models.mom.prior_policy`);
+   (:mod:`models.mom.prior_policy`); its epochs show in the status (``epoch`` of
+   ``max_epochs``), so a slow run on a busy machine is seen to move;
 3. scores the candidate and the model in service on the same floor marks and held-out labels,
    row by row, and lets :func:`service.learning.gate.judge` decide (paired: only a candidate
    shown better beyond the checks' noise is served);
@@ -47,7 +49,7 @@ from service.learning.gate import Verdict, compare, held_out
 from service.learning.listener import SelfLabeler
 from service.learning.store import room_folder
 from service.learning.training_set import aligned, training_set
-from service.setup.training import drain, failure_reason, model_path, spawn_train
+from service.setup.training import drain, failure_reason, model_path, progress_line, spawn_train
 from service.stages import LocalizationModel
 
 log = logging.getLogger("momloc.learning")
@@ -64,11 +66,13 @@ class Serving(Protocol):
 
 @dataclass(frozen=True)
 class ImproveOptions:
-    """``learning`` settings of the background runs (``service.settings``)."""
+    """``learning`` settings of the background runs (``service.settings``); ``epochs`` (None:
+    the adaptive schedule, stopped after ``time_budget_s``) caps the epochs instead."""
 
     every_labels: int = 2000
     nice_by: int = 19
     time_budget_s: float = 120.0
+    epochs: int | None = None
     poll_s: float = 30.0
 
 
@@ -141,7 +145,9 @@ class Improver:
         """One run now (the loop calls it when enough labels are new; tests call it directly)."""
         with self._run_lock:
             self._last_count = self._count()
-            self.state.update(state="training", started=time.time(), error=None)
+            self.state.update(
+                state="training", started=time.time(), error=None, epoch=None, max_epochs=None
+            )
             self.state["runs"] += 1
             try:
                 verdict = self._run()
@@ -204,15 +210,23 @@ class Improver:
             raise MomlocError(f"learning.marks: {error}") from None
 
     def _train(self, recording: Path, staging: Path) -> None:
-        options = ["--time-budget", f"{self.options.time_budget_s:g}", "--policy", "prior"]
+        epochs = self.options.epochs
+        if epochs is None:
+            options = ["--time-budget", f"{self.options.time_budget_s:g}"]
+        else:
+            options = ["--epochs", str(epochs)]
+        options += ["--policy", "prior"]
         process = spawn_train(recording, staging, options, nice_by=self.options.nice_by)
         errors: deque[str] = deque(maxlen=40)
         reader = threading.Thread(target=drain, args=(process.stderr, errors), daemon=True)
         reader.start()
         assert process.stdout is not None
-        for _ in process.stdout:  # progress lines: not shown, only drained
+        for line in process.stdout:
             if self._stop.is_set():
                 process.terminate()
+            update = progress_line(line)
+            if update is not None and "epoch" in update:
+                self.state.update(epoch=int(update["epoch"]), max_epochs=int(update["max_epochs"]))
         code = process.wait()
         reader.join(timeout=5)
         if self._stop.is_set():

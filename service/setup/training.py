@@ -91,6 +91,9 @@ class TrainingJob:
         self._data_dir = data_dir
         self._on_model = on_model
         self.steps = SetupSteps() if steps is None else steps
+        # the child's priority below the daemon's (module docstring); a test of the flow on a
+        # busy machine sets 0, so that the machine's other work does not starve the child
+        self.nice_by = NICE
         self._lock = threading.Lock()
         self._thread: threading.Thread | None = None
         self._process: subprocess.Popen[str] | None = None
@@ -167,7 +170,7 @@ class TrainingJob:
                 )
                 staging = final.with_name(final.name + ".training")
                 shutil.rmtree(staging, ignore_errors=True)
-                process = spawn_train(recording, staging, options)
+                process = spawn_train(recording, staging, options, nice_by=self.nice_by)
                 self._process = process
                 started = time.monotonic()
             outcome = self._follow(process, staging, final, ".first" if first_loaded else None)
@@ -216,11 +219,8 @@ class TrainingJob:
             shutil.rmtree(staging, ignore_errors=True)
 
     def _progress(self, line: str) -> None:
-        try:
-            update = json.loads(line)
-        except ValueError:
-            return
-        if not isinstance(update, dict):
+        update = progress_line(line)
+        if update is None:
             return
         if "epoch" in update:
             self._state.update(
@@ -296,6 +296,16 @@ def spawn_train(
         stdin=subprocess.DEVNULL,
         text=True,
     )
+
+
+def progress_line(line: str) -> dict[str, Any] | None:
+    """One line of the child's standard output as JSON (an epoch's progress or the closing
+    summary), None for any other line."""
+    try:
+        update = json.loads(line)
+    except ValueError:
+        return None
+    return update if isinstance(update, dict) else None
 
 
 def _idle() -> dict[str, Any]:

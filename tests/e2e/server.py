@@ -209,6 +209,25 @@ def wait_for(read: Any, done: Any, timeout: float, what: str, every: float = 0.1
         time.sleep(every)
 
 
+def wait_while_progressing(
+    read: Any, done: Any, progress: Any, stall: float, what: str, every: float = 0.1
+) -> Any:
+    """``read()`` until ``done(value)``, for as long as ``progress(value)`` keeps changing: for
+    work of a fixed size whose pace is the machine's load, a liveness bound on a stall (nothing
+    moved for ``stall`` seconds), never on how long the whole work takes."""
+    moved = time.monotonic()
+    last = object()
+    while True:
+        value = read()
+        if done(value):
+            return value
+        now = progress(value)
+        if now != last:
+            last, moved = now, time.monotonic()
+        assert time.monotonic() - moved < stall, f"{what} (no progress in {stall:g} s): {value}"
+        time.sleep(every)
+
+
 def interrupt(proc: subprocess.Popen) -> None:
     """Ctrl-C, as a user stops a daemon (killed when it does not stop within 20 s)."""
     proc.send_signal(signal.SIGINT)

@@ -15,7 +15,7 @@ from service.demo import DEMO_PRESET
 from service.learning.improve import ImproveOptions
 from service.learning.listener import SelfLabeler
 from service.learning.store import SelfLabelStore
-from tests.e2e.server import running_server, wait_for
+from tests.e2e.server import running_server, wait_for, wait_while_progressing
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -49,6 +49,9 @@ def test_health_counts_self_labels_as_people_walk(tmp_path: Path) -> None:
     assert ((labels.world >= -1.0) & (labels.world <= 11.0)).all()  # the 10 m demo room
 
 
+# a guard against a hang only: the wait below fails on a stall, and a minute of scene time in
+# lock-step took over 300 s on a loaded 2-core machine
+@pytest.mark.timeout(1200)
 def test_the_room_retrains_itself_and_says_what_the_gate_decided(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -72,24 +75,36 @@ def test_the_room_retrains_itself_and_says_what_the_gate_decided(
         service.daemon, "ImproveOptions", functools.partial(ImproveOptions, poll_s=1.0)
     )
     # 300 labels at one per person every 0.5 s: a minute of scene time, so the gate can hold
-    # out whole 15 s blocks
+    # out whole 15 s blocks. The run trains a fixed number of epochs (a time budget trains less
+    # on a busy machine) at the daemon's own priority: at nice 19 the machine's other work
+    # starves the child for minutes, which is what the product's nice is for, not what this
+    # test is about.
     learning = {
         "enabled": True,
         "heal": False,
         "improve_every_labels": 300,
-        "improve_time_budget_s": 15.0,
+        "improve_epochs": 20,
+        "improve_nice": 0,
     }
+
+    def progress(learning: dict) -> object:
+        """Labels until the run starts, then its epochs (start-up and scoring have none)."""
+        run = learning["improvement"]
+        return learning["self_labels"] if run["state"] == "waiting" else run.get("epoch")
+
     with running_server(lockstep=True, data_dir=tmp_path, learning=learning) as srv:
         before = srv.daemon.pipeline.model_dir
-        health = wait_for(
+        health = wait_while_progressing(
             lambda: srv.get("/v1/health").json()["learning"],
             lambda learning: learning["improvement"]["state"] in ("done", "failed"),
-            200,
+            progress,
+            120,
             "no self-improvement run finished",
         )
         improvement = health["improvement"]
         assert improvement["state"] == "done", improvement.get("error")
         assert improvement["runs"] == 1 and health["self_labels"] >= 100
+        assert 1 <= improvement["epoch"] <= improvement["max_epochs"] == 20, improvement
         last = improvement["last"]
         assert last["marks"]["rows"] > 0 and last["labels"]["rows"] > 0
         room = srv.daemon.learning

@@ -213,10 +213,14 @@ TRAIN_OPTIONS: list[list[str]] = []
 
 
 def fake_train(recording: Path, staging: Path, options: list[str], nice_by: int = 19):
-    """A child that writes a model directory as ``momloc train`` would (no torch needed)."""
+    """A child that writes a model directory as ``momloc train`` would (no torch needed), with
+    an epoch's progress line per ``--epochs``."""
     TRAIN_OPTIONS.append(options)
+    epochs = int(options[options.index("--epochs") + 1]) if "--epochs" in options else 0
+    lines = [json.dumps({"epoch": e, "max_epochs": epochs}) for e in range(1, epochs + 1)]
     script = (
         f"import pathlib; p = pathlib.Path({str(staging)!r}); p.mkdir(); "
+        f"print('\\n'.join({lines!r})); "
         "(p / 'encoder.onnx').write_text('x'); (p / 'model.json').write_text('{}')"
     )
     return subprocess.Popen(
@@ -269,3 +273,25 @@ def test_no_improvement_on_marks_that_no_longer_match_a_repaired_camera(tmp_path
     job = improve.Improver(tmp_path, labeler, Serving(repaired))
     assert job.run() is None
     assert job.status()["state"] == "failed" and "record the marks again" in job.status()["error"]
+
+
+def test_a_run_of_fixed_epochs_has_no_time_budget_and_shows_its_epochs(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``learning.improve_epochs``: the same work whatever the machine's load, followed in the
+    status as the set-up page follows its training."""
+    monkeypatch.setattr(improve, "spawn_train", fake_train)
+    marks_dataset().save(tmp_path / "marks.npz")
+    labeler = SelfLabeler(tmp_path, threaded=False)
+    current = Line((0.0, 0.1), "current")
+    labeler._store_for(current)
+    assert labeler.store is not None
+    labeler.store.add(labels_batch())
+    options = improve.ImproveOptions(epochs=3)
+    job = improve.Improver(
+        tmp_path, labeler, Serving(current), options=options, load=lambda path: current
+    )
+    TRAIN_OPTIONS.clear()
+    assert job.run() is not None
+    assert TRAIN_OPTIONS[0][:2] == ["--epochs", "3"] and "--time-budget" not in TRAIN_OPTIONS[0]
+    assert job.status()["epoch"] == job.status()["max_epochs"] == 3

@@ -147,7 +147,9 @@ def test_training_reports_the_kept_models_error_not_the_last_epochs(
 
     from service.setup import training
 
-    def fake_train(recording: Path, staging: Path, options: list[str]) -> subprocess.Popen[str]:
+    def fake_train(
+        recording: Path, staging: Path, options: list[str], nice_by: int = training.NICE
+    ) -> subprocess.Popen[str]:
         lines = [
             {"epoch": e, "max_epochs": 3, "val_error_m": 0.5, "val_median_m": m}
             for e, m in ((1, 0.4), (2, 0.2), (3, 0.3))
