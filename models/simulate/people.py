@@ -6,13 +6,29 @@ with probability ``PAUSE_PROBABILITY`` the person first stands for 1-4 s and loo
 on the spot). Speeds are 0.8-1.5 m/s; the gait cadence follows the speed (stride length 0.8 H) so
 legs never slide. People keep about 0.5 m apart (a soft repulsion), and never leave the room.
 
-The state is integrated frame by frame at the scene's fps and cached, so ``states(a, b)`` is
-random-access and reproducible for a given seed regardless of the order of calls.
+**Spacing.** Within ``separation`` metres of each other two people are pushed apart by
+``repulsion`` of the overlap per integration step (defaults :data:`SEPARATION`,
+:data:`REPULSION`: they keep about 0.5 m). A room may set its own (``SceneConfig.separation``,
+``repulsion``): the real CMC room's eight walkers keep more room than that, their
+nearest-neighbour distances' 5 / 10 / 25 / 50 % points are 0.42 / 0.46 / 0.58 / 0.72 m (CMC2),
+which a softer, longer push gives (``cmc-room``: 1.0 m, 0.06: 0.41 / 0.48 / 0.59 / 0.73 m; the
+defaults: 0.40 / 0.43 / 0.46 / 0.55 m; ``bench/results/sim_vs_real_occlusion.md``).
+
+**The walk does not depend on the frame rate.** The push acts once per integration step, so a
+scene that stepped once per frame at 4 fps (``cmc-room``: 0.3 m per step) let people come to
+0.33 m of each other (5th percentile above) where the same walk at 15 fps keeps 0.40 m. Below
+:data:`MIN_STEP_FPS` a frame is integrated in as many equal sub-steps as bring the step rate to
+at least that (at 15 fps and above: one per frame, as before).
+
+The state is integrated frame by frame (in sub-steps below 15 fps) and cached, so
+``states(a, b)`` is random-access and reproducible for a given seed regardless of the order of
+calls.
 """
 
 from __future__ import annotations
 
 import copy
+import math
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -22,7 +38,9 @@ MARGIN = 0.35  # metres kept from the walls
 PAUSE_PROBABILITY = 0.3
 TURN_RATE = 2.6  # rad/s
 ACCELERATION = 1.5  # m/s²
-SEPARATION = 0.5  # metres
+SEPARATION = 0.5  # metres: people closer than this are pushed apart
+REPULSION = 0.25  # share of the overlap undone per integration step
+MIN_STEP_FPS = 15.0  # integration steps per second, at least
 _CHUNK = 512
 _KEEP = 128  # chunks kept in memory (65536 frames)
 
@@ -58,14 +76,23 @@ class Walking(Protocol):
 
 
 class Walkers:
-    """``count`` people in a ``room`` (width, depth metres), integrated at ``fps``."""
+    """``count`` people in a ``room`` (width, depth metres), integrated at ``fps`` (at least
+    :data:`MIN_STEP_FPS` steps a second), kept ``separation`` apart by ``repulsion``."""
 
     def __init__(
-        self, room: tuple[float, float], count: int, fps: float, rng: np.random.Generator
+        self,
+        room: tuple[float, float],
+        count: int,
+        fps: float,
+        rng: np.random.Generator,
+        separation: float = SEPARATION,
+        repulsion: float = REPULSION,
     ) -> None:
         self.room = (float(room[0]), float(room[1]))
         self.count = count
-        self.dt = 1.0 / fps
+        self.separation, self.repulsion = float(separation), float(repulsion)
+        self.substeps = max(1, math.ceil(MIN_STEP_FPS / fps - 1e-9))
+        self.dt = 1.0 / fps / self.substeps
         self._rng = rng
         self.heights = rng.uniform(1.5, 1.95, count)
         self._cruise = rng.uniform(0.8, 1.5, count)
@@ -88,6 +115,12 @@ class Walkers:
         return self._rng.uniform(lo, np.array([width, depth]) - lo, size=(n, 2))
 
     def _step(self) -> np.ndarray:
+        """One frame: :attr:`substeps` integration steps, the state after the last."""
+        for _ in range(self.substeps - 1):
+            self._advance()
+        return self._advance()
+
+    def _advance(self) -> np.ndarray:
         rng, dt = self._rng, self.dt
         to_target = self._target - self._pos
         distance = np.linalg.norm(to_target, axis=1)
@@ -114,7 +147,7 @@ class Walkers:
         if self.count > 1:  # soft repulsion keeps people from walking through each other
             diff = pos[:, None, :] - pos[None, :, :]
             dist = np.linalg.norm(diff, axis=-1) + np.eye(self.count)
-            push = np.clip(SEPARATION - dist, 0.0, None) / dist * 0.25
+            push = np.clip(self.separation - dist, 0.0, None) / dist * self.repulsion
             pos += (diff * push[..., None]).sum(axis=1)
         lo = np.minimum(MARGIN, np.array(self.room) / 2) * 0.5
         self._pos = np.clip(pos, lo, np.array(self.room) - lo)

@@ -43,7 +43,8 @@ from models.simulate.furniture import Occluders
 from models.simulate.noise import KeypointDraws, correlated_normals, detect
 from models.simulate.observation import OBSERVED, FrameObservation
 from models.simulate.outside import Placed, Together, outside_walkers
-from models.simulate.people import Walkers, Walking
+from models.simulate.people import REPULSION, SEPARATION, Walkers, Walking
+from models.simulate.postures import CODES
 from models.simulate.profile import DEFAULT_PROFILE, DetectorProfile, load_profile
 from models.simulate.room import Furniture
 from models.simulate.script import ScriptedWalker, Segment
@@ -103,6 +104,11 @@ class SceneConfig:
     outside_people: int = 0
     outside_band: float = 0.0
     outside_region: tuple[float, float, float, float] | None = None  # None: room + band
+    outside_posture: str = "standing"  # what the outside people hold (models.simulate.postures)
+    # How the ``people`` keep apart: pushed by ``repulsion`` of the overlap per step within
+    # ``separation`` metres (models.simulate.people).
+    separation: float = SEPARATION
+    repulsion: float = REPULSION
     # Furniture standing in the room (sofas, tables, desks): drawn, and it hides the parts of
     # people behind it from the cameras and their detector (models.simulate.furniture).
     furniture: tuple[Furniture, ...] = ()
@@ -122,6 +128,16 @@ class SceneConfig:
         for p in self.perturbations:
             if not 0 <= p.camera < len(self.cameras):
                 raise MomlocError(f"scene '{self.name}': perturbation of unknown camera {p.camera}")
+        if self.separation < 0 or not 0 <= self.repulsion <= 0.5:
+            raise MomlocError(
+                f"scene '{self.name}': separation must be >= 0 and repulsion in 0..0.5, got "
+                f"{self.separation}, {self.repulsion}"
+            )
+        if self.outside_posture not in CODES:
+            raise MomlocError(
+                f"scene '{self.name}': outside posture '{self.outside_posture}' is not one of "
+                f"{', '.join(CODES)}"
+            )
         if self.outside_people < 0 or self.outside_band < 0:
             raise MomlocError(f"scene '{self.name}': outside people and band must be >= 0")
         if self.area is not None:
@@ -158,6 +174,7 @@ class Scene:
             config.room if config.area is None else (config.area[1] - config.area[0],
                                                      config.area[3] - config.area[2]),
             config.people, config.fps, np.random.default_rng([self.seed, 0]),
+            config.separation, config.repulsion,
         )  # fmt: skip
         self.walkers: Walking = (
             walkers if config.area is None else Placed(walkers, (config.area[0], config.area[2]))
@@ -174,7 +191,7 @@ class Scene:
         if config.outside_people:
             self.outsiders = outside_walkers(
                 config.room, config.setup_area, config.outside_band, config.outside_people,
-                config.fps, self.seed, config.outside_region,
+                config.fps, self.seed, config.outside_region, config.outside_posture,
             )  # fmt: skip
         self._perturbed: dict[int, list[tuple[int, PinholeCamera]]] = {}
         for p in sorted(config.perturbations, key=lambda q: q.start_frame):

@@ -216,6 +216,23 @@ def test_walker_cache_is_bounded_and_replays_evicted_frames(
     assert (reference.position > 0).all() and (reference.position < 10).all()
 
 
+def test_walkers_keep_their_spacing_at_any_frame_rate() -> None:
+    import models.simulate.people as people
+
+    def closest(fps: float, **spacing: float) -> float:
+        """5th percentile of the distance to the nearest other, 8 people, 60 s at 4 samples/s."""
+        walkers = people.Walkers((4.27, 3.41), 8, fps, np.random.default_rng(2), **spacing)
+        xy = walkers.states(0, int(60 * fps)).position[:: round(fps / 4)]
+        d = np.linalg.norm(xy[:, :, None] - xy[:, None], axis=-1) + 99 * np.eye(8)
+        return float(np.percentile(d.min(-1), 5))
+
+    assert people.Walkers((5, 5), 2, 4.0, np.random.default_rng(0)).substeps == 4
+    assert people.Walkers((5, 5), 2, 15.0, np.random.default_rng(0)).substeps == 1
+    slow, fast = closest(4.0), closest(16.0)
+    assert abs(slow - fast) < 0.05 and slow > 0.35  # 4 fps stepped once a frame: 0.33 m
+    assert closest(4.0, separation=1.0, repulsion=0.06) > slow
+
+
 def test_cli_custom_room_cameras_and_bump(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     from service.cli import main
 

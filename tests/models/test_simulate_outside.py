@@ -135,3 +135,18 @@ def test_cmc_room_preset_copies_the_real_room() -> None:
         assert front and 0 < pixels[0] < 1920 and 0 < pixels[1] < 1024
     seen = np.isfinite(scene.observe_block(0)["true_boxes"]).all(-1)  # [F, P, K]
     assert seen.mean() > 0.8  # a small room: almost everyone in every view
+
+
+def test_outside_people_can_hold_a_posture() -> None:
+    standing = Scene(_config(3), seed=4)
+    seated = Scene(dataclasses.replace(_config(3), outside_posture="sitting"), seed=4)
+    a, b = standing.observe_block(0), seated.observe_block(0)
+    np.testing.assert_array_equal(a["outside_world"], b["outside_world"])  # same walks
+    np.testing.assert_array_equal(a["true_boxes"], b["true_boxes"])  # labelled people unchanged
+    tall = a["outside_true_boxes"][..., 3] - a["outside_true_boxes"][..., 1]
+    low = b["outside_true_boxes"][..., 3] - b["outside_true_boxes"][..., 1]
+    both = np.isfinite(tall) & np.isfinite(low)
+    assert np.median(low[both] / tall[both]) < 0.85  # a seated body is shorter in the image
+    assert PRESETS["cmc-room"].outside_posture == "sitting"
+    with pytest.raises(MomlocError, match="posture"):
+        dataclasses.replace(_config(1), outside_posture="dancing")
