@@ -60,6 +60,7 @@ OCCLUSION_BINS = ((0.0, 0.1), (0.1, 0.25), (0.25, 0.55), (0.55, 0.85), (0.85, 1.
 TRUNCATION_BINS = ((0.0, 0.02), (0.02, 0.25), (0.25, 0.55), (0.55, 1.01))
 MIN_BIN = 20
 STRETCH = (1.0, 1.25, 1.5, 1.75, 2.0, 2.5)
+REFINE = 4  # rounds of per-bin correction after the stretch (calibrate)
 FREE_OCCLUSION, FREE_TRUNCATION = 0.1, 0.02
 OUT = RESULTS / "cmc_detector_measurements.json"
 CITATION = (
@@ -231,37 +232,72 @@ def geometry_setup(seed: int = 0) -> dict[str, Any]:
 def calibrate(result: dict[str, Any], seeds: int = 2) -> dict[str, Any]:
     """The ``cmc`` profile's occlusion table fitted through the simulator: the simulated
     CMC2-like room (its mean of 8 people in the area, the preset's outside people) must lose
-    people as often as the real one in every bin of covered fraction. Why a fit: the simulator's
-    covered fraction (tight boxes of swinging limbs, body regions) runs higher than the
-    reference boxes' one for the same two people, so the real table, read at the simulator's
-    fractions, misses people nobody really covers. The table's fraction axis is stretched by
-    the factor (of :data:`STRETCH`) whose simulated recall per bin is closest to the real one
-    (people-weighted squares)."""
-    from bench.detector.profiles import _COMMON, ASSUMED_KEYPOINTS
-    from bench.real.cmc_profile import cmc_profile, extra_miss
-    from models.simulate.profile import parse_profile
+    people as often as the real one in every bin of covered fraction.
+
+    Why a fit: the simulator's covered fraction (tight boxes of swinging limbs, body regions) is
+    not the reference boxes' one for the same two people, and a heavily covered simulated
+    person's box shrinks to the visible sliver and then fails the pairing's IoU gate (as real
+    ones do: of the real CMC2 people covered >= 55 % a fifth have an unpaired box under 0.6 of
+    their height over them, the simulated room a sixth; ``bench/results/sim_vs_real_occlusion.md``),
+    so the real table, read at the simulator's fractions, does not give the real recall. Two
+    steps: the table's fraction axis is stretched by the factor (of :data:`STRETCH`) whose
+    simulated recall per bin is closest to the real one (people-weighted squares); then each
+    bin's extra miss is moved by its recall's remaining error over the free recall
+    (:data:`REFINE` rounds, the best table kept): the stretch alone left bins 2.6 points off
+    that the rounds bring within 1.3. Not reachable: the top bin (covered >= 85 %), which the
+    simulated room keeps less often than the real one even with no extra miss at all (0.28
+    against 0.33): its bodies hide more of a person at that overlap than the reference boxes say
+    (``bench/results/sim_vs_real_occlusion.md``)."""
+    from bench.real.cmc_profile import extra_miss
 
     crowd = result["per_sequence"]["CMC2"]
     bins = crowd["recall_by_occlusion"]
     target, weight = np.array([b["recall"] for b in bins]), np.array([b["n"] for b in bins])
     xs, ys = extra_miss(bins, crowd["recall_free"])
     people = round(float(np.mean([s["people_per_frame"] for s in crowd["sequences"]])))
-    fits = []
+
+    def fit(table: dict[str, list[float]]) -> tuple[float, dict[str, list[float]], np.ndarray]:
+        got = _simulated_occlusion_recall(result, table, people, seeds)
+        return float(np.sum(weight * (got - target) ** 2) / weight.sum()), table, got
+
+    fits = {}
     for stretch in STRETCH:
-        table = {"fraction": [min(x * stretch, 1.0) for x in xs[:-1]] + [1.0], "probability": ys}
-        table["fraction"] = np.maximum.accumulate(table["fraction"]).round(3).tolist()
-        profile, _ = cmc_profile({**result, "calibrated": table}, (ASSUMED_KEYPOINTS, ""), _COMMON)
-        config = dataclasses.replace(
-            PRESETS["cmc-room"], people=people, detector_profile=parse_profile(profile)
-        )
-        frames = [simulated_frames(Scene(config, 300 + s), 192, "fit") for s in range(seeds)]
-        got = np.array([b["recall"] for b in measure(frames)["recall_by_occlusion"]])
-        error = float(np.sum(weight * (got - target) ** 2) / weight.sum())
-        fits.append((error, stretch, table, got.round(3).tolist()))
-    error, stretch, table, got = min(fits, key=lambda f: f[0])
-    rms = {f[1]: round(f[0] ** 0.5, 4) for f in fits}
+        fraction = [min(x * stretch, 1.0) for x in xs[:-1]] + [1.0]
+        fraction = np.maximum.accumulate(fraction).round(3).tolist()
+        fits[stretch] = fit({"fraction": fraction, "probability": ys})
+    stretch = min(fits, key=lambda s: fits[s][0])
+    best = fits[stretch]
+    rounds = [round(best[0] ** 0.5, 4)]
+    for _ in range(REFINE):
+        error, table, got = best
+        extra = np.array(table["probability"][1:-1]) + (got - target) / crowd["recall_free"]
+        extra = np.maximum.accumulate(np.clip(extra, 0.0, 1.0)).round(3).tolist()
+        trial = fit({"fraction": table["fraction"], "probability": [0.0, *extra, extra[-1]]})
+        rounds.append(round(trial[0] ** 0.5, 4))
+        if trial[0] < error:
+            best = trial
+    error, table, got = best
+    rms = {s: round(f[0] ** 0.5, 4) for s, f in fits.items()}
     return {**table, "stretch": stretch, "people": people, "target": target.tolist(),
-            "simulated": got, "rms_by_stretch": rms}  # fmt: skip
+            "simulated": got.round(3).tolist(), "rms_by_stretch": rms,
+            "rms_by_round": rounds}  # fmt: skip
+
+
+def _simulated_occlusion_recall(
+    result: dict[str, Any], table: dict[str, list[float]], people: int, seeds: int
+) -> np.ndarray:
+    """Recall per covered-fraction bin of the simulated room with the ``cmc`` profile built
+    from ``result`` and the occlusion ``table``."""
+    from bench.detector.profiles import _COMMON, ASSUMED_KEYPOINTS
+    from bench.real.cmc_profile import cmc_profile
+    from models.simulate.profile import parse_profile
+
+    profile, _ = cmc_profile({**result, "calibrated": table}, (ASSUMED_KEYPOINTS, ""), _COMMON)
+    config = dataclasses.replace(
+        PRESETS["cmc-room"], people=people, detector_profile=parse_profile(profile)
+    )
+    frames = [simulated_frames(Scene(config, 300 + s), 192, "fit") for s in range(seeds)]
+    return np.array([b["recall"] for b in measure(frames)["recall_by_occlusion"]])
 
 
 def main(argv: list[str] | None = None) -> int:

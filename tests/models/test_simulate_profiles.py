@@ -151,10 +151,13 @@ def test_cmc_profile_is_the_real_room_less_its_geometry() -> None:
     # extra misses by occlusion: CMC2's, fitted through the simulator, growing with coverage
     occlusion, fitted = profile.miss.occlusion, data["calibrated"]
     assert list(occlusion.x) == fitted["fraction"] and list(occlusion.y) == fitted["probability"]
-    assert occlusion(np.array([0.0]))[0] == 0 and occlusion(np.array([0.9]))[0] > 0.5
+    assert occlusion(np.array([0.0]))[0] == 0 and occlusion(np.array([1.0]))[0] > 0.5
     assert all(np.diff(occlusion.y) >= 0)
     simulated, real = np.array(fitted["simulated"]), np.array(fitted["target"])
-    assert np.abs(simulated - real).max() < 0.1  # every covered-fraction bin within 10 points
+    assert np.abs(simulated - real)[:-1].max() < 0.05  # every bin below 85 % within 5 points
+    # covered >= 85 %: the simulated bodies hide more than the table can undo (calibrate's
+    # docstring); harsher than the real room, never kinder
+    assert real[-1] - 0.15 < simulated[-1] <= real[-1]
 
 
 @pytest.mark.parametrize("name", ["ssdlite", "nanodet", "ideal"])
