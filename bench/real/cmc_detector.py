@@ -237,17 +237,17 @@ def calibrate(result: dict[str, Any], seeds: int = 2) -> dict[str, Any]:
     Why a fit: the simulator's covered fraction (tight boxes of swinging limbs, body regions) is
     not the reference boxes' one for the same two people, and a heavily covered simulated
     person's box shrinks to the visible sliver and then fails the pairing's IoU gate (as real
-    ones do: of the real CMC2 people covered >= 55 % a fifth have an unpaired box under 0.6 of
-    their height over them, the simulated room a sixth; ``bench/results/sim_vs_real_occlusion.md``),
-    so the real table, read at the simulator's fractions, does not give the real recall. Two
-    steps: the table's fraction axis is stretched by the factor (of :data:`STRETCH`) whose
-    simulated recall per bin is closest to the real one (people-weighted squares); then each
-    bin's extra miss is moved by its recall's remaining error over the free recall
-    (:data:`REFINE` rounds, the best table kept): the stretch alone left bins 2.6 points off
-    that the rounds bring within 1.3. Not reachable: the top bin (covered >= 85 %), which the
-    simulated room keeps less often than the real one even with no extra miss at all (0.28
-    against 0.33): its bodies hide more of a person at that overlap than the reference boxes say
-    (``bench/results/sim_vs_real_occlusion.md``)."""
+    ones do: 21.5 % of the real CMC2 people covered >= 55 % have an unpaired box under 0.6 of
+    their height over them, 12.8 % of the simulated ones;
+    ``bench/results/sim_vs_real_occlusion.md``), so the real table, read at the simulator's
+    fractions, does not give the real recall. Two steps: the table's fraction axis is stretched
+    by the factor (of :data:`STRETCH`) whose simulated recall per bin is closest to the real
+    one (people-weighted squares); then each bin's extra miss is moved by its recall's
+    remaining error over the free recall (:data:`REFINE` rounds, the best table kept): the
+    stretch alone left bins 2.6 points off that the rounds bring within 1.3. Not reachable: the
+    top bin (covered >= 85 %), which the simulated room keeps less often than the real one even
+    with no extra miss at all (0.28 against 0.33): its bodies hide more of a person at that
+    overlap than the reference boxes say (``bench/results/sim_vs_real_occlusion.md``)."""
     from bench.real.cmc_profile import extra_miss
 
     crowd = result["per_sequence"]["CMC2"]
