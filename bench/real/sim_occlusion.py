@@ -73,7 +73,7 @@ from bench.real.cmc_pairing import (
     project,
     simulated_frames,
 )
-from bench.report import RESULTS, command_line, machine_line, markdown_table
+from bench.report import RESULTS, command_line, machine_line, markdown_table, write_report
 from models.simulate import PRESETS, Scene, SceneConfig
 from models.simulate import people as people_module
 
@@ -259,9 +259,7 @@ def main(argv: list[str] | None = None) -> int:
         markdown_table(HEADER, rows),
         "",
     ]
-    args.out.write_text("\n".join(text))
-    print("\n".join(text))
-    return 0
+    return write_report(args.out, "\n".join(text))
 
 
 if __name__ == "__main__":

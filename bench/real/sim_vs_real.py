@@ -43,7 +43,7 @@ from scipy.optimize import linear_sum_assignment
 
 from bench.real.cmc_detector import CITATION, measure
 from bench.real.cmc_pairing import AREA, in_area, load_real, simulated_frames
-from bench.report import RESULTS, command_line, machine_line, markdown_table
+from bench.report import RESULTS, command_line, machine_line, markdown_table, write_report
 from models.data.dataset import MomDataset
 from models.data.stream_metrics import StreamScorer
 from models.simulate import PRESETS, Scene, SceneConfig, simulate
@@ -255,9 +255,7 @@ def main(argv: list[str] | None = None) -> int:
         ),
         "",
     ]
-    args.out.write_text("\n".join(text))
-    print("\n".join(text))
-    return 0
+    return write_report(args.out, "\n".join(text))
 
 
 if __name__ == "__main__":
