@@ -118,13 +118,17 @@ def test_first_run_in_the_browser(browser, tmp_path: Path) -> None:  # noqa: F81
         fill(driver, "verify-seconds", "3")
         fill(driver, "move-seconds", "4")
         driver.find_element("id", "verify").click()
-        summary = wait_until(
-            lambda: re.fullmatch(
-                r"median \d+\.\d\d m over 2 marks", text(driver, "verify-summary")
-            ),
-            90,
-            "verification summary",
-        )
+        try:
+            summary = wait_until(
+                lambda: re.fullmatch(
+                    r"median \d+\.\d\d m over 2 marks", text(driver, "verify-summary")
+                ),
+                90,
+                "verification summary",
+            )
+        except AssertionError as error:  # say what the page showed (a mark nobody was seen on?)
+            shown = text(driver, "verify-summary")
+            raise AssertionError(f"{error}; the page shows {shown!r}") from None
         assert float(summary.group(0).split()[1]) < 1.0
         shoot(driver, shots / "06-checked.png", "verify-panel")
 
