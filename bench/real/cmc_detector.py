@@ -44,10 +44,8 @@ import numpy as np
 from bench.real.cmc_pairing import (
     Frames,
     Pairs,
-    floor_point,
-    in_area,
-    in_room,
     load_real,
+    outside_people,
     pair,
     simulated_frames,
 )
@@ -184,9 +182,7 @@ def _unmatched(parts: list[tuple[Frames, Pairs]]) -> dict[str, Any]:
             for k, boxes in enumerate(per_camera):
                 if not len(boxes):
                     continue
-                foot = floor_point(f.projections[k], np.column_stack(
-                    [(boxes[:, 0] + boxes[:, 2]) / 2, boxes[:, 3]]))  # fmt: skip
-                out = in_room(foot) & ~in_area(foot)
+                foot, out = outside_people(f.projections[k], boxes)
                 feet += foot[out].tolist()
                 seq_out += int(out.sum())
                 seq_false += int((~out).sum())
@@ -276,7 +272,7 @@ def calibrate(result: dict[str, Any], seeds: int = 2) -> dict[str, Any]:
         rounds.append(round(trial[0] ** 0.5, 4))
         if trial[0] < error:
             best = trial
-    error, table, got = best
+    _, table, got = best
     rms = {s: round(f[0] ** 0.5, 4) for s, f in fits.items()}
     return {**table, "stretch": stretch, "people": people, "target": target.tolist(),
             "simulated": got.round(3).tolist(), "rms_by_stretch": rms,

@@ -222,3 +222,10 @@ def in_room(points: np.ndarray, room: tuple[float, float] = ROOM) -> np.ndarray:
     """[N] whether floor points [N, 2] lie in the room."""
     x, y = points[:, 0], points[:, 1]
     return (x >= 0) & (x <= room[0]) & (y >= 0) & (y <= room[1])
+
+
+def outside_people(matrix: np.ndarray, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Calibrated foot points [M, 2] of boxes [M, 4] (bottom centre) and [M] whether each
+    stands in the room but outside the set-up area: a person the area was not set up for."""
+    foot = floor_point(matrix, np.column_stack([(boxes[:, 0] + boxes[:, 2]) / 2, boxes[:, 3]]))
+    return foot, in_room(foot) & ~in_area(foot)

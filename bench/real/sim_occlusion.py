@@ -64,11 +64,9 @@ from bench.real.cmc_pairing import (
     Frames,
     Pairs,
     _covered,
-    floor_point,
-    in_area,
-    in_room,
     iou,
     load_real,
+    outside_people,
     pair,
     project,
     simulated_frames,
@@ -95,9 +93,7 @@ def outside_figures(frames: Frames) -> dict[str, float]:
             row += n
             mine = np.zeros((0, 4))
             if len(boxes):
-                foot = floor_point(frames.projections[k], np.column_stack(
-                    [(boxes[:, 0] + boxes[:, 2]) / 2, boxes[:, 3]]))  # fmt: skip
-                out = in_room(foot) & ~in_area(foot)
+                foot, out = outside_people(frames.projections[k], boxes)
                 mine, count = boxes[out], count + int(out.sum())
                 for box, xy in zip(mine, foot[out], strict=True):
                     if k in FAR and box[3] < BOTTOM:
