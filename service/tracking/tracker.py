@@ -91,9 +91,13 @@ values and the order of the changes are in ``bench/results/tracker_tuning.md`` a
   tracks early, their covariance being long along the line of sight from the start);
 - the likelihood cost with a 1.5 m gate cut id switches; a wider Euclidean gate alone let tracks
   take other people's boxes; ``gate_growth_mps`` 0.5 and ``robust_chi2`` 16 lowered jitter;
-- ``measurement_scale`` 9: the floor prior's covariance is ~3x overconfident in std (see
-  :mod:`service.tracking.measurements`); trusted as given, tracks of people passing each other
-  swapped ids even with the true association;
+- ``measurement_scale`` 9, learned from there (``adapt_scale_s`` 10 s,
+  :mod:`service.tracking.noise_scale`): how far the localizer's covariances can be trusted
+  depends on the room. In the real CMC crowd they are ~3x overconfident in std, and trusted as
+  given, tracks of people passing each other swapped ids even with the true association; in
+  rooms whose people stand apart the fixed 9 followed walkers' turns late. The scale settles
+  where the tracker's innovations fit the scaled covariances (5-6 in the real crowd; its floor,
+  3, in the simulated rooms);
 - ``birth_clearance_m`` 0.8: a person whose boxes split into two clusters is not a second
   person; no track is born that close to a confirmed or just-measured one (to a still track
   held unseen: its place, where the assignment expects it, not its coasting filter);
@@ -136,6 +140,7 @@ from service.tracking.image_continuity import (
     ViewMemory,
 )
 from service.tracking.motion import ConstantVelocity, StandOrWalk
+from service.tracking.noise_scale import NoiseScale
 from service.tracking.stillness import StillMemory, StillRule
 
 _CLAIMED = -1e6  # a held still track's own place (Tracker._claims)
@@ -157,7 +162,8 @@ RECOMMENDED: dict[str, Any] = {
     "assign_cost": "likelihood",
     "doubt_outside": True,
     # the real CMC room, 10 people at 4 fps (bench/results/real_cmc_chain_tuning.md)
-    "measurement_scale": 9.0,
+    "measurement_scale": 9.0,  # where it starts; learned from the innovations:
+    "adapt_scale_s": 10.0,  # service.tracking.noise_scale
     "birth_clearance_m": 0.8,
     "merge_m": 0.35,
     "merge_s": 0.5,
@@ -208,6 +214,7 @@ class Tracker:
         rate_time_s: float = 0.32,
         motion: str = "cv",
         measurement_scale: float = 1.0,
+        adapt_scale_s: float = 0.0,
         min_measurement_std_m: float = 0.03,
         max_measurement_std_m: float = 3.0,
         confirm_single_s: float | None = None,
@@ -248,7 +255,7 @@ class Tracker:
         if motion not in MOTION_MODELS:
             raise ValueError(f"motion {motion!r}: expected one of {sorted(MOTION_MODELS)}")
         self.motion = motion
-        self.measurement_scale = float(measurement_scale)
+        self.noise_scale = NoiseScale(float(measurement_scale), float(adapt_scale_s))
         self.min_measurement_var = float(min_measurement_std_m) ** 2
         self.max_measurement_var = float(max_measurement_std_m) ** 2
         if confirm_single_s is None:
@@ -352,6 +359,7 @@ class Tracker:
         for i, track in enumerate(self._tracks):
             if i not in matched_tracks:
                 track.rate *= 1.0 - self._rate_weight(dt)
+        self.noise_scale.step(dt)
         for c in self._births(positions, set(cols.tolist())):
             self._tracks.append(self._spawn(positions[c], noise[c], kept[c], self._time))
         if coverage is not None and self.ghost_s > 0:
@@ -490,7 +498,7 @@ class Tracker:
         for i, c in enumerate(covariances):
             if c is None:
                 continue
-            c = np.asarray(c, dtype=np.float64).reshape(2, 2) * self.measurement_scale
+            c = np.asarray(c, dtype=np.float64).reshape(2, 2) * self.noise_scale.value
             if not np.isfinite(c).all():
                 continue
             # Bound the eigenvalues: a near-singular covariance would lock the track on one axis.
@@ -505,6 +513,9 @@ class Tracker:
     def _correct(
         self, track: _State, z: np.ndarray, r: np.ndarray, origin: Origin, t: float
     ) -> None:
+        if track.confirmed and self.noise_scale.adapting:
+            nu = z - track.motion.mean[:2]
+            self.noise_scale.observe(float(nu @ np.linalg.solve(track.motion.cov[:2, :2] + r, nu)))
         track.motion.correct(z, self._robust(track, z, r))
         track.last_seen = t
         track.hits += 1

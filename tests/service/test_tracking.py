@@ -169,8 +169,8 @@ def test_single_view_ghost_where_another_camera_looks_is_dropped() -> None:
 def test_measurement_covariance_is_used_and_checked() -> None:
     """Measurements precise across the line of sight (y) follow a sideways step at once."""
     sight = np.diag([0.5**2, 0.02**2])
-    # the covariances as given (RECOMMENDED scales the floor prior's by 9: its overconfidence)
-    options = {**RECOMMENDED, "robust_chi2": 0.0, "measurement_scale": 1.0}
+    # the covariances as given (RECOMMENDED starts at 9 times them and learns the scale)
+    options = {**RECOMMENDED, "robust_chi2": 0.0, "measurement_scale": 1.0, "adapt_scale_s": 0.0}
     plain = Tracker(fps_hint=FPS, **options)
     steered = Tracker(fps_hint=FPS, **options)
     for i in range(50):
