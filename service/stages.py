@@ -73,7 +73,9 @@ class Origin:
     :meth:`FrameResult.track_ids` find it there); ``cost``: the association's reprojection cost;
     ``inside``: in the model's set-up area (``service.pipeline.chain``); ``boxes``: the
     association's boxes [K, 4] (NaN where camera k does not see it), for the tracker's image
-    continuity (``service.tracking.image_continuity``).
+    continuity (``service.tracking.image_continuity``); ``standing``: its boxes read standing (or
+    no posture read): the tracker trusts a seated or lying person's position only as far as
+    its starting measurement scale (``service.tracking.noise_scale``).
     """
 
     cameras: tuple[int, ...] = ()
@@ -82,6 +84,7 @@ class Origin:
     cost: float | None = None
     inside: bool = True
     boxes: np.ndarray | None = field(default=None, compare=False)
+    standing: bool = True
 
 
 @dataclass

@@ -156,6 +156,10 @@ class Chain:
             if len(associations) < len(found):
                 self.outside = [a for a in found if not a.inside]
         associated = time.perf_counter()
+        posed = [
+            box_postures is not None and box_postures.of(a.detection_index)[0] in (SITTING, LYING)
+            for a in associations
+        ]
         origins = [
             Origin(
                 cameras=tuple(int(c) for c in a.cameras),
@@ -164,6 +168,7 @@ class Chain:
                 cost=a.cost,
                 inside=a.inside,
                 boxes=a.boxes,
+                standing=not posed[i],
             )
             for i, a in enumerate(associations)
         ]

@@ -55,7 +55,7 @@ class NoiseScale:
             raise ValueError(f"initial scale {initial}: must be positive")
         if time_constant_s < 0:
             raise ValueError(f"time_constant_s {time_constant_s}: must be 0 (fixed) or positive")
-        self.value = float(initial)
+        self.initial = self.value = float(initial)
         self.time_constant_s = float(time_constant_s)
         self._above = 0
         self._seen = 0

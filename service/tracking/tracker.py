@@ -333,7 +333,7 @@ class Tracker:
         given = list(origins) if origins is not None else [Origin()] * len(positions)
         if len(given) != len(positions):
             raise ValueError(f"{len(given)} origins for {len(positions)} positions")
-        noise = self._noise(covariances, len(positions))
+        noise = self._noise(covariances, len(positions), given)
         positions, noise = positions[keep], noise[keep]
         kept = [o for o, k in zip(given, keep, strict=True) if k]
 
@@ -487,9 +487,17 @@ class Tracker:
     # -- filters -------------------------------------------------------------------------------
 
     def _noise(
-        self, covariances: Sequence[np.ndarray | None] | np.ndarray | None, count: int
+        self,
+        covariances: Sequence[np.ndarray | None] | np.ndarray | None,
+        count: int,
+        origins: Sequence[Origin],
     ) -> np.ndarray:
-        """Measurement covariance [P, 2, 2] per position (isotropic default where not given)."""
+        """Measurement covariance [P, 2, 2] per position (isotropic default where not given),
+        times the learned scale; a seated or lying person's (``Origin.standing`` false) at least
+        times the starting one: the localizer was set up on standing people, and its covariance
+        says nothing of how far off a lying body's box puts them (a lone camera's lying box,
+        trusted at the scale learned on walkers, dragged a fallen person's track 1.5 m along its
+        line of sight: ``bench/results/tracker_tuning.md``)."""
         out = np.tile(np.eye(2) * self.measurement_var, (count, 1, 1))
         if covariances is None:
             return out
@@ -498,7 +506,10 @@ class Tracker:
         for i, c in enumerate(covariances):
             if c is None:
                 continue
-            c = np.asarray(c, dtype=np.float64).reshape(2, 2) * self.noise_scale.value
+            scale = self.noise_scale.value
+            if not origins[i].standing:
+                scale = max(scale, self.noise_scale.initial)
+            c = np.asarray(c, dtype=np.float64).reshape(2, 2) * scale
             if not np.isfinite(c).all():
                 continue
             # Bound the eigenvalues: a near-singular covariance would lock the track on one axis.
@@ -513,7 +524,7 @@ class Tracker:
     def _correct(
         self, track: _State, z: np.ndarray, r: np.ndarray, origin: Origin, t: float
     ) -> None:
-        if track.confirmed and self.noise_scale.adapting:
+        if track.confirmed and origin.standing and self.noise_scale.adapting:
             nu = z - track.motion.mean[:2]
             self.noise_scale.observe(float(nu @ np.linalg.solve(track.motion.cov[:2, :2] + r, nu)))
         track.motion.correct(z, self._robust(track, z, r))
