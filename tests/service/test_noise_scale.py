@@ -67,3 +67,24 @@ def test_wild_innovations_move_the_median_tracker_no_faster_than_its_time_consta
     assert scale.value == MIN_SCALE
     with pytest.raises(ValueError, match="initial"):
         NoiseScale(0.0, 10.0)
+
+
+def test_a_seated_or_lying_persons_position_keeps_the_starting_scale() -> None:
+    """With the scale learned down to its floor, a lying body's box (``Origin.standing``
+    false), 1 m off along a lone camera's line of sight, drags its track less than a standing
+    person's box would, and teaches the scale nothing."""
+    moved = {}
+    sight = np.diag([0.6**2, 0.09**2])  # a lone view: long along x
+    for standing in (True, False):
+        tracker = Tracker(fps_hint=10, **RECOMMENDED)
+        tracker.noise_scale.value = MIN_SCALE  # as learned in a room of people standing apart
+        both = [Origin(cameras=(0, 1))]
+        for i in range(20):  # 2 s seen by both cameras (not yet still: that takes 5 s)
+            tracks = tracker.update(i / 10, np.array([[2.0, 2.0]]), both, covariances=[sight / 4])
+        for i in range(20, 30):
+            lone = [Origin(cameras=(0,), standing=standing)]
+            tracks = tracker.update(i / 10, np.array([[3.0, 2.0]]), lone, covariances=[sight])
+        assert tracker.noise_scale.value == MIN_SCALE or standing
+        (track,) = tracks
+        moved[standing] = track.x - 2.0
+    assert 0 < moved[False] < 0.7 * moved[True], moved

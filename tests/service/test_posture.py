@@ -367,3 +367,27 @@ def test_a_lying_body_is_kept_and_a_torso_cut_by_the_border_is_judged_as_detecte
     assert [a.detection_index for a in chain.outside] == [[1]]
     assert sorted(t.x for t in tracks) == pytest.approx([4.25, 4.36], abs=0.05)
     assert all(t.posture is not None and t.posture[0] == LYING for t in tracks)
+
+
+def test_the_tracker_is_told_which_positions_are_of_lying_bodies() -> None:
+    """``Origin.standing`` is false for a box read lying, true for an upright one: the tracker
+    keeps its starting measurement scale for the first (``service.tracking.noise_scale``)."""
+    from service.pipeline.chain import Chain
+    from service.stages import Origin
+    from service.tracking.tracker import RECOMMENDED, Tracker
+
+    fallen = [200.0, 385.0, 360.0, 465.0]  # as in the test above: read lying
+    upright = [450.0, 225.0, 490.0, 425.0]  # 200 px tall, 40 wide
+    tracker = Tracker(fps_hint=10, **RECOMMENDED)
+    seen: list[list[Origin]] = []
+    update = tracker.update
+
+    def spy(t, positions, origins=None, **kwargs):
+        seen.append(list(origins or []))
+        return update(t, positions, origins, **kwargs)
+
+    tracker.update = spy  # type: ignore[method-assign,assignment]
+    chain = Chain(tracker, associate=_each_box, view_bias=None)  # type: ignore[arg-type]
+    boxes = np.array([fallen, upright], np.float32)
+    chain(0.0, [Detections(boxes, np.ones(2, np.float32))], _RowMapCamera(), [True], 0)  # type: ignore[arg-type]
+    assert sorted(o.standing for o in seen[-1]) == [False, True]
