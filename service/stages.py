@@ -73,9 +73,9 @@ class Origin:
     :meth:`FrameResult.track_ids` find it there); ``cost``: the association's reprojection cost;
     ``inside``: in the model's set-up area (``service.pipeline.chain``); ``boxes``: the
     association's boxes [K, 4] (NaN where camera k does not see it), for the tracker's image
-    continuity (``service.tracking.image_continuity``); ``standing``: its boxes read standing (or
-    no posture read): the tracker trusts a seated or lying person's position only as far as
-    its starting measurement scale (``service.tracking.noise_scale``).
+    continuity (``service.tracking.image_continuity``); ``standing``: false when its boxes read
+    lying: the tracker trusts a lying body's position only as far as its starting measurement
+    scale (``service.tracking.noise_scale``).
     """
 
     cameras: tuple[int, ...] = ()

@@ -157,7 +157,7 @@ class Chain:
                 self.outside = [a for a in found if not a.inside]
         associated = time.perf_counter()
         posed = [
-            box_postures is not None and box_postures.of(a.detection_index)[0] in (SITTING, LYING)
+            box_postures is not None and box_postures.of(a.detection_index)[0] == LYING
             for a in associations
         ]
         origins = [

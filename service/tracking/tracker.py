@@ -493,11 +493,13 @@ class Tracker:
         origins: Sequence[Origin],
     ) -> np.ndarray:
         """Measurement covariance [P, 2, 2] per position (isotropic default where not given),
-        times the learned scale; a seated or lying person's (``Origin.standing`` false) at least
-        times the starting one: the localizer was set up on standing people, and its covariance
-        says nothing of how far off a lying body's box puts them (a lone camera's lying box,
-        trusted at the scale learned on walkers, dragged a fallen person's track 1.5 m along its
-        line of sight: ``bench/results/tracker_tuning.md``)."""
+        times the learned scale; a lying body's (``Origin.standing`` false) at least times the
+        starting one: the localizer was set up on standing people, and its covariance says
+        nothing of how far off a lying body's box puts them (a lone camera's lying box, trusted
+        at the scale learned on walkers, dragged a fallen person's track 1.5 m along its line of
+        sight: ``bench/results/tracker_tuning.md``). Seated people are not exempt: in the real
+        crowd a half-hidden walker's box reads seated, and exempting those cost the learned
+        scale its gain there (same file)."""
         out = np.tile(np.eye(2) * self.measurement_var, (count, 1, 1))
         if covariances is None:
             return out

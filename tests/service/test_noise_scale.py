@@ -69,7 +69,7 @@ def test_wild_innovations_move_the_median_tracker_no_faster_than_its_time_consta
         NoiseScale(0.0, 10.0)
 
 
-def test_a_seated_or_lying_persons_position_keeps_the_starting_scale() -> None:
+def test_a_lying_persons_position_keeps_the_starting_scale() -> None:
     """With the scale learned down to its floor, a lying body's box (``Origin.standing``
     false), 1 m off along a lone camera's line of sight, drags its track less than a standing
     person's box would, and teaches the scale nothing."""
