@@ -10,7 +10,7 @@ former fixed scale 9 (``bench/results/tracker_tuning.md``, 2026-12-06): the medi
 two degrees of freedom), was 0.21-0.61 in the simulated rooms (the covariances were inflated
 several times too much: walkers' turns were followed late) and 0.9-1.0 in the real CMC room with
 10 people (about right), 0.3 in the same room with 3 people. No fixed scale suits both: 2
-raised the simulated rooms' streamed MOTA by 2-6 points and cost the real crowd 2-4.
+raised the simulated rooms' streamed MOTA by up to 6 points and cost the real crowd 1-4.
 
 So the scale follows the innovations: a stochastic-approximation tracker of the median
 (Robbins-Monro). Each frame set, the share of this frame's innovations whose ``d²`` exceeds the
@@ -25,8 +25,8 @@ Bounds: ``MIN_SCALE`` 3. The median fits the spread of one frame's errors, but a
 errors are correlated over about a second (a box edge stays off for several frames), and a
 filter that trusts each frame fully follows them: on the stream gate's scene (indoor-2cam, 3
 people, the demo model) a floor of 1 or 2 lost 4 points of MOTA on one of three seeds where 3
-lost none (the scale settles at 1-2.6 there), and improved the matched error and jitter as
-much (``bench/results/tracker_tuning.md``). ``MAX_SCALE`` 16, so a burst of wrong pairings
+lost none (the scale settles at 1-2.6 there); all three lowered the matched error and the
+standing jitter alike (``bench/results/tracker_tuning.md``). ``MAX_SCALE`` 16, so a burst of wrong pairings
 cannot switch the filter off. A room with nobody in it does not move the scale.
 
 Example::
