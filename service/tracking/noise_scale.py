@@ -26,8 +26,8 @@ errors are correlated over about a second (a box edge stays off for several fram
 filter that trusts each frame fully follows them: on the stream gate's scene (indoor-2cam, 3
 people, the demo model) a floor of 1 or 2 lost 4 points of MOTA on one of three seeds where 3
 lost none (the scale settles at 1-2.6 there); all three lowered the matched error and the
-standing jitter alike (``bench/results/tracker_tuning.md``). ``MAX_SCALE`` 16, so a burst of wrong pairings
-cannot switch the filter off. A room with nobody in it does not move the scale.
+standing jitter alike (``bench/results/tracker_tuning.md``). ``MAX_SCALE`` 16, so a burst of
+wrong pairings cannot switch the filter off. A room with nobody in it does not move the scale.
 
 Example::
 
