@@ -77,3 +77,27 @@ def test_benches_skip_with_one_line_without_data(
     lines = capsys.readouterr().out.strip().splitlines()
     assert len(lines) == 2 and all("skipped" in line for line in lines)
     assert not (tmp_path / "x.md").exists() and not (tmp_path / "x.json").exists()
+
+
+def test_real_shares_carry_their_sampling_interval() -> None:
+    """The block bootstrap's interval holds the share it resamples, and the table says when a
+    simulated share outside the ±20 % band lies inside the real one's interval."""
+    import dataclasses
+
+    config = dataclasses.replace(PRESETS["cmc-room"], people=6, outside_people=0)
+    frames = simulated_frames(Scene(config, seed=2), 80, "crowd")
+    shares = cmc_detector.measure([frames])["cameras_per_person"]
+    bands = sim_vs_real.share_intervals(frames, draws=300)
+    assert len(bands) == 6
+    for share, (low, high) in zip([*shares, sum(shares[:3])], bands, strict=True):
+        assert low - 1e-9 <= share <= high + 1e-9 and low <= high
+    real = {"variants": {}, "cameras": [0.0, 0.04, 0.2, 0.4, 0.36], "outside": 5.0,
+            "cameras_interval": [(0, 0), (0.028, 0.046), (0.17, 0.25), (0.3, 0.5), (0.3, 0.4),
+                                 (0.2, 0.3)]}  # fmt: skip
+    sim = {"cameras": [0.0, 0.03, 0.15, 0.4, 0.42], "outside": 5.0}
+    sim.update({f"{v}.{k}": 1.0 for v in sim_vs_real.VARIANTS for k in sim_vs_real.FIGURES})
+    rows = {r[0]: r for r in sim_vs_real.table(real, sim)}
+    one = rows["people boxed by 1 camera(s), %"]
+    assert one[1] == "4.0 (95 %: 2.8 to 4.6)"
+    assert one[4] == "**no**, within the real interval"
+    assert rows["people boxed by 2 camera(s), %"][4] == "**no**"  # 15 % of 20 %: outside both
