@@ -30,9 +30,10 @@ def walk_and_stand(tracker: Tracker, fps: float, seconds: float, true_std: float
 
 @pytest.mark.parametrize("fps", [4.0, 15.0, 30.0])
 def test_the_scale_settles_where_the_covariances_describe_the_errors(fps: float) -> None:
-    """Covariances 2.5x overconfident in std: the scale, started at 1, settles near 2.5² (the
-    filter's own prediction covariance takes a little of the innovation), the same at any
-    frame rate; honest covariances started at 9 come down to the lower bound."""
+    """Covariances 2.5x overconfident in std: the scale, started below its floor (raised to 3
+    at the first step), settles a little under 2.5² = 6.25 (the filter's own prediction
+    covariance takes part of the innovation), the same at any frame rate; honest covariances
+    started at 9 come down to the floor."""
     options = {**RECOMMENDED, "measurement_scale": 1.0}
     over = walk_and_stand(Tracker(fps_hint=fps, **options), fps, 90, 0.15, 0.06)
     settled = np.median(over[len(over) // 2 :])
