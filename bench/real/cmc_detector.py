@@ -162,11 +162,18 @@ def _lag1(seq, camera, person, frame, values) -> float:
     return float(np.corrcoef(x[:, 0], x[:, 1])[0, 1])
 
 
-def _cameras_per_person(seq, frame, person, found) -> list[float]:
-    """Share of (frame, person) instances boxed by 0, 1, .. 4 cameras."""
+def cameras_boxing(seq, frame, person, found) -> dict[tuple[int, int, int], int]:
+    """Per (sequence, frame, person) instance: how many cameras box them."""
     counts: dict[tuple[int, int, int], int] = {}
     for s, f, q, hit in zip(seq, frame, person, found, strict=True):
-        counts[(s, f, q)] = counts.get((s, f, q), 0) + int(hit)
+        key = (int(s), int(f), int(q))
+        counts[key] = counts.get(key, 0) + int(hit)
+    return counts
+
+
+def _cameras_per_person(seq, frame, person, found) -> list[float]:
+    """Share of (frame, person) instances boxed by 0, 1, .. 4 cameras."""
+    counts = cameras_boxing(seq, frame, person, found)
     values = np.bincount(list(counts.values()), minlength=5)[:5]
     return (values / max(values.sum(), 1)).tolist()
 

@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from bench.real.cmc_detector import CITATION, measure
+from bench.real.cmc_detector import CITATION, cameras_boxing, measure
 from bench.real.cmc_pairing import AREA, Frames, in_area, load_real, pair, simulated_frames
 from bench.report import RESULTS, command_line, machine_line, markdown_table, write_report
 from models.data.dataset import MomDataset
@@ -155,12 +155,9 @@ def share_intervals(
     of frames drawn with replacement (a moving-block bootstrap: a person's misses run over
     consecutive frames, so frames are not independent draws)."""
     p = pair(frames)
-    found = np.isfinite(p.box[:, 0])
-    count: dict[tuple[int, int], int] = {}
-    for f, q, hit in zip(p.frame, p.person, found, strict=True):
-        count[(int(f), int(q))] = count.get((int(f), int(q)), 0) + int(hit)
+    count = cameras_boxing(np.zeros_like(p.frame), p.frame, p.person, np.isfinite(p.box[:, 0]))
     tally = np.zeros((len(frames.people), 6))  # per frame: people boxed by k cameras, and < 3
-    for (f, _), k in count.items():
+    for (_, f, _), k in count.items():
         tally[f, k] += 1
         tally[f, 5] += k < 3
     block = max(1, round(block_s * frames.fps))

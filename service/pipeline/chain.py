@@ -156,10 +156,11 @@ class Chain:
             if len(associations) < len(found):
                 self.outside = [a for a in found if not a.inside]
         associated = time.perf_counter()
-        posed = [
-            box_postures is not None and box_postures.of(a.detection_index)[0] == LYING
-            for a in associations
-        ]
+        postures = (  # one per association: its boxes' vote
+            [box_postures.of(a.detection_index) for a in associations]
+            if box_postures is not None
+            else []
+        )
         origins = [
             Origin(
                 cameras=tuple(int(c) for c in a.cameras),
@@ -168,7 +169,7 @@ class Chain:
                 cost=a.cost,
                 inside=a.inside,
                 boxes=a.boxes,
-                standing=not posed[i],
+                standing=not postures or postures[i][0] != LYING,
             )
             for i, a in enumerate(associations)
         ]
@@ -185,11 +186,6 @@ class Chain:
         if self.view_bias is not None:  # learn the offsets from what fed each track
             self.view_bias.learn(t, associations, runtime, tracks)
         if self.postures:
-            postures = (
-                [box_postures.of(a.detection_index) for a in associations]
-                if box_postures is not None
-                else []
-            )
             self._smooth_postures(t, tracks, postures)
         if runtime is not None:
             tracks = gate_tracks_to_area(tracks, runtime, self.outside_area)

@@ -526,10 +526,11 @@ class Tracker:
     def _correct(
         self, track: _State, z: np.ndarray, r: np.ndarray, origin: Origin, t: float
     ) -> None:
-        if track.confirmed and origin.standing and self.noise_scale.adapting:
-            nu = z - track.motion.mean[:2]
-            self.noise_scale.observe(float(nu @ np.linalg.solve(track.motion.cov[:2, :2] + r, nu)))
-        track.motion.correct(z, self._robust(track, z, r))
+        nu = z - track.motion.mean[:2]
+        d2 = float(nu @ np.linalg.solve(track.motion.cov[:2, :2] + r, nu))
+        if track.confirmed and origin.standing:
+            self.noise_scale.observe(d2)
+        track.motion.correct(z, self._robust(r, d2))
         track.last_seen = t
         track.hits += 1
         if self.hold_still_s > 0:
@@ -620,14 +621,12 @@ class Tracker:
         (0.32 s is the former per-frame weight 0.1 at 30 fps)."""
         return float(1.0 - np.exp(-max(dt, 0.0) / self.rate_time_s))
 
-    def _robust(self, track: _State, z: np.ndarray, r: np.ndarray) -> np.ndarray:
+    def _robust(self, r: np.ndarray, d2: float) -> np.ndarray:
         """Measurement covariance inflated by d² / robust_chi2 when the innovation's squared
         Mahalanobis distance d² exceeds ``robust_chi2`` (a Huber-like weight: one wild box
         moves a track less)."""
         if self.robust_chi2 <= 0:
             return r
-        nu = z - track.motion.mean[:2]
-        d2 = float(nu @ np.linalg.solve(track.motion.cov[:2, :2] + r, nu))
         return r * (d2 / self.robust_chi2) if d2 > self.robust_chi2 else r
 
     def _confirm(self, track: _State, t: float) -> None:
