@@ -12,12 +12,13 @@ the share of people by the number of cameras that box them and the boxes per fra
 outside the area are measured here on CMC2 by :func:`bench.real.cmc_detector.measure`.
 
 The simulated side runs the same protocol through the product's own code on the ``cmc-room``
-preset with the ``cmc`` detector profile, with as many people in the area as the real
-recordings hold on average (CMC1: 2.5 of its 3, CMC2: 8.0 of its 10; the simulated people never
-leave the area): a 3-person recording of the real one's length (labelled rows: the true
-association, as CMC1's boxes were paired with their true positions) trains a model
+preset with the ``cmc`` detector profile, with the crowd the real recordings' people stand in
+(:func:`bench.real.cmc_pairing.crowd_size`: people in the area per frame, averaged over the
+people: CMC1 2.7 of its 3, CMC2 9.1 of its 10; the simulated people never leave the area): a
+3-person recording of the real one's length (labelled rows: the true association, as CMC1's
+boxes were paired with their true positions) trains a model
 (:func:`models.mom.training.train.train_model`; ``dense``: every row, ``marks9``: the rows within
-0.3 m of a 3 × 3 grid over the area), an 8-person recording is served through
+0.3 m of a 3 × 3 grid over the area), a 9-person recording is served through
 :func:`service.offline.stream_eval.run_stream` (association, tracker) and scored as the real one is:
 inside the area only, Hungarian at 0.5 m; per-frame MODA on the associations, MOTA on the
 served tracks. The same pairing code as the real side (:mod:`bench.real.cmc_pairing`) counts the
@@ -47,7 +48,15 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from bench.real.cmc_detector import CITATION, cameras_boxing, measure
-from bench.real.cmc_pairing import AREA, Frames, in_area, load_real, pair, simulated_frames
+from bench.real.cmc_pairing import (
+    AREA,
+    Frames,
+    crowd_size,
+    in_area,
+    load_real,
+    pair,
+    simulated_frames,
+)
 from bench.report import RESULTS, command_line, machine_line, markdown_table, write_report
 from models.data.dataset import MomDataset
 from models.data.stream_metrics import StreamScorer
@@ -178,9 +187,8 @@ def real_figures(data: Path) -> dict[str, Any] | None:
         return None
     setup, served = measure([cmc1]), measure([cmc2])
     out: dict[str, Any] = {
-        # people in the area per frame, on average: CMC1 2.5 (3 ids), CMC2 8.0 (10 ids)
-        "setup_people": round(float(np.mean([len(p) for p in cmc1.people]))),
-        "served_people": round(float(np.mean([len(p) for p in cmc2.people]))),
+        "setup_people": crowd_size(cmc1),
+        "served_people": crowd_size(cmc2),
         "setup_outside": setup["unmatched"]["outside_per_frame"],
         "outside": served["unmatched"]["outside_per_frame"],
         "cameras": served["cameras_per_person"],
@@ -282,8 +290,9 @@ def main(argv: list[str] | None = None) -> int:
         "",
         f"{machine_line()} Command: `{command_line('bench.real.sim_vs_real', argv)}`. Data: "
         f"{CITATION}. Protocol in the docstring of `bench/real/sim_vs_real.py`: set up with "
-        f"{real['setup_people']} people, served with {real['served_people']} (the real "
-        "recordings' mean in the area), scored in the authors' tracking area at 0.5 m; simulated "
+        f"{real['setup_people']} people, served with {real['served_people']} (the crowd the "
+        "real recordings' people stand in: `crowd_size`), scored in the authors' tracking area "
+        "at 0.5 m; simulated "
         f"figures are the mean of {args.seeds} seeds (lowest to highest in brackets); outside "
         "people per recording (set-up, served) fitted to the real outside boxes: "
         f"{sim['outside_people']}. Target: within "

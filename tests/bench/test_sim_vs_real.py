@@ -8,7 +8,15 @@ import numpy as np
 import pytest
 
 from bench.real import cmc_detector, sim_vs_real
-from bench.real.cmc_pairing import floor_point, iou, pair, project, simulated_frames
+from bench.real.cmc_pairing import (
+    Frames,
+    crowd_size,
+    floor_point,
+    iou,
+    pair,
+    project,
+    simulated_frames,
+)
 from models.data.dataset import MomDataset
 from models.simulate import PRESETS, DetectorProfile, Scene
 
@@ -36,6 +44,15 @@ def test_exact_detector_pairs_everyone_and_finds_nobody_outside() -> None:
     result = cmc_detector.measure([frames])
     assert result["unmatched"]["outside_per_frame"] == 0
     assert sum(result["cameras_per_person"]) == pytest.approx(1.0)
+
+
+def test_crowd_is_what_the_people_stand_in_not_the_mean_over_frames() -> None:
+    # two frames of 1 person and two of 10: the mean over frames is 5.5, but 20 of the 22
+    # person-frames stand among 10 (Σ n² / Σ n = 202 / 22 = 9.2)
+    people = [np.zeros((n, 4)) for n in (1, 1, 10, 10)]
+    frames = Frames("crowd", people, [[] for _ in people], np.zeros((4, 3, 4)))
+    assert crowd_size(frames) == 9
+    assert crowd_size(Frames("empty", [], [], np.zeros((4, 3, 4)))) == 0
 
 
 def test_grid_rows_keep_the_rows_near_the_nine_marks() -> None:
