@@ -236,9 +236,9 @@ def geometry_setup(seed: int = 0) -> dict[str, Any]:
 
 def calibrate(result: dict[str, Any], seeds: int = 2) -> dict[str, Any]:
     """The ``cmc`` profile's occlusion table fitted through the simulator: the simulated
-    CMC2-like room (the crowd its people stand in, :func:`bench.real.cmc_pairing.crowd_size`: 9 in
-    the area; the preset's outside people) must lose
-    people as often as the real one in every bin of covered fraction.
+    CMC2-like room (as many people in the area as CMC2's people stand among,
+    :func:`bench.real.cmc_pairing.crowd_size`: 9; the preset's outside people) must lose people
+    as often as the real one in every bin of covered fraction.
 
     Why a fit: the simulator's covered fraction (tight boxes of swinging limbs, body regions) is
     not the reference boxes' one for the same two people, and a heavily covered simulated

@@ -5,12 +5,11 @@
 
 ``bench.real.sim_vs_real`` found the simulated CMC room (``cmc-room``, ``cmc`` profile, then 8
 people in the area) boxing 29.5 % of its people in fewer than 3 cameras against the real CMC2's
-23.0 %.
-Both rooms keep a person in a camera about as often per covered fraction (the ``cmc`` profile's
-occlusion table is fitted to that), and in both a person's cameras fail almost independently
-(the real 23.0 % is what 4 independent cameras at the real per-view recall 0.768 give: 23.2 %),
-so the gap is the per-view recall, and that is how much the people hide each other. Measured here
-on the real CMC2 and on the simulated room with the same pairing code
+23.0 %. Both rooms keep a person in a camera about as often per covered fraction (the ``cmc``
+profile's occlusion table is fitted to that), and in both a person's cameras fail almost
+independently (the real 23.0 % is what 4 independent cameras at the real per-view recall 0.768
+give: 23.2 %), so the gap is the per-view recall, and that is how much the people hide each
+other. Measured here on the real CMC2 and on the simulated room with the same pairing code
 (:mod:`bench.real.cmc_pairing`), per factor of the simulated people's geometry:
 
 - **outside people**: the boxes of people outside the area (foot point outside it, in the room)
