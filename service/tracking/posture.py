@@ -13,8 +13,19 @@ foot pixel looks). Per box, ``ratio`` = box height / expected height at its bott
 
 - **standing**: ratio ≥ ``SEATED_RATIO``; left as it is;
 - **lying**: ratio below ``LYING_RATIO``, or a flat box (aspect ≥ ``LYING_FLAT_ASPECT``)
-  below ``SEATED_RATIO``: the body lies on the floor, so the box centre is on the floor near the
-  hips; the standing box there replaces it. A box that is short but not flat is *not* lying
+  below ``SEATED_RATIO``: the body lies on the floor, so its middle is on the floor, a standing
+  box there replaces it. That floor point is ``LYING_FOOT`` (0.7) of the way down the box, not
+  its centre: the box's bottom is the body's near end on the floor, its top the far end lifted
+  by the body's thickness, and perspective shrinks the far half, so the floor under the body's
+  middle is seen below the box's centre. Until 2026-12-06 the centre was used. Lone views of
+  the lying bodies of the fall bench's lounge (seeds 601-608), each localized alone: those read
+  lying 0.41 m off (median; p90 0.55 m) from the centre, 0.22 m (p90 0.31 m) from 0.7 down;
+  their compact lengthwise boxes (read sitting; converted as lying in an association another
+  view votes lying, :mod:`service.tracking.posture_agreement`) 0.33 m and 0.18 m (from 0.6-0.8
+  down, flat ones 0.19-0.27 m, compact ones 0.18-0.20 m). The re-read of a lone compact box
+  (:mod:`service.tracking.posture_continuity`) keeps the centre its bounds were measured on. It
+  is a figure of simulated bodies, to be checked on
+  real people lying down, as ``SEATED_TOP`` is. A box that is short but not flat is *not* lying
   above 0.33 of the height: a squat to pick something up (pelvis at 0.2 of the height, trunk
   bent forward) is a compact box 0.4-0.6 of the height and 0.6-1.3 times as wide as tall, and
   until 2026-12-04 its 0.33-0.45 reads (one crouch box in twenty) were lying and every false
@@ -99,6 +110,7 @@ LYING_RATIO = 0.33  # below, lying whatever the width (a squat is 0.4-0.6: modul
 LYING_FLAT_ASPECT = 1.5  # wider than any seated box measured
 LYING_SURE_ASPECT = 1.0  # a lying box's confidence grows with its width beyond this
 SEATED_TOP = 0.64  # a seated head's top over the expected standing height (module docstring)
+LYING_FOOT = 0.7  # a lying box's floor point, this far down from its top (module docstring)
 BORDER_PX = 2.0  # a box this close to the image border may be cut off: not judged
 CUT_MARGIN = 0.02  # of the image's width / height: a real detector's box of a person cut by
 # the frame edge ends this near it (bench/results/real_cmc_chain_tuning.md)
@@ -161,16 +173,21 @@ def classify(ratio: np.ndarray, aspect: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 
 def standing_boxes(
-    boxes: np.ndarray, labels: np.ndarray, area: SetupArea, camera: int
+    boxes: np.ndarray,
+    labels: np.ndarray,
+    area: SetupArea,
+    camera: int,
+    lying_foot: float = LYING_FOOT,
 ) -> np.ndarray:
     """The boxes [M, 4] a standing person at the same floor point would give camera ``camera``:
-    seated ones from their top, lying ones from their centre (module docstring)."""
+    seated ones from their top, lying ones from ``lying_foot`` of the way down them (module
+    docstring)."""
     region = area.cameras[camera] if camera < len(area.cameras) else None
     out = np.array(boxes, dtype=np.float64, copy=True)
     if region is None or region.height_model is None or not len(out):
         return out
     u = 0.5 * (out[:, 0] + out[:, 2])
-    foot = np.where(labels == LYING, 0.5 * (out[:, 1] + out[:, 3]), out[:, 3])
+    foot = np.where(labels == LYING, out[:, 1] + lying_foot * (out[:, 3] - out[:, 1]), out[:, 3])
     seated = labels == SITTING
     for _ in range(8):  # y_top = y_foot - SEATED_TOP * h(y_foot): converges in a few steps
         height = region.expected_height(np.stack([u, foot], 1))

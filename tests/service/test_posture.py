@@ -134,7 +134,9 @@ def test_seated_and_lying_boxes_become_standing_ones() -> None:
     # seated: the head stays, the feet go SEATED_TOP standing heights below it
     foot = 100.0 + posture.SEATED_TOP * STANDING_PX
     assert boxes[0] == pytest.approx([340 - 40, foot - 200, 340 + 40, foot])
-    assert boxes[1, 3] == pytest.approx(340.0) and boxes[1, 3] - boxes[1, 1] == pytest.approx(200)
+    # lying: the floor under the body's middle is 0.7 down the box (300 + 0.7 * 80), not its
+    # centre (340), which put the simulated lounge's lying bodies twice as far off
+    assert boxes[1, 3] == pytest.approx(356.0) and boxes[1, 3] - boxes[1, 1] == pytest.approx(200)
     assert boxes[2] == pytest.approx(upright) and boxes[3] == pytest.approx(cut)
 
 
@@ -333,10 +335,10 @@ def _each_box(
 
 
 def test_a_lying_body_is_kept_and_a_torso_cut_by_the_border_is_judged_as_detected() -> None:
-    """Three boxes read as lying (0.4 of a standing height); their standing replacements land
-    inside the area (centre rows 425-436 px: 4.25-4.36 m), as detected they lie beyond it
-    (4.65-4.74 m). A narrow one ending 6 px above the image bottom (within ``CUT_MARGIN``) may
-    be a walker whose legs are below the frame (the real CMC room's fragments,
+    """Three boxes read as lying (0.4-0.57 of a standing height); their standing replacements
+    land inside the area (rows 0.7 down them, 440-441 px: 4.40-4.41 m), as detected they lie
+    beyond it (4.65-4.74 m). A narrow one ending 6 px above the image bottom (within
+    ``CUT_MARGIN``) may be a walker whose legs are below the frame (the real CMC room's fragments,
     ``bench/results/real_cmc_chain_tuning.md``): judged as detected, dropped. One ending 15 px
     above it holds the whole body, and one as near the bottom but a body's length wide (a
     fallen person near the camera): both kept and served lying."""
@@ -345,7 +347,7 @@ def test_a_lying_body_is_kept_and_a_torso_cut_by_the_border_is_judged_as_detecte
 
     fallen = [200.0, 385.0, 360.0, 465.0]
     cut = [400.0, 396.0, 520.0, 474.0]  # 120 px wide: 0.6 of a standing height
-    near = [40.0, 398.0, 240.0, 474.0]  # 200 px wide: a body across the view
+    near = [40.0, 360.0, 260.0, 474.0]  # 220 px wide: a body across the view
     boxes = np.array([fallen, cut, near])
     assert posture.at_border(boxes, np.array([640, 480])).tolist() == [False, True, True]
     assert posture.cut_off(boxes, _area(), 0, np.array([640, 480])).tolist() == [
@@ -363,9 +365,9 @@ def test_a_lying_body_is_kept_and_a_torso_cut_by_the_border_is_judged_as_detecte
     for i in range(20):
         served, tracks = chain(i / 10, detected, runtime, [True], i)  # type: ignore[arg-type]
     assert [a.detection_index for a in served] == [[0], [2]]
-    assert [a.world[0] for a in served] == pytest.approx([4.25, 4.36])
+    assert [a.world[0] for a in served] == pytest.approx([4.41, 4.398])
     assert [a.detection_index for a in chain.outside] == [[1]]
-    assert sorted(t.x for t in tracks) == pytest.approx([4.25, 4.36], abs=0.05)
+    assert sorted(t.x for t in tracks) == pytest.approx([4.398, 4.41], abs=0.05)
     assert all(t.posture is not None and t.posture[0] == LYING for t in tracks)
 
 
