@@ -68,6 +68,7 @@ from service.tracking.posture import (
 from service.tracking.posture import normalise as normalise_postures
 from service.tracking.posture_agreement import agree as agree_postures
 from service.tracking.posture_continuity import reread_lying
+from service.tracking.recurring_boxes import RecurringBoxes
 from service.tracking.view_bias import ViewBias
 
 STOOD_S = 2.0  # a track's sure standing place is kept this long (:meth:`Chain._stood_at`): a
@@ -108,6 +109,9 @@ class Chain:
         # (service.tracking.posture); False: boxes as detected, no posture
         self.postures = postures
         self.posture_smoother = PostureSmoother()
+        # where each camera keeps reporting the same box: no lying evidence there
+        # (service.tracking.recurring_boxes)
+        self.recurring_boxes = RecurringBoxes()
         # the tracks claim their boxes before the rest is clustered (service.tracking.association)
         self.track_anchors = track_anchors
         # per track id: when and where it last read standing for sure (:meth:`_stood_at`)
@@ -136,7 +140,10 @@ class Chain:
         if runtime is not None:
             detected, area = detections, getattr(runtime, "setup_area", None)
             if self.postures:
-                detections, box_postures = normalise_postures(detections, area, runtime.image_sizes)
+                recurring = self.recurring_boxes.update(t, [d.boxes for d in detections])
+                detections, box_postures = normalise_postures(
+                    detections, area, runtime.image_sizes, recurring
+                )
             anchors = self._anchors(t)
             found = self.associate(
                 detections, runtime, max_error_px=self.max_error_px, anchors=anchors
