@@ -20,7 +20,7 @@ def _report(memory: RecurringBoxes, start: float, seconds: float, box: list[floa
     at a recurring place each time."""
     return [
         bool(memory.update(start + 0.2 * i, [np.array([box])])[0][0])
-        for i in range(int(round(seconds / 0.2)))
+        for i in range(round(seconds / 0.2))
     ]
 
 
