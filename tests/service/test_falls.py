@@ -489,3 +489,35 @@ def test_a_track_that_drifts_off_someone_still_standing_there_is_no_fall(
     # once the stander walks off, a candidate still down fires (it only waited)
     t, later = _snapshots(detector, 0.5, [_seen(_lie(1, 2.8)), _seen(_stand(2, 4.0))], t)
     assert [e["type"] for e in events + more + later] == [FALL]
+
+
+@pytest.mark.parametrize(
+    "fallen_seen, born_at, cleared",
+    [
+        (False, 3.2, True),  # the held track unseen, the walker's new track born 1.2 m on
+        (True, 3.2, False),  # a camera still sees the fallen track: it is up, or not, itself
+        (False, 5.0, False),  # a track born 3 m off is someone else
+    ],
+)
+def test_a_fall_ends_when_its_person_gets_up_on_a_new_track(
+    fallen_seen: bool, born_at: float, cleared: bool
+) -> None:
+    """Rule 3b: the tracker holds a fallen person's track at their place while no camera sees
+    it; one who gets up and walks straight off becomes a new track a metre on (the demo's fall
+    scene). Standing there for ``clear_s`` ends the held track's fall, reason ``stood_up``."""
+    detector = FallDetector()
+    t, events = _snapshots(detector, 3.0, [_stand(1)], 1000.0)
+    t, more = _snapshots(detector, 5.0, [_lie(1, 2.0)], t)
+    events += more
+    held = {**_lie(1, 2.0), "cameras": [0] if fallen_seen else []}
+    walker = {**_stand(2, born_at), "cameras": [0, 1]}
+    t, more = _snapshots(detector, 2.9, [held, walker], t)
+    events += more
+    assert [(e["type"], e["id"]) for e in events] == [(FALL, 1)]
+    t, more = _snapshots(detector, 0.2, [held, walker], t)
+    events += more
+    if cleared:
+        assert [(e["type"], e["id"]) for e in events] == [(FALL, 1), (FALL_CLEARED, 1)]
+        assert events[1]["reason"] == "stood_up" and events[1]["falls"] == []
+    else:
+        assert [(e["type"], e["id"]) for e in events] == [(FALL, 1)]
