@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+from functools import partial
 from typing import Literal
 
 import numpy as np
@@ -109,7 +110,7 @@ class Chain:
         # (service.tracking.posture); False: boxes as detected, no posture
         self.postures = postures
         self.posture_smoother = PostureSmoother()
-        # where each camera keeps reporting the same box: no lying evidence there
+        # where each camera keeps reading lying: no evidence of a body on the floor there
         # (service.tracking.recurring_boxes)
         self.recurring_boxes = RecurringBoxes()
         # the tracks claim their boxes before the rest is clustered (service.tracking.association)
@@ -140,9 +141,8 @@ class Chain:
         if runtime is not None:
             detected, area = detections, getattr(runtime, "setup_area", None)
             if self.postures:
-                recurring = self.recurring_boxes.update(t, [d.boxes for d in detections])
                 detections, box_postures = normalise_postures(
-                    detections, area, runtime.image_sizes, recurring
+                    detections, area, runtime.image_sizes, partial(self.recurring_boxes.update, t)
                 )
             anchors = self._anchors(t)
             found = self.associate(

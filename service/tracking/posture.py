@@ -94,7 +94,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections import defaultdict
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -338,22 +338,24 @@ def normalise(
     detections: Sequence[Detections],
     area: SetupArea | None,
     image_sizes: np.ndarray | None = None,
-    recurring: Sequence[np.ndarray] | None = None,
+    doubt_lying: Callable[[int, np.ndarray], np.ndarray] | None = None,
 ) -> tuple[list[Detections], BoxPostures]:
     """Each camera's detections with seated and lying boxes replaced by standing ones, and the
     posture of every box (``unknown`` everywhere without a height model; read from the
-    keypoints too where the detections carry them). ``recurring`` (per camera, [M] bool): boxes
-    at a place where the camera keeps reporting the same box
-    (:mod:`service.tracking.recurring_boxes`); one of them that reads lying is read ``unknown``
-    and kept as detected."""
+    keypoints too where the detections carry them). ``doubt_lying(camera, boxes)``: which of a
+    camera's lying boxes [M, 4] ([M] bool) are no evidence of a body on the floor (a place
+    where the camera keeps reading lying, :mod:`service.tracking.recurring_boxes`); those are
+    read ``unknown`` and kept as detected."""
     labels: list[np.ndarray] = []
     confidence: list[np.ndarray] = []
     out: list[Detections] = []
     for k, det in enumerate(detections):
         size = None if image_sizes is None else image_sizes[k]
         names, conf, fixed = camera_postures(det.boxes, area, k, size, det.keypoints)
-        if recurring is not None and k < len(recurring) and len(recurring[k]) == len(names):
-            doubt = np.asarray(recurring[k], bool) & (names == LYING)
+        lying = names == LYING
+        if doubt_lying is not None and lying.any():
+            doubt = np.zeros(len(names), bool)
+            doubt[lying] = doubt_lying(k, np.asarray(det.boxes, np.float64).reshape(-1, 4)[lying])
             if doubt.any():
                 names, conf, fixed = names.copy(), conf.copy(), fixed.copy()
                 names[doubt], conf[doubt] = UNKNOWN, 0.0

@@ -1,5 +1,6 @@
-"""Places where a camera keeps reporting the same box (service.tracking.recurring_boxes): learned
-per camera from separate episodes, and no lying evidence there (posture.normalise, the chain)."""
+"""Places where a camera keeps reading lying (service.tracking.recurring_boxes): learned per camera
+from separate episodes of its lying boxes, and no evidence of a body on the floor there
+(posture.normalise, the chain)."""
 
 from __future__ import annotations
 
@@ -19,7 +20,7 @@ def _report(memory: RecurringBoxes, start: float, seconds: float, box: list[floa
     """``box`` reported by camera 0 every 0.2 s for ``seconds`` from ``start``; whether it was
     at a recurring place each time."""
     return [
-        bool(memory.update(start + 0.2 * i, [np.array([box])])[0][0])
+        bool(memory.update(start + 0.2 * i, 0, np.array([box]))[0])
         for i in range(round(seconds / 0.2))
     ]
 
@@ -50,23 +51,23 @@ def test_other_places_and_sizes_do_not_match() -> None:
         _report(memory, start, 1.0, SHORT)
     standing = [305.0, 250.0, 325.0, 450.0]  # a walker on the same spot: 4 times as tall
     aside = [330.0, 400.0, 360.0, 450.0]  # the same box 30 px to the side (0.6 of its height)
-    recurring = memory.update(40.0, [np.array([SHORT, standing, aside])])[0]
+    recurring = memory.update(40.0, 0, np.array([SHORT, standing, aside]))
     assert recurring.tolist() == [True, False, False]
     # each camera learns its own places
-    assert memory.update(41.0, [np.zeros((0, 4)), np.array([SHORT])])[1].tolist() == [False]
+    assert memory.update(41.0, 1, np.array([SHORT])).tolist() == [False]
 
 
 def test_places_are_forgotten_and_bounded() -> None:
     memory = RecurringBoxes(forget_s=60.0, max_places=4)
     for start in (0.0, 13.0, 26.0):
         _report(memory, start, 1.0, SHORT)
-    assert memory.update(80.0, [np.array([SHORT])])[0].tolist() == [True]
-    assert memory.update(200.0, [np.array([SHORT])])[0].tolist() == [False]  # unseen 2 min
+    assert memory.update(80.0, 0, np.array([SHORT])).tolist() == [True]
+    assert memory.update(200.0, 0, np.array([SHORT])).tolist() == [False]  # unseen 2 min
     for start in (213.0, 226.0):
         _report(memory, start, 0.2, SHORT)
     others = np.array([[20.0 + 50 * i, 100.0, 40.0 + 50 * i, 150.0] for i in range(10)])
-    memory.update(230.0, [others])  # ten one-off boxes elsewhere: the least seen places go
-    assert memory.update(240.0, [np.array([SHORT])])[0].tolist() == [True]
+    memory.update(230.0, 0, others)  # ten one-off boxes elsewhere: the least seen places go
+    assert memory.update(240.0, 0, np.array([SHORT])).tolist() == [True]
 
 
 def test_bad_settings_are_refused() -> None:
@@ -74,15 +75,22 @@ def test_bad_settings_are_refused() -> None:
         RecurringBoxes(episodes=1)
 
 
-def test_a_recurring_box_is_no_lying_evidence() -> None:
+def test_a_lying_box_at_a_recurring_place_is_no_lying_evidence() -> None:
     flat = [200.0, 385.0, 360.0, 465.0]  # 0.4 of a standing height, twice as wide: lying
     seated = [300.0, 100.0, 380.0, 230.0]
     det = Detections(np.array([flat, seated], np.float32), np.ones(2, np.float32))
     size = np.array([[640, 480]])
-    _, postures = posture.normalise([det], _area(), size, [np.array([False, False])])
+    asked: list[tuple[int, list[list[float]]]] = []
+
+    def doubt(camera: int, boxes: np.ndarray) -> np.ndarray:
+        asked.append((camera, boxes.tolist()))
+        return np.ones(len(boxes), bool)
+
+    _, postures = posture.normalise([det], _area(), size)
     assert postures.labels[0].tolist() == [LYING, SITTING]
-    fixed, postures = posture.normalise([det], _area(), size, [np.array([True, True])])
-    # read unknown and kept as detected; a seated read there is left as it was
+    fixed, postures = posture.normalise([det], _area(), size, doubt)
+    # only the lying box is asked about; read unknown and kept as detected
+    assert asked == [(0, [flat])]
     assert postures.labels[0].tolist() == [UNKNOWN, SITTING]
     assert postures.confidence[0][0] == 0.0
     assert fixed[0].boxes[0] == pytest.approx(flat)
