@@ -22,7 +22,7 @@ localized as detected. Nothing else changes: the box is still associated, tracke
 Only lying boxes teach it. Learned from every box, the places of people (seats, crouch spots,
 legs hidden at the same furniture edge) made 140 recurring places per camera in an hour of
 the simulated lounge's daily life, and 26 % of the fall scenes' fallen bodies' lying boxes (their
-first 3 s on the floor) matched one; learned from lying boxes, 5-10 places and 1.9 % (the fall
+first 3 s on the floor) matched one; learned from lying boxes, 1-10 places and 0.2-1.9 % (the fall
 bench keeps falls and daily life in separate scenes, so its falls do not pay this price:
 ``bench/results/falls.md``).
 
@@ -71,7 +71,7 @@ class _Places:
 
 
 class RecurringBoxes:
-    """Per camera, the places where the same box keeps coming back (module docstring)."""
+    """Per camera, the places where the camera keeps reading lying (module docstring)."""
 
     def __init__(
         self,
