@@ -39,6 +39,16 @@ foot pixel looks). Per box, ``ratio`` = box height / expected height at its bott
   the armchair sitter was put 0.5 m off and, sitting down, raised false falls (``lying`` a
   moment after ``standing``: ``bench/results/falls.md``). Until 2026-12-04 such a box was lying
   below 0.6 of the height;
+  A box short enough to read lying but narrower than ``LYING_MIN_WIDTH`` (0.15) of a standing
+  person's height at its place is no body on the floor, whatever it is (a detector's false box,
+  a head over a sofa back): ``unknown``, localized as detected. A body lying on the floor is at
+  least as wide in the image as its shoulders, 0.2-0.26 of a standing adult's height, when seen
+  end-on, and far wider in any other view; 0.15 leaves room for a child. Measured on the
+  simulated lounge (fall bench, seeds 601-608 and half an hour of daily life,
+  ``bench/results/falls.md``): every box of a fallen body that reads lying is 0.58 or more of the
+  height wide, and 86 % of the false boxes that read lying are narrower than 0.15 (the
+  detector's false boxes are person-shaped, 0.3-0.6 as wide as tall, so a short one is narrow);
+  until 2026-12-06 they read lying, and one camera's lone view of one for 1.5 s was a false fall;
 - **sitting** (crouching too: both are a short, wider box): the head is ``SEATED_TOP`` of a
   standing person's height above the floor, so the feet of a standing person with the same head
   pixel are found by a fixed-point search on the height model, and that standing box replaces
@@ -109,6 +119,7 @@ SEATED_ASPECT = 0.45  # ... and at least this wide per unit height (an occluded 
 LYING_RATIO = 0.33  # below, lying whatever the width (a squat is 0.4-0.6: module docstring)
 LYING_FLAT_ASPECT = 1.5  # wider than any seated box measured
 LYING_SURE_ASPECT = 1.0  # a lying box's confidence grows with its width beyond this
+LYING_MIN_WIDTH = 0.15  # of a standing person's height there: narrower, no body on the floor
 SEATED_TOP = 0.64  # a seated head's top over the expected standing height (module docstring)
 LYING_FOOT = 0.7  # a lying box's floor point, this far down from its top (module docstring)
 BORDER_PX = 2.0  # a box this close to the image border may be cut off: not judged
@@ -158,8 +169,11 @@ def classify(ratio: np.ndarray, aspect: np.ndarray) -> tuple[np.ndarray, np.ndar
     ratio, aspect = np.asarray(ratio, float), np.asarray(aspect, float)
     short = ratio < SEATED_RATIO
     lying = (ratio < LYING_RATIO) | (short & (aspect >= LYING_FLAT_ASPECT))
-    standing = ~lying & ((ratio >= SEATED_RATIO) | (aspect < SEATED_ASPECT))
+    no_body = lying & (ratio * aspect < LYING_MIN_WIDTH)  # narrower than a body on the floor
+    lying &= ~no_body
+    standing = ~lying & ~no_body & ((ratio >= SEATED_RATIO) | (aspect < SEATED_ASPECT))
     labels = np.where(lying, LYING, np.where(standing, STANDING, SITTING)).astype(object)
+    labels[no_body] = UNKNOWN
     margin = np.where(
         standing,
         (ratio - SEATED_RATIO) / 0.15,
@@ -169,7 +183,8 @@ def classify(ratio: np.ndarray, aspect: np.ndarray) -> tuple[np.ndarray, np.ndar
             np.minimum(SEATED_RATIO - ratio, np.abs(ratio - LYING_RATIO)) / 0.15,
         ),
     )
-    return labels, np.round(0.5 + 0.5 * np.clip(np.nan_to_num(margin), 0.0, 1.0), 3)
+    sure = np.round(0.5 + 0.5 * np.clip(np.nan_to_num(margin), 0.0, 1.0), 3)
+    return labels, np.where(no_body, 0.0, sure)
 
 
 def standing_boxes(

@@ -53,6 +53,17 @@ def test_a_crouch_is_not_lying_and_a_body_across_the_view_is() -> None:
     assert ((confidence >= 0.5) & (confidence <= 1.0)).all()
 
 
+def test_a_short_box_narrower_than_a_body_on_the_floor_is_no_lying_read() -> None:
+    # 0.25 of a standing height: 0.4 as wide as tall (0.1 of the height: a detector's
+    # person-shaped false box, short), as wide as tall (0.25: a body seen end-on), flat, and
+    # 0.3 tall and half as wide (0.15 of the height: as narrow as a lying child seen end-on)
+    ratio = np.array([0.25, 0.25, 0.25, 0.3])
+    aspect = np.array([0.4, 1.0, 2.0, 0.5])
+    labels, confidence = posture.classify(ratio, aspect)
+    assert labels.tolist() == [UNKNOWN, LYING, LYING, LYING]
+    assert confidence[0] == 0.0 and (confidence[1:] >= 0.5).all()
+
+
 def test_a_body_flat_on_the_floor_cut_by_the_image_edge_is_lying() -> None:
     size = np.array([640, 480])
     across = [300.0, 420.0, 500.0, 480.0]  # cut by the bottom edge: 60 px tall, 200 wide
