@@ -4,8 +4,9 @@ A detector's false positives are not white noise: a coat on a chair, a plant, a 
 frame is "seen" as a person for a second or two from the same spot, again and again, with about
 the same size (the simulator models them so, :mod:`models.simulate.false_positives`). Such a
 box is often short against a standing person's height there, so it reads *lying*
-(:mod:`service.tracking.posture`), and one camera's lying read for 1.5 s is all a fall needs when
-the other camera does not see the spot (:mod:`service.outputs.falls`). Traced on the fall
+(:mod:`service.tracking.posture`; one narrower than any body on the floor no longer does, but a
+bag or a pet bed is as wide as one), and one camera's lying read for 1.5 s is all a fall needs
+when the other camera does not see the spot (:mod:`service.outputs.falls`). Traced on the fall
 bench's daily life through the serving chain (seed sets 601 and 701, 12 person-hours), six of
 twelve false falls were such boxes on one camera (``bench/results/falls.md``).
 
