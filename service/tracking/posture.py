@@ -370,12 +370,13 @@ def normalise(
         names, conf, fixed = camera_postures(det.boxes, area, k, size, det.keypoints)
         lying = names == LYING
         if doubt_lying is not None and lying.any():
+            as_detected = np.asarray(det.boxes, np.float64).reshape(-1, 4)
             doubt = np.zeros(len(names), bool)
-            doubt[lying] = doubt_lying(k, np.asarray(det.boxes, np.float64).reshape(-1, 4)[lying])
+            doubt[lying] = doubt_lying(k, as_detected[lying])
             if doubt.any():
                 names, conf, fixed = names.copy(), conf.copy(), fixed.copy()
                 names[doubt], conf[doubt] = UNKNOWN, 0.0
-                fixed[doubt] = np.asarray(det.boxes, np.float64).reshape(-1, 4)[doubt]
+                fixed[doubt] = as_detected[doubt]
         labels.append(names)
         confidence.append(conf)
         changed = (names != STANDING) & (names != UNKNOWN)
