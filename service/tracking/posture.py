@@ -47,8 +47,8 @@ foot pixel looks). Per box, ``ratio`` = box height / expected height at its bott
   simulated lounge (fall bench, seeds 601-608 and half an hour of daily life,
   ``bench/results/falls.md``): no box of a fallen body that reads lying is narrower than 0.25 of
   the height (99 % are 0.58 or wider), and 86 % of the false boxes that read lying are narrower
-  than 0.15 (the
-  detector's false boxes are person-shaped, 0.3-0.6 as wide as tall, so a short one is narrow);
+  than 0.15 (the detector's false boxes are person-shaped, 0.3-0.6 as wide as tall, so a short
+  one is narrow);
   until 2026-12-06 they read lying, and one camera's lone view of one for 1.5 s was a false fall;
 - **sitting** (crouching too: both are a short, wider box): the head is ``SEATED_TOP`` of a
   standing person's height above the floor, so the feet of a standing person with the same head

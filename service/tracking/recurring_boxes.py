@@ -106,15 +106,12 @@ class RecurringBoxes:
         recurring = np.zeros(len(b), bool)
         places.keep(t - places.seen <= self.forget_s)
         u, v, h = 0.5 * (b[:, 0] + b[:, 2]), b[:, 3], b[:, 3] - b[:, 1]
-        matched: dict[int, int] = {}  # place -> its nearest box this report
+        nearest: dict[int, tuple[float, int]] = {}  # place -> (distance, its nearest box)
         for i in np.flatnonzero(ok).tolist():
-            j = self._match(places, u[i], v[i], h[i])
-            if j is None:
-                continue
-            if j not in matched or self._distance(places, j, u, v, i) < self._distance(
-                places, j, u, v, matched[j]
-            ):
-                matched[j] = i
+            found = self._match(places, u[i], v[i], h[i])
+            if found is not None and (found[0] not in nearest or found[1] < nearest[found[0]][0]):
+                nearest[found[0]] = (found[1], i)
+        matched = {j: i for j, (_, i) in nearest.items()}
         for j, i in matched.items():
             if t - places.seen[j] >= self.gap_s:
                 places.episodes[j] += 1
@@ -136,7 +133,8 @@ class RecurringBoxes:
             places.keep(np.sort(order))
         return recurring
 
-    def _match(self, places: _Places, u: float, v: float, h: float) -> int | None:
+    def _match(self, places: _Places, u: float, v: float, h: float) -> tuple[int, float] | None:
+        """The nearest place the box matches and its distance in the place's heights, or None."""
         if not len(places.u):
             return None
         reach = self.place_h * places.h
@@ -144,9 +142,6 @@ class RecurringBoxes:
         near &= np.abs(np.log(h / places.h)) <= self.log_ratio
         if not near.any():
             return None
-        d = np.hypot(places.u - u, places.v - v) / places.h
-        return int(np.argmin(np.where(near, d, np.inf)))
-
-    @staticmethod
-    def _distance(places: _Places, j: int, u: np.ndarray, v: np.ndarray, i: int) -> float:
-        return float(np.hypot(places.u[j] - u[i], places.v[j] - v[i]))
+        d = np.where(near, np.hypot(places.u - u, places.v - v) / places.h, np.inf)
+        j = int(np.argmin(d))
+        return j, float(d[j])
