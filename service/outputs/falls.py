@@ -52,7 +52,11 @@ Rules (per track id; :class:`FallRules`, settings ``falls.*``)
    faller's track coasted for a second while a track born 0.7 m away took the body, and the
    fall came 4.7 s late, once the coasting track was dropped. Taken at the first snapshot
    without it, a candidate coasting for 0.3 s went to a track held at an earlier fall's place
-   1.1 m off, and that fall came 4.8 s late.
+   1.1 m off, and that fall came 4.8 s late. Only a track within ``reach_m`` of where the
+   person last stood takes it: one farther away can never fire (rule 2), and took the fall
+   away from the faller's own track. In the lounge a pair of two cameras' boxes 1.15 m off,
+   read lying, took the candidate of a faller's track coasting for 0.7 s; the faller's track
+   then read lying on the body again and no event came (``bench/results/falls.md``).
 2. **Down for sure**: the candidate becomes a ``fall`` on the first snapshot that reads lying
    with a posture confidence of at least ``min_confidence`` (0.75), at most ``reach_m`` (1 m)
    from where the person last stood, once the track has read lying
@@ -438,7 +442,8 @@ class FallDetector:
         """Rule 1c: the nearest candidate within ``handover_m`` of ``p`` that no camera sees in
         this snapshot (absent, or coasting and not seen lying for ``ON_THE_BODY_S``: the tracker
         gave its body to ``p``), was last seen by one within ``max_drop_s`` and began after
-        ``p``'s active fall, if any; or None."""
+        ``p``'s active fall, if any, and whose person last stood within ``reach_m`` of
+        ``p``; or None."""
         rules = self.rules
         if rules.handover_m <= 0:
             return None
@@ -453,6 +458,7 @@ class FallDetector:
             and (other not in self._present or t - d.lying_at > ON_THE_BODY_S)
             and d.measured is not None
             and t - d.measured <= rules.max_drop_s
+            and math.hypot(d.drop_x - p.x, d.drop_y - p.y) <= rules.reach_m
         )
 
     def _nearest(self, gaps: Iterable[tuple[float, int]]) -> _Person | None:

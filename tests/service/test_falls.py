@@ -435,6 +435,23 @@ def test_a_candidate_whose_track_is_lost_goes_to_the_track_that_took_the_body(
     assert [(e["type"], e["id"]) for e in events + more] == expected
 
 
+def test_a_lying_track_beyond_reach_takes_no_candidate_from_a_lost_faller() -> None:
+    """Rule 1c only hands a candidate to a track within ``reach_m`` of where the faller stood:
+    in the lounge a pair of boxes read lying 1.15 m off took the candidate of a faller's track
+    that coasted for 0.7 s; the faller's track read lying on the body again, and no event
+    came."""
+    detector = FallDetector()
+    t, events = _snapshots(detector, 3.0, [_seen(_stand(1))], 1000.0)
+    t, more = _snapshots(detector, 1.2, [_seen(_lie(1, 2.1))], t)
+    events += more
+    t, more = _snapshots(detector, 0.9, [_seen(_lie(1, 2.1), [])], t)
+    events += more  # now beyond max_drop_s of its last standing read: no rule 1b
+    t, more = _snapshots(detector, 0.3, [_seen(_lie(1, 2.1), []), _seen(_lie(5, 3.2))], t)
+    events += more
+    t, more = _snapshots(detector, 0.5, [_seen(_lie(1, 2.1), [1])], t)
+    assert [(e["type"], e["id"]) for e in events + more] == [(FALL, 1)]
+
+
 def test_a_faller_unseen_for_a_moment_keeps_its_fall() -> None:
     """Rule 1c waits ``ON_THE_BODY_S`` before taking a coasting track's candidate away: in the
     simulated lounge the faller's track coasted for 0.3 s while a track held at an earlier
