@@ -160,6 +160,14 @@ class Reprojecting(Protocol):
     def reproject(self, world: np.ndarray) -> np.ndarray: ...
 
 
+class Coverage(Protocol):
+    """Which cameras [N, K] bool should see a person at floor positions [N, 2]; ``lying`` [N]
+    bool (optional): those rows are a body on the floor, which a camera sees only where it sees
+    the floor there (:func:`service.tracking.view_geometry.covering_cameras`)."""
+
+    def __call__(self, world: np.ndarray, lying: np.ndarray | None = None, /) -> np.ndarray: ...
+
+
 class WithCovariance(Protocol):
     """Covariance [B, 2, 2] (m²) of each tuple's floor position; NaN rows where the model
     cannot tell (then the tracker's per-view default applies)."""
@@ -283,7 +291,7 @@ class TrackStage(Protocol):
         positions: np.ndarray,
         origins: Sequence[Origin] | None = None,
         covariances: Sequence[np.ndarray | None] | np.ndarray | None = None,
-        coverage: Callable[[np.ndarray], np.ndarray] | None = None,
+        coverage: Coverage | None = None,
     ) -> list[Track]: ...
 
 

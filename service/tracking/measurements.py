@@ -31,11 +31,11 @@ arriving is averaged with it instead of correcting it (``tests/service/test_meas
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
-from service.stages import Association, Reprojecting
+from service.stages import Association, Coverage, Reprojecting
 from service.tracking.view_geometry import covering_cameras, line_of_sight
 
 SINGLE_VIEW_DEPTH_STD_M = 0.6
@@ -74,13 +74,16 @@ def default_covariance(
     )
 
 
-def coverage_function(
-    runtime: Reprojecting | None, delivered: Sequence[bool]
-) -> Callable[[np.ndarray], np.ndarray] | None:
-    """``floor positions [N, 2] -> [N, K] bool``: cameras that should see a person there and
-    delivered a frame this time (a camera without a frame cannot be expected to report), from
-    :func:`service.tracking.view_geometry.covering_cameras`; None without a model."""
+def coverage_function(runtime: Reprojecting | None, delivered: Sequence[bool]) -> Coverage | None:
+    """``floor positions [N, 2] (, lying [N]) -> [N, K] bool``: cameras that should see a person
+    there and delivered a frame this time (a camera without a frame cannot be expected to
+    report), from :func:`service.tracking.view_geometry.covering_cameras`; None without a
+    model."""
     if runtime is None:
         return None
     mask = np.asarray(delivered, dtype=bool)[None]
-    return lambda world: covering_cameras(runtime, world) & mask
+
+    def coverage(world: np.ndarray, lying: np.ndarray | None = None) -> np.ndarray:
+        return covering_cameras(runtime, world, lying=lying) & mask
+
+    return coverage

@@ -125,14 +125,14 @@ Example::
 from __future__ import annotations
 
 import copy
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from service.stages import Origin, Track, TrackAnchor
+from service.stages import Coverage, Origin, Track, TrackAnchor
 from service.tracking.image_continuity import (
     LABEL_GROWTH_HPS,
     LABEL_STD_H,
@@ -316,7 +316,7 @@ class Tracker:
         positions: np.ndarray,
         origins: Sequence[Origin] | None = None,
         covariances: Sequence[np.ndarray | None] | np.ndarray | None = None,
-        coverage: Callable[[np.ndarray], np.ndarray] | None = None,
+        coverage: Coverage | None = None,
     ) -> list[Track]:
         """Fold the detections of time ``t`` (``positions`` [P, 2] metres) into the tracks.
 
@@ -636,17 +636,24 @@ class Tracker:
         wait = self.confirm_single_s if single else self.confirm_s
         track.confirmed = track.confirmed or t - track.born >= wait - 1e-9
 
-    def _doubt(self, coverage: Callable[[np.ndarray], np.ndarray], dt: float) -> None:
+    def _doubt(self, coverage: Coverage, dt: float) -> None:
         """Single-view tracks accumulate the time a camera that should see them reports
-        nothing there (a detector's false positive is seen by one camera only)."""
+        nothing there (a detector's false positive is seen by one camera only). A track last
+        fed a lying body is expected only where a camera sees the floor under it (a camera
+        beside a body on the floor sees over it); its own camera, which reported it, may see
+        it standing or lying."""
         doubtful = [tr for tr in self._tracks if not tr.multi_view]
         if not doubtful or dt <= 0:
             return
-        covered = np.asarray(coverage(np.stack([tr.motion.mean[:2] for tr in doubtful])))
-        for tr, row in zip(doubtful, covered, strict=True):
+        where = np.stack([tr.motion.mean[:2] for tr in doubtful])
+        lying = np.array([not tr.origin.standing for tr in doubtful])
+        standing = np.asarray(coverage(where))
+        covered = np.asarray(coverage(where, lying)) if lying.any() else standing
+        for tr, row, upright in zip(doubtful, covered, standing, strict=True):
             seen = set(tr.cameras) if tr.last_seen == self._time else set()
             should = set(np.flatnonzero(row).tolist())
-            if seen and (should - seen or (self.doubt_outside and not should & seen)):
+            could = should | set(np.flatnonzero(upright).tolist())
+            if seen and (should - seen or (self.doubt_outside and not could & seen)):
                 tr.doubted_s += dt
 
     def _count_views(self, track: _State, dt: float, z: np.ndarray) -> None:

@@ -14,16 +14,60 @@ import numpy as np
 from service.stages import Reprojecting
 
 _STEP_M = 0.05  # finite-difference step of the line-of-sight direction
+_FIXED_POINT_STEPS = 8  # floor_pixels: the expected height varies slowly with the foot pixel
 
 
-def covering_cameras(runtime: Reprojecting, world: np.ndarray, margin: float = 0.05) -> np.ndarray:
+def covering_cameras(
+    runtime: Reprojecting,
+    world: np.ndarray,
+    margin: float = 0.05,
+    lying: np.ndarray | None = None,
+) -> np.ndarray:
     """[N, K] bool: camera k should see a person at floor position ``world`` [N, 2], i.e. the
     decoder puts their body's mean point inside its image, ``margin`` (fraction of the image
-    size) away from the border. For the tracker's ghost check (``Tracker(ghost_s=...)``)."""
-    pixels = np.asarray(runtime.reproject(np.asarray(world, dtype=np.float64)), np.float64)
+    size) away from the border. For the tracker's ghost check (``Tracker(ghost_s=...)``).
+
+    ``lying`` [N] bool: those rows are a body on the floor, judged by their floor pixel
+    (:func:`floor_pixels`) instead. Why: a camera on the wall looks down across the room, and a
+    standing person a metre from it shows their upper body while the floor at their feet is
+    below the image; a body lying there is out of its view. In the simulated lounge the ghost
+    check hid a fallen person's only track for 3.5 s because the camera beside the body
+    "should" have seen them (``bench/results/falls.md``)."""
+    world = np.asarray(world, dtype=np.float64).reshape(-1, 2)
+    pixels = np.asarray(runtime.reproject(world), np.float64)
+    if lying is not None and np.asarray(lying, bool).any():
+        rows = np.asarray(lying, bool)
+        pixels[rows] = floor_pixels(runtime, world[rows], pixels[rows])
     size = np.asarray(runtime.image_sizes, dtype=np.float64)[None]
     inside = (pixels >= margin * size) & (pixels <= (1.0 - margin) * size)
     return np.all(inside, axis=-1)
+
+
+def floor_pixels(
+    runtime: Reprojecting, world: np.ndarray, centres: np.ndarray | None = None
+) -> np.ndarray:
+    """Each camera's pixel [N, K, 2] of the floor point under a person at ``world`` [N, 2]: the
+    bottom of the standing box whose centre the decoder gives (``centres``, its
+    :meth:`reproject`), half the height the model's set-up area expects there below it
+    (:meth:`models.mom.setup_area.CameraRegion.expected_height`, a fixed point: the height
+    depends on the foot pixel). A camera without a height model keeps the centre."""
+    world = np.asarray(world, dtype=np.float64).reshape(-1, 2)
+    if centres is None:
+        centres = np.asarray(runtime.reproject(world), np.float64)
+    out = np.array(centres, dtype=np.float64, copy=True)
+    area = getattr(runtime, "setup_area", None)
+    if area is None or not len(out):
+        return out
+    for k, region in enumerate(area.cameras[: out.shape[1]]):
+        if region is None or region.height_model is None:
+            continue
+        u, centre = out[:, k, 0], out[:, k, 1]
+        foot = centre.copy()
+        for _ in range(_FIXED_POINT_STEPS):
+            height = region.expected_height(np.stack([u, foot], 1))
+            foot = centre + 0.5 * np.asarray(height, np.float64)
+        out[:, k, 1] = foot
+    return out
 
 
 def line_of_sight(runtime: Reprojecting, camera: int, world: np.ndarray) -> np.ndarray | None:

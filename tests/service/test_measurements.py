@@ -12,6 +12,7 @@ import pytest
 
 from capture.rig import FrameSet
 from models.detector.base import Detections
+from models.mom.setup_area import SetupArea
 from service.pipeline.hub import Hub
 from service.pipeline.live import Pipeline
 from service.stages import Association
@@ -24,7 +25,7 @@ from service.tracking.measurements import (
     measurement_covariances,
 )
 from service.tracking.tracker import RECOMMENDED, Tracker
-from service.tracking.view_geometry import line_of_sight
+from service.tracking.view_geometry import covering_cameras, floor_pixels, line_of_sight
 from tests.service.fake_frames import FunctionStage, NoRig, frames_at
 from tests.service.mom_doubles import ModelDouble, OracleRuntime, person_boxes, room_cameras
 
@@ -39,6 +40,37 @@ def test_line_of_sight_points_from_the_camera_to_the_person():
         expected = TRUTH - np.array(camera_xy)
         expected /= np.linalg.norm(expected)
         assert abs(float(line_of_sight(runtime, k, TRUTH) @ expected)) == pytest.approx(1, abs=1e-3)
+
+
+def _with_heights(runtime: OracleRuntime) -> OracleRuntime:
+    """The oracle runtime with a set-up area fitted on standing people over the room."""
+    grid = np.stack(np.meshgrid(np.linspace(0.5, 5.5, 11), np.linspace(0.5, 5.5, 11)), -1)
+    grid = grid.reshape(-1, 2)
+    runtime.setup_area = SetupArea.fit(grid, person_boxes(runtime.projections, grid))  # type: ignore[attr-defined]
+    return runtime
+
+
+def test_the_floor_pixel_is_the_bottom_of_a_standing_person_s_box() -> None:
+    runtime = _with_heights(OracleRuntime(CAMERAS))
+    world = np.array([[3.0, 3.0], [4.8, 1.2], [1.5, 2.5]])
+    boxes = person_boxes(CAMERAS, world)
+    floor = floor_pixels(runtime, world)
+    height = boxes[..., 3] - boxes[..., 1]
+    assert (np.abs(floor[..., 1] - boxes[..., 3]) < 0.05 * height).all()
+    assert np.allclose(floor[..., 0], runtime.reproject(world)[..., 0])
+
+
+def test_a_camera_beside_a_body_on_the_floor_does_not_cover_it() -> None:
+    """1.9 m in front of camera 1 a standing person's upper body is in its image and the floor
+    under them is below it: a lying body there is camera 0's alone to see."""
+    runtime = _with_heights(OracleRuntime(CAMERAS))
+    world = np.array([[4.8, 1.2], [3.0, 3.0]])
+    assert covering_cameras(runtime, world).tolist() == [[True, True], [True, True]]
+    lying = covering_cameras(runtime, world, lying=np.array([True, True]))
+    assert lying.tolist() == [[True, False], [True, True]]
+    coverage = coverage_function(runtime, [True, False])
+    assert coverage is not None
+    assert coverage(world, np.array([True, False])).tolist() == [[True, False], [True, False]]
 
 
 def test_default_covariance_per_view_class():

@@ -254,7 +254,7 @@ def test_stillness_needs_the_window_and_the_share() -> None:
     assert shuffler.place is not None and abs(shuffler.place[0]) < 1e-9
 
 
-def _everywhere(xy: np.ndarray) -> np.ndarray:
+def _everywhere(xy: np.ndarray, lying: np.ndarray | None = None) -> np.ndarray:
     """Coverage: both cameras should see a person anywhere (the ghost check's input)."""
     return np.ones((len(xy), 2), dtype=bool)
 

@@ -150,8 +150,8 @@ def test_one_camera_needs_longer_to_be_believed() -> None:
 
 def test_single_view_ghost_where_another_camera_looks_is_dropped() -> None:
     """A box only camera 0 reports, at a place camera 1 covers too, is a detector ghost."""
-    both = lambda xy: np.ones((len(xy), 2), dtype=bool)  # noqa: E731
-    only_zero = lambda xy: np.c_[np.ones(len(xy), bool), np.zeros(len(xy), bool)]  # noqa: E731
+    both = lambda xy, lying=None: np.ones((len(xy), 2), dtype=bool)  # noqa: E731
+    only_zero = lambda xy, lying=None: np.c_[np.ones(len(xy), bool), np.zeros(len(xy), bool)]  # noqa: E731
     for coverage, reported in ((both, False), (only_zero, True), (None, True)):
         tracker = Tracker(fps_hint=FPS, ghost_s=0.5)
         for i in range(45):
@@ -164,6 +164,22 @@ def test_single_view_ghost_where_another_camera_looks_is_dropped() -> None:
         origins = [Origin(cameras=(0, 1) if i == 20 else (0,))]
         tracks = tracker.update(i / FPS, np.array([[2.0, 2.0]]), origins, coverage=both)
     assert len(tracks) == 1
+
+
+def test_a_lone_lying_view_where_the_other_camera_sees_no_floor_is_no_ghost() -> None:
+    """Camera 1 covers a standing person at the spot but not the floor there: a body lying
+    there that camera 0 alone reports stays served; a standing person there is a ghost."""
+    over_the_body = lambda xy, lying=None: np.c_[  # noqa: E731
+        np.ones(len(xy), bool), np.ones(len(xy), bool) if lying is None else ~lying
+    ]
+    for standing, reported in ((True, False), (False, True)):
+        tracker = Tracker(fps_hint=FPS, ghost_s=0.5)
+        origins = [Origin(cameras=(0,), standing=standing)]
+        for i in range(45):
+            tracks = tracker.update(
+                i / FPS, np.array([[2.0, 2.0]]), origins, coverage=over_the_body
+            )
+        assert bool(tracks) == reported, standing
 
 
 def test_measurement_covariance_is_used_and_checked() -> None:
@@ -203,7 +219,7 @@ def test_coasting_is_served_for_serve_coast_s_then_held_with_its_id() -> None:
 
 
 def test_hidden_names_tentative_and_ghost_tracks() -> None:
-    both = lambda xy: np.ones((len(xy), 2), dtype=bool)  # noqa: E731
+    both = lambda xy, lying=None: np.ones((len(xy), 2), dtype=bool)  # noqa: E731
     tracker = Tracker(fps_hint=FPS, ghost_s=0.5, confirm_single_s=0.3)
     tracker.update(0.0, np.array([[2.0, 2.0]]), [Origin(cameras=(0,))], coverage=both)
     assert [w for _, w in tracker.hidden()] == ["tentative"]
@@ -217,8 +233,8 @@ def test_hidden_names_tentative_and_ghost_tracks() -> None:
 def test_box_its_own_camera_cannot_see_there_is_doubted() -> None:
     """``doubt_outside``: a single-view position the reporting camera does not cover (a false
     box localized out of its view) is a ghost; one it covers, alone, is not."""
-    nobody = lambda xy: np.zeros((len(xy), 2), dtype=bool)  # noqa: E731
-    only_one = lambda xy: np.c_[np.zeros(len(xy), bool), np.ones(len(xy), bool)]  # noqa: E731
+    nobody = lambda xy, lying=None: np.zeros((len(xy), 2), dtype=bool)  # noqa: E731
+    only_one = lambda xy, lying=None: np.c_[np.zeros(len(xy), bool), np.ones(len(xy), bool)]  # noqa: E731
     for doubt, reported in ((True, False), (False, True)):
         tracker = Tracker(fps_hint=FPS, ghost_s=0.5, doubt_outside=doubt)
         for i in range(45):
