@@ -47,10 +47,11 @@ def floor_pixels(
     runtime: Reprojecting, world: np.ndarray, centres: np.ndarray | None = None
 ) -> np.ndarray:
     """Each camera's pixel [N, K, 2] of the floor point under a person at ``world`` [N, 2]: the
-    bottom of the standing box whose centre the decoder gives (``centres``, its
-    :meth:`reproject`), half the height the model's set-up area expects there below it
+    bottom of a standing person's box there, half the height the model's set-up area expects
     (:meth:`models.mom.setup_area.CameraRegion.expected_height`, a fixed point: the height
-    depends on the foot pixel). A camera without a height model keeps the centre."""
+    depends on the foot pixel) below the body's mean point that the decoder gives (``centres``,
+    from ``runtime.reproject`` when not given; the box centre, ``models.mom.sampling.unit_mean``).
+    A camera without a height model keeps the mean point."""
     world = np.asarray(world, dtype=np.float64).reshape(-1, 2)
     if centres is None:
         centres = np.asarray(runtime.reproject(world), np.float64)
