@@ -141,13 +141,16 @@ class TrackAnchor:
     ``image_x`` [K'] px and ``image_std`` [K'] px (optional; K' ≤ K cameras, the rest unknown;
     NaN where camera k has not seen the track within ``image_continuity.MAX_AGE_S``): each
     camera's predicted box centre of the track and its std (``ViewMemory.predict``), for the
-    association's per-camera box continuity.
+    association's per-camera box continuity. ``unseen_s``: seconds from the last frame set a
+    camera saw the track in to the time it is predicted to, for the lone-view continuity
+    reading (``service.tracking.posture_continuity``).
     """
 
     xy: np.ndarray
     cov: np.ndarray
     image_x: np.ndarray | None = None
     image_std: np.ndarray | None = None
+    unseen_s: float = 0.0
 
 
 class Reprojecting(Protocol):

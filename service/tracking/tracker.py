@@ -397,7 +397,10 @@ class Tracker:
             mean = motion.mean[:2] if held is None else held
             cameras = 1 + max(tr.views.seen, default=-1)
             image_x, image_std = tr.views.predict(cameras, float(t), LABEL_STD_H, LABEL_GROWTH_HPS)
-            out.append(TrackAnchor(mean.copy(), motion.cov[:2, :2].copy(), image_x, image_std))
+            unseen = max(0.0, float(t) - tr.last_seen)
+            out.append(
+                TrackAnchor(mean.copy(), motion.cov[:2, :2].copy(), image_x, image_std, unseen)
+            )
         return out
 
     def hidden(self) -> list[tuple[Track, str]]:

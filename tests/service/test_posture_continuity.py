@@ -56,8 +56,8 @@ def _seen(boxes: list[list[float]]) -> Seen:
     return detected, found, postures
 
 
-def _anchor(x: float, y: float) -> TrackAnchor:
-    return TrackAnchor(np.array([x, y]), 0.04 * np.eye(2))
+def _anchor(x: float, y: float, unseen_s: float = 0.0) -> TrackAnchor:
+    return TrackAnchor(np.array([x, y]), 0.04 * np.eye(2), unseen_s=unseen_s)
 
 
 def test_a_compact_box_where_a_person_stood_is_a_body_on_the_floor() -> None:
@@ -67,7 +67,8 @@ def test_a_compact_box_where_a_person_stood_is_a_body_on_the_floor() -> None:
     detected, found, postures = _seen([COMPACT])
     assert postures.labels[0].tolist() == [SITTING]
     assert found[0].world[0] == pytest.approx(6.56)
-    (read,) = reread_lying(found, detected, postures, _area(), _OneCamera(), [_anchor(5.0, 3.5)])
+    anchors = [_anchor(5.0, 3.5, unseen_s=1.0)]  # unseen for a second while going down
+    (read,) = reread_lying(found, detected, postures, _area(), _OneCamera(), anchors)
     assert read.world == pytest.approx([4.9, 3.5])
     assert postures.of(read.detection_index)[0] == LYING
     assert postures.confidence[0][0] >= 0.9  # 1.56 m against 0.1: far beyond the margin
@@ -80,6 +81,7 @@ def test_a_compact_box_where_a_person_stood_is_a_body_on_the_floor() -> None:
         ([_anchor(5.6, 3.5)], []),  # both readings within a metre of the track: a squat's
         ([], []),  # nobody tracked near: a new person, judged by the box alone
         ([_anchor(5.0, 3.5)], [[300.0, 50.0, 380.0, 250.0]]),  # a standing person is there
+        ([_anchor(5.0, 3.5, unseen_s=2.0)], []),  # a track only the still hold keeps: stale
     ],
 )
 def test_the_seated_reading_stays_unless_only_lying_keeps_the_track(

@@ -350,3 +350,14 @@ def test_anchors_carry_each_cameras_predicted_box_centre() -> None:
     assert anchor.image_x[0] == pytest.approx(120.0 + 40 * 8, abs=10.0)  # 160 px/s on
     assert anchor.image_std[0] == pytest.approx(200.0 * (LABEL_STD_H + LABEL_GROWTH_HPS * 0.25))
     assert len(anchor.image_x) == 1 or np.isnan(anchor.image_x[1])
+
+
+def test_an_anchor_says_how_long_no_camera_has_seen_its_track() -> None:
+    """The lone-view continuity reading leaves out tracks unseen for long (held still places)."""
+    tracker = Tracker(fps_hint=FPS, **RECOMMENDED)
+    for i in range(30):
+        tracker.update(i / FPS, np.array([[2.0, 2.0]]), [Origin(cameras=(0, 1))])
+    assert [a.unseen_s for a in tracker.anchors(30 / FPS)] == pytest.approx([1 / FPS])
+    for i in range(30, 39):
+        tracker.update(i / FPS, np.empty((0, 2)), [])
+    assert [a.unseen_s for a in tracker.anchors(39 / FPS)] == pytest.approx([10 / FPS])
