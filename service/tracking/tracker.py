@@ -38,7 +38,9 @@ Output policy (documented for API users):
 - a track never seen by two cameras at once that spends more than ``ghost_s`` (0.5 s) where
   another camera should see it (``coverage``, e.g.
   :func:`service.tracking.view_geometry.covering_cameras`) but reports nothing is not reported: a
-  person is seen by a second camera sooner or later, a false positive at a fixed place never is;
+  person is seen by a second camera sooner or later, a false positive at a fixed place never is.
+  A track whose last measurement was a body lying on the floor (``Origin.standing`` false) is
+  expected only by cameras that see the floor under it (``coverage(world, lying)``);
 - while a person is unseen (occlusion, detector miss) the track *coasts* on its prediction and is
   still reported for ``serve_coast_s`` (0.5 s in ``RECOMMENDED``), with ``coasting=True`` and a
   confidence that falls linearly to 0 at ``max_missing_s``; after that it is held but not
