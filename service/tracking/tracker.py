@@ -653,7 +653,9 @@ class Tracker:
         where = np.stack([tr.motion.mean[:2] for tr in doubtful])
         lying = np.array([not tr.origin.standing for tr in doubtful])
         standing = np.asarray(coverage(where))
-        covered = np.asarray(coverage(where, lying)) if lying.any() else standing
+        covered = standing.copy()
+        if lying.any():  # only the lying rows are judged again, by the floor under them
+            covered[lying] = np.asarray(coverage(where[lying], np.ones(int(lying.sum()), bool)))
         for tr, row, upright in zip(doubtful, covered, standing, strict=True):
             seen = set(tr.cameras) if tr.last_seen == self._time else set()
             should = set(np.flatnonzero(row).tolist())
