@@ -51,6 +51,7 @@ HEIGHT_FACTOR = 1.5  # box heights this much beyond the training range still cou
 HEIGHT_SIGMAS = 4.0  # a box this many robust stds off the height expected at its foot is odd
 MIN_LOG_TOLERANCE = float(np.log(1.3))  # ... and never closer than 30 % to it
 MIN_HEIGHT_ROWS = 24  # fewer training boxes: the height range alone
+FOOT_ROW_STEPS = 8  # CameraRegion.foot_row: the expected height varies slowly with the foot row
 _FORMAT = "setup-area-v1"
 
 
@@ -145,6 +146,25 @@ class CameraRegion:
         if self.height_model is None:
             return None
         return np.exp(_height_features(np.asarray(foot, np.float64)) @ self.height_model)
+
+    def foot_row(
+        self, u: np.ndarray, row: np.ndarray, share: float, start: np.ndarray
+    ) -> np.ndarray | None:
+        """[N] image rows of the feet of people standing at columns ``u`` [N] whose body has
+        the row ``row`` [N] ``share`` of their height above the feet (the box centre: 0.5, a
+        seated head's top: its share of a standing height): the fixed point of ``foot = row +
+        share * expected_height(u, foot)``, iterated from ``start`` [N]; None without a fitted
+        height model. One solver for every caller that places a standing body from part of it
+        (the posture's standing boxes, the tracker's floor pixels), so they agree."""
+        if self.height_model is None:
+            return None
+        u = np.asarray(u, np.float64)
+        row = np.asarray(row, np.float64)
+        foot = np.array(start, dtype=np.float64, copy=True)
+        for _ in range(FOOT_ROW_STEPS):
+            height = np.exp(_height_features(np.stack([u, foot], 1)) @ self.height_model)
+            foot = row + share * height
+        return foot
 
     def plausible_height(self, foot: np.ndarray, height: np.ndarray, factor: float) -> np.ndarray:
         """[N] bool: the heights fit what this camera saw at those foot pixels."""

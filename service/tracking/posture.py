@@ -205,10 +205,10 @@ def standing_boxes(
     u = 0.5 * (out[:, 0] + out[:, 2])
     foot = np.where(labels == LYING, out[:, 1] + lying_foot * (out[:, 3] - out[:, 1]), out[:, 3])
     seated = labels == SITTING
-    for _ in range(8):  # y_top = y_foot - SEATED_TOP * h(y_foot): converges in a few steps
-        height = region.expected_height(np.stack([u, foot], 1))
-        assert height is not None
-        foot = np.where(seated, out[:, 1] + SEATED_TOP * height, foot)
+    if seated.any():  # y_top = y_foot - SEATED_TOP * h(y_foot)
+        below_top = region.foot_row(u[seated], out[seated, 1], SEATED_TOP, start=foot[seated])
+        assert below_top is not None
+        foot[seated] = below_top
     height = region.expected_height(np.stack([u, foot], 1))
     assert height is not None
     half = 0.5 * STANDING_ASPECT * height

@@ -14,7 +14,6 @@ import numpy as np
 from service.stages import Reprojecting
 
 _STEP_M = 0.05  # finite-difference step of the line-of-sight direction
-_FIXED_POINT_STEPS = 8  # floor_pixels: the expected height varies slowly with the foot pixel
 
 
 def covering_cameras(
@@ -60,14 +59,12 @@ def floor_pixels(
     if area is None or not len(out):
         return out
     for k, region in enumerate(area.cameras[: out.shape[1]]):
-        if region is None or region.height_model is None:
+        if region is None:
             continue
-        u, centre = out[:, k, 0], out[:, k, 1]
-        foot = centre.copy()
-        for _ in range(_FIXED_POINT_STEPS):
-            height = region.expected_height(np.stack([u, foot], 1))
-            foot = centre + 0.5 * np.asarray(height, np.float64)
-        out[:, k, 1] = foot
+        centre = out[:, k, 1]
+        foot = region.foot_row(out[:, k, 0], centre, 0.5, start=centre)
+        if foot is not None:
+            out[:, k, 1] = foot
     return out
 
 

@@ -139,3 +139,29 @@ def test_a_box_much_shorter_than_a_person_standing_there_is_out_of_region():
     assert area.boxes_in_region(probe).tolist() == [True, False, False]
     again = SetupArea.from_json(json.loads(json.dumps(area.to_json())))
     assert again.boxes_in_region(probe).tolist() == [True, False, False]
+
+
+def test_the_feet_below_a_part_of_the_body_are_where_that_part_sits_on_a_standing_height():
+    """A camera whose people look 0.8 (v - 100) px tall with their feet at row v: the feet
+    under a box centre at row c solve c = v - 0.5 h(v), under a seated head's top at row r
+    solve r = v - 0.64 h(v) (``foot_row`` with that share), whatever row the search starts at;
+    a camera without a height model has no answer."""
+    v = np.linspace(200, 460, 300)
+    u = np.random.default_rng(0).uniform(100, 540, 300)  # columns independent of rows
+    h = 0.8 * (v - 100)
+    boxes = np.stack([u - 0.2 * h, v - h, u + 0.2 * h, v], axis=1)[:, None]
+    area = SetupArea.fit(np.c_[np.linspace(0, 3, 300), np.linspace(0, 3, 300)], boxes)
+    region = area.cameras[0]
+    assert region is not None and region.height_model is not None
+    feet = np.array([260.0, 330.0, 420.0])
+    columns = np.full(3, 320.0)
+    for share, start in ((0.5, None), (0.64, feet + 40.0)):
+        rows = feet - share * 0.8 * (feet - 100)
+        found = region.foot_row(columns, rows, share, start=rows if start is None else start)
+        assert found is not None
+        np.testing.assert_allclose(found, feet, atol=4.0)  # the log-quadratic fit of h
+        expected = region.expected_height(np.stack([columns, found], 1))
+        assert expected is not None
+        np.testing.assert_allclose(found - rows, share * expected, atol=0.5)
+    small = SetupArea.fit(np.zeros((3, 2)), boxes[:3]).cameras[0]
+    assert small is not None and small.foot_row(columns, feet, 0.5, start=feet) is None
