@@ -100,6 +100,11 @@ class ConstantVelocity:
     def correct(self, z: np.ndarray, r: np.ndarray) -> None:
         self.mean, self.cov, _ = _kalman(self.mean, self.cov, np.asarray(z, float), r)
 
+    def settle(self) -> None:
+        """The person is down (a body on the floor does not walk): velocity 0."""
+        self.mean[2:] = 0.0
+        self.cov[2:, :2] = self.cov[:2, 2:] = 0.0
+
     @property
     def standing(self) -> float:
         return 0.0
@@ -170,6 +175,19 @@ class StandOrWalk:
         weights = self._prob * np.exp(logliks - logliks.max())
         self._prob = np.clip(weights / weights.sum(), 1e-6, 1.0)
         self._prob /= self._prob.sum()
+        self._combine()
+
+    def settle(self) -> None:
+        """The person is down (a body on the floor does not walk): both models' velocity 0 and
+        the stand model taken as sure, so the track stays where the body lies instead of
+        coasting on the speed of the fall or of the jump its first lying position made, and
+        averages the body's next positions (``bench/results/falls.md``). Rejected: velocity 0
+        with the models' probabilities kept (the lying person's streamed error and share of
+        time served both worse, ``bench/results/postures.md``)."""
+        for mean, cov in zip(self._means, self._covs, strict=True):
+            mean[2:] = 0.0
+            cov[2:, :2] = cov[:2, 2:] = 0.0
+        self._prob = np.array([1.0 - 1e-6, 1e-6])
         self._combine()
 
     def _combine(self) -> None:

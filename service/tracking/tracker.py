@@ -43,8 +43,13 @@ Output policy (documented for API users):
   expected only by cameras that see the floor under it (``coverage(world, lying)``);
 - while a person is unseen (occlusion, detector miss) the track *coasts* on its prediction and is
   still reported for ``serve_coast_s`` (0.5 s in ``RECOMMENDED``), with ``coasting=True`` and a
-  confidence that falls linearly to 0 at ``max_missing_s``; after that it is held but not
-  reported until ``max_missing_s``, and the id is kept if the person reappears within the
+  confidence that falls linearly to 0 at ``max_missing_s``. A track whose last measurement was a
+  body lying on the floor (``Origin.standing`` false) coasts standing still: each such
+  measurement stops its filter (``settle`` in :mod:`service.tracking.motion`), because a
+  faller's track ran on at the speed of the fall, or of the jump its first lying position made,
+  1.5 m off the body within a second (a fall of the simulated lounge reported 6 s late,
+  ``bench/results/falls.md``). After ``serve_coast_s`` the track is held but not reported until
+  ``max_missing_s``, and the id is kept if the person reappears within the
   (growing) gate, so a 1 s occlusion does not change the id;
 - with ``doubt_outside`` the ghost check also doubts a single-view track whose own camera
   should *not* see it where it is (``coverage``): a box localized where the camera that
@@ -536,6 +541,8 @@ class Tracker:
         if track.confirmed and origin.standing:
             self.noise_scale.observe(d2)
         track.motion.correct(z, self._robust(r, d2))
+        if not origin.standing:
+            track.motion.settle()
         track.last_seen = t
         track.hits += 1
         if self.hold_still_s > 0:

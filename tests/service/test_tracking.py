@@ -85,6 +85,26 @@ def test_one_second_occlusion_keeps_id_and_coasts() -> None:
     assert coasting_conf[-1] < 0.5
 
 
+def test_a_track_fed_a_lying_body_coasts_where_the_body_lies() -> None:
+    """A walker at 1 m/s falls: the first measurement of the body on the floor (its boxes read
+    lying) stops the track there; unseen for the next half second, it is served where the body
+    lies, not 0.5 m on along the walk (a fall of the simulated lounge came 6 s late that way)."""
+    for motion, lying in itertools.product(("imm", "cv"), (False, True)):
+        tracker = Tracker(fps_hint=FPS, motion=motion, serve_coast_s=0.5)
+        for i in range(30):
+            t = i / FPS
+            walker = np.array([[0.5 + t, 2.0]])
+            tracker.update(t, walker, [Origin(cameras=(0, 1))])
+        down = np.array([[0.5 + 30 / FPS, 2.0]])
+        (at_fall,) = tracker.update(30 / FPS, down, [Origin(cameras=(0, 1), standing=not lying)])
+        assert abs(at_fall.x - down[0, 0]) < 0.1
+        for i in range(31, 31 + int(0.5 * FPS)):
+            (track,) = tracker.update(i / FPS, np.zeros((0, 2)), [])
+            assert track.coasting
+        moved = track.x - at_fall.x
+        assert (abs(moved) < 0.02) if lying else (moved > 0.4), (motion, lying, moved)
+
+
 def test_new_person_gets_new_id_and_ids_never_reused() -> None:
     tracker = Tracker(fps_hint=FPS, max_missing_s=0.5)
     for i in range(30):
