@@ -150,9 +150,9 @@ class CameraRegion:
     def foot_row(
         self, u: np.ndarray, row: np.ndarray, share: float, start: np.ndarray
     ) -> np.ndarray | None:
-        """[N] image rows of the feet of people standing at columns ``u`` [N] whose body has
-        the row ``row`` [N] ``share`` of their height above the feet (the box centre: 0.5, a
-        seated head's top: its share of a standing height): the fixed point of ``foot = row +
+        """[N] image rows of the feet of people standing at columns ``u`` [N] when the rows
+        ``row`` [N] lie ``share`` of their standing height above their feet (a box centre: 0.5;
+        a seated head's top: its share of a standing height): the fixed point of ``foot = row +
         share * expected_height(u, foot)``, iterated from ``start`` [N]; None without a fitted
         height model. One solver for every caller that places a standing body from part of it
         (the posture's standing boxes, the tracker's floor pixels), so they agree."""

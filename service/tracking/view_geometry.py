@@ -47,8 +47,8 @@ def floor_pixels(
 ) -> np.ndarray:
     """Each camera's pixel [N, K, 2] of the floor point under a person at ``world`` [N, 2]: the
     bottom of a standing person's box there, half the height the model's set-up area expects
-    (:meth:`models.mom.setup_area.CameraRegion.expected_height`, a fixed point: the height
-    depends on the foot pixel) below the body's mean point that the decoder gives (``centres``,
+    (:meth:`models.mom.setup_area.CameraRegion.foot_row`, a fixed point: the height depends on
+    the foot pixel) below the body's mean point that the decoder gives (``centres``,
     from ``runtime.reproject`` when not given; the box centre, ``models.mom.sampling.unit_mean``).
     A camera without a height model keeps the mean point."""
     world = np.asarray(world, dtype=np.float64).reshape(-1, 2)
