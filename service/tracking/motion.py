@@ -82,6 +82,13 @@ def _kalman(
     return mean, cov, float(loglik)
 
 
+def _stop(mean: np.ndarray, cov: np.ndarray) -> None:
+    """Set a state's velocity [2:] to 0, in place, and forget how it correlated with the
+    position."""
+    mean[2:] = 0.0
+    cov[2:, :2] = cov[:2, 2:] = 0.0
+
+
 class ConstantVelocity:
     """Kalman filter with white-acceleration process noise (see the module docstring)."""
 
@@ -102,8 +109,7 @@ class ConstantVelocity:
 
     def settle(self) -> None:
         """The person is down (a body on the floor does not walk): velocity 0."""
-        self.mean[2:] = 0.0
-        self.cov[2:, :2] = self.cov[:2, 2:] = 0.0
+        _stop(self.mean, self.cov)
 
     @property
     def standing(self) -> float:
@@ -185,8 +191,7 @@ class StandOrWalk:
         with the models' probabilities kept (the lying person's streamed error and share of
         time served both worse, ``bench/results/postures.md``)."""
         for mean, cov in zip(self._means, self._covs, strict=True):
-            mean[2:] = 0.0
-            cov[2:, :2] = cov[:2, 2:] = 0.0
+            _stop(mean, cov)
         self._prob = np.array([1.0 - 1e-6, 1e-6])
         self._combine()
 
