@@ -56,7 +56,10 @@ Rules (per track id; :class:`FallRules`, settings ``falls.*``)
    person last stood takes it: one farther away can never fire (rule 2), and took the fall
    away from the faller's own track. In the lounge a pair of two cameras' boxes 1.15 m off,
    read lying, took the candidate of a faller's track coasting for 0.7 s; the faller's track
-   then read lying on the body again and no event came (``bench/results/falls.md``).
+   then read lying on the body again and no event came (``bench/results/falls.md``). A track
+   that gave its candidate away takes it back the same way: in another fall the faller's
+   track, held 0.6 m off the body, lost it to a second track on the body, which then coasted
+   while the faller's track came back to the body and read lying for sure, and no event came.
 2. **Down for sure**: the candidate becomes a ``fall`` on the first snapshot that reads lying
    with a posture confidence of at least ``min_confidence`` (0.75), at most ``reach_m`` (1 m)
    from where the person last stood, once the track has read lying
@@ -334,11 +337,12 @@ class FallDetector:
                     p.drop_path = p.stood_at(t, rules.max_drop_s)
                 elif free and p.last_standing is None and self._take_over(pid, p, t):
                     p.lying_since, p.down_s = t, 0.0
-                elif p.lying_since is None and not p.handed_over:
+                elif p.lying_since is None:
                     donor = self._lost_candidate(pid, p, t)
                     if donor is not None:  # rule 1c: the body went to this track
                         if p.fallen_at is not None:  # up and down again
                             events.append(self._clear(pid, p, t, "stood_up"))
+                        p.handed_over = False  # a track that gave its fall away takes it back
                         p.lying_since, p.down_s = donor.lying_since, donor.down_s
                         p.drop_x, p.drop_y = donor.drop_x, donor.drop_y
                         p.drop_path = donor.drop_path

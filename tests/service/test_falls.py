@@ -452,6 +452,27 @@ def test_a_lying_track_beyond_reach_takes_no_candidate_from_a_lost_faller() -> N
     assert [(e["type"], e["id"]) for e in events + more] == [(FALL, 1)]
 
 
+def test_a_faller_that_gave_its_fall_away_takes_it_back_when_the_taker_is_lost() -> None:
+    """Rule 1c both ways: the faller's track, held 0.6 m off the body, lost its candidate to a
+    second track on the body; that one then coasted and the faller's track came back to the
+    body, read lying for sure, and no event came (605's third fall in the simulated lounge,
+    ``bench/results/falls.md``). The candidate goes back to it."""
+    detector = FallDetector()
+    body = (2.05, 1.0)
+    t, events = _snapshots(detector, 3.0, [_seen(_stand(1)), _seen(_stand(2, 1.4, 1.4))], 1000.0)
+    t, more = _snapshots(detector, 2.2, [_seen(_stand(1))], t)  # track 2 gone for a while
+    events += more
+    t, more = _snapshots(detector, 0.3, [_seen(_lie(1, *body, confidence=0.5))], t)
+    events += more  # rule 1: track 1's candidate, not sure yet
+    held = _seen(_lie(1, 2.6, 0.8, confidence=0.5), [])
+    t, more = _snapshots(detector, 0.8, [held, _seen(_lie(2, 1.95, 1.05, 0.6), [0])], t)
+    events += more  # track 1 coasts off the body: track 2, on it, takes the candidate
+    assert detector._people[1].handed_over
+    lost = _seen(_lie(2, 1.95, 1.05, 0.6), [])
+    t, more = _snapshots(detector, 1.5, [_seen(_lie(1, *body, confidence=0.95)), lost], t)
+    assert [(e["type"], e["id"]) for e in events + more] == [(FALL, 1)]
+
+
 def test_a_faller_unseen_for_a_moment_keeps_its_fall() -> None:
     """Rule 1c waits ``ON_THE_BODY_S`` before taking a coasting track's candidate away: in the
     simulated lounge the faller's track coasted for 0.3 s while a track held at an earlier
