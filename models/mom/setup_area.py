@@ -156,13 +156,13 @@ class CameraRegion:
         share * expected_height(u, foot)``, iterated from ``start`` [N]; None without a fitted
         height model. One solver for every caller that places a standing body from part of it
         (the posture's standing boxes, the tracker's floor pixels), so they agree."""
-        if self.height_model is None:
-            return None
         u = np.asarray(u, np.float64)
         row = np.asarray(row, np.float64)
         foot = np.array(start, dtype=np.float64, copy=True)
         for _ in range(FOOT_ROW_STEPS):
-            height = np.exp(_height_features(np.stack([u, foot], 1)) @ self.height_model)
+            height = self.expected_height(np.stack([u, foot], 1))
+            if height is None:
+                return None
             foot = row + share * height
         return foot
 
