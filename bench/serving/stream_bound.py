@@ -10,7 +10,9 @@ simulated detector's misses) it serves, per ``MODES`` entry (reports, filter, co
   localizer and the true cameras (:func:`models.geometry.calibrated_baseline.localize`: triangulated
   box centres where two cameras see whole boxes, else the foot point);
 - filter ``none`` (that frame's report), ``causal`` (the median of the person's reports over the
-  last ``WINDOW_S``) or ``centred`` (within ``± WINDOW_S``, offline only).
+  last ``WINDOW_S``), ``centred`` (within ``± WINDOW_S``, offline only) or ``still`` (while the
+  truth stands still, the mean of the person's reports since it stopped: the oracle also knows
+  when someone is still, which a tracker can only infer from the same reports, late).
 
 Where no camera reports the person it holds the last report (``hold``) or moves it on at the
 last reported velocity over ``VELOCITY_S`` (``extrapolate``), for at most ``--coast-s`` seconds.
@@ -21,7 +23,9 @@ reports them). The ``truth`` rows bound MOTA and recall of any tracker that hold
 through the misses; the ``model`` and ``calibrated`` rows are not bounds (a tracker that weighs each
 report by its covariance does better) but show what one frame's boxes say, with association
 taken out: together they tell how much of the gap to the issue-14 targets is the misses and how
-much the boxes.
+much the boxes. The standing jitter column (:mod:`models.data.stream_metrics`) is how much the
+boxes shake a still person with the association perfect: per frame, smoothed over a second
+(``centred``), and averaged over all of their stillness (``still``).
 
 Usage::
 
@@ -36,8 +40,8 @@ from pathlib import Path
 import numpy as np
 
 from bench.report import machine_line
-from bench.serving.stream_accuracy import train_cached
-from models.data.stream_metrics import StreamScorer
+from bench.serving.stream_accuracy import combine, train_cached
+from models.data.stream_metrics import STILL_SPEED_MPS, StreamScorer
 from models.geometry import calibrated_baseline as baseline
 from models.mom.runtime import MomRuntime
 from models.simulate import Scene
@@ -55,6 +59,7 @@ MODES = (
     ("model", "none", "hold"),
     ("model", "causal", "hold"),
     ("model", "centred", "hold"),
+    ("model", "still", "hold"),
     ("calibrated", "none", "hold"),
     ("calibrated", "centred", "hold"),
 )
@@ -95,8 +100,12 @@ def reported_positions(
 
 def filtered(frames: list[dict[str, np.ndarray]], fps: float, kind: str) -> None:
     """Replace each report by the median of the same person's reports over the last
-    ``WINDOW_S`` (``causal``) or within ``± WINDOW_S`` (``centred``, offline only)."""
+    ``WINDOW_S`` (``causal``) or within ``± WINDOW_S`` (``centred``, offline only), or while
+    they stand still by the mean of their reports since they stopped (``still``)."""
     if kind == "none":
+        return
+    if kind == "still":
+        _still_means(frames, fps)
         return
     half = round(WINDOW_S * fps)
     series: dict[int, list[tuple[int, int]]] = {}
@@ -115,6 +124,25 @@ def filtered(frames: list[dict[str, np.ndarray]], fps: float, kind: str) -> None
             frames[i]["filtered"][p] = np.median(xy[near], axis=0)
     for frame in frames:
         frame["reported"] = frame.pop("filtered", frame["reported"])
+
+
+def _still_means(frames: list[dict[str, np.ndarray]], fps: float) -> None:
+    """The ``still`` filter: a person's report, while their true speed stays below the scorer's
+    still speed, replaced by the mean of their reports since it did."""
+    since: dict[int, list[np.ndarray]] = {}
+    before: dict[int, np.ndarray] = {}
+    for frame in frames:
+        out = frame["reported"].copy()
+        for p, track in enumerate(frame["track"]):
+            track, xy = int(track), frame["world"][p]
+            moved = before.get(track)
+            before[track] = xy
+            if moved is None or np.linalg.norm(xy - moved) * fps >= STILL_SPEED_MPS:
+                since[track] = []
+            if np.isfinite(out[p]).all():
+                since.setdefault(track, []).append(out[p].copy())
+                out[p] = np.mean(since[track], axis=0)
+        frame["reported"] = out
 
 
 def oracle_scores(
@@ -188,13 +216,15 @@ def main() -> None:
         "who is who; where some camera's detector reports a person it serves the truth "
         "(`truth`), the stream bench's MoM model on that person's own boxes (`model`) or a "
         "calibrated localizer with the true cameras (`calibrated`), per frame or as a median "
-        f"over the last {WINDOW_S:g} s (`causal`) or ± {WINDOW_S:g} s (`centred`, offline); "
+        f"over the last {WINDOW_S:g} s (`causal`) or ± {WINDOW_S:g} s (`centred`, offline), or "
+        "while the person stands still the mean of their reports since they stopped (`still`: "
+        "the oracle knows when); "
         "where none does it holds (or extrapolates) the last report for at most the coast time "
         "(`bench/serving/stream_bound.py`).",
         "",
         "| scene | people | no camera reports % | coast | reports | filter | coasting | recall % "
-        "| MOTA % | matched mean m | Acc@0.3 % |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| MOTA % | matched mean m | Acc@0.3 % | standing jitter cm |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for preset, people in SCENES:
         model = train_cached(preset, args.profile, args.train_frames, args.epochs)
@@ -207,17 +237,13 @@ def main() -> None:
                     )
                     for s in args.seeds
                 ]
-                gt = sum(r["gt"] for r in runs)
-                unseen = sum(r["by_views"]["0"]["gt"] for r in runs) / gt * 100
-                tp = sum(r["tp"] for r in runs)
-                errors = sum(r["fp"] + r["fn"] + r["id_switches"] for r in runs)
+                pooled = combine(runs)
+                unseen = pooled["by_views"]["0"]["gt"] / pooled["gt"] * 100
                 label = "∞" if coast > 1e6 else f"{coast:g} s"
-                mean = sum(r["mean"] * r["n"] for r in runs if r["n"]) / max(tp, 1)
-                acc = sum(r["acc@0.3"] * r["n"] for r in runs if r["n"]) / max(tp, 1)
                 row = (
                     f"| {preset} | {people} | {unseen:.1f} | {label} | {' | '.join(mode)} | "
-                    f"{tp / gt * 100:.1f} | {(1 - errors / gt) * 100:.1f} | {mean:.3f} | "
-                    f"{acc:.1f} |"
+                    f"{pooled['recall']:.1f} | {pooled['mota']:.1f} | {pooled['mean']:.3f} | "
+                    f"{pooled['acc@0.3']:.1f} | {100 * pooled['jitter_m']:.2f} |"
                 )
                 print(row, flush=True)
                 lines.append(row)

@@ -31,14 +31,16 @@ box lie 0.2 of its height closer together, the rule took fewer of a fallen body'
 views, their seated readings put the body 1.2 m off, and the simulated lounge's lying person was
 served in 65 % of their frames instead of 98 % (``bench/results/falls.md``).
 
-A track no camera has seen for longer than ``HELD_S`` (1.5 s, the tracker's ``max_missing_s``
-in ``RECOMMENDED``: how long it keeps any track unseen) is no anchor: only the still hold keeps
-it (``hold_still_s``), at the place it was last still, and that is no longer where a person was
-a moment ago. In the simulated lounge's daily life such a held track was a phantom (a
-duplicate of a crouching person's track, dragged off them and held unseen for 2.2 s), and the
-re-read fed it a lying body: a false fall (``bench/results/falls.md``). A faller's track unseen
-for a second while they go down still anchors the body; 0.5 s instead of 1.5 s took a second
-false fall away and made a fall 5.8 s late (its faller's track unseen for 1.1 s).
+A track no camera has seen for longer than ``HELD_S`` (1.5 s) is no anchor. The tracker
+serves a track unseen for longer than its ``serve_coast_s`` (0.5 s) only while its still hold
+keeps it (``hold_still_s``), at the place it was last still, and after a second or two that is
+no longer where a person was a moment ago. ``HELD_S`` is this rule's own bound, measured here,
+not a tracker setting: it stays put when a user changes how long the tracker keeps ids. In the
+simulated lounge's daily life such a held track was a phantom (a duplicate of a crouching
+person's track, dragged off them and held unseen for 2.2 s), and the re-read fed it a lying
+body: a false fall (``bench/results/falls.md``). A faller's track unseen for a second while they
+go down still anchors the body; 0.5 s instead of 1.5 s took a second false fall away and made a
+fall 5.8 s late (its faller's track unseen for 1.1 s).
 
 Measured on held bodies of the simulated lounge with the true position standing in for the
 track's (seeds 1-8 of the fall bench and 2 × 20 min of its daily life, each box localized alone;
@@ -67,7 +69,7 @@ NEAR_M = 0.6  # ... and the lying reading this near it
 GAP_M = 1.0  # ... nearer by at least this much
 SURE_GAP_M = 0.5  # beyond GAP_M, the lying read's confidence grows to 1 over this
 CENTRE = 0.5  # the lying reading's floor point: the box centre (module docstring)
-HELD_S = 1.5  # a track unseen longer is no anchor: only the still hold keeps it (docstring)
+HELD_S = 1.5  # a track unseen longer is no anchor (docstring: measured, not the tracker's)
 
 
 def reread_lying(

@@ -34,6 +34,21 @@ def test_filters_take_the_median_over_the_window_and_keep_gaps():
     assert float(untouched[2]["reported"][0, 0]) == 10.0
 
 
+def test_still_filter_averages_the_reports_since_the_person_stopped():
+    fps = 10.0
+    xs = [0.0, 1.0, 3.0, np.nan, 5.0, 7.0]
+    frames = _frames([[x, 0.0] for x in xs])
+    # walks on the first step (0.1 m in 0.1 s), stands from frame 1, walks again at frame 5
+    walk = [0.0, 0.1, 0.1, 0.1, 0.1, 0.5]
+    for frame, x in zip(frames, walk, strict=True):
+        frame["world"] = np.array([[x, 2.0]])
+    filtered(frames, fps, "still")
+    got = [float(f["reported"][0, 0]) for f in frames]
+    # the first frame has no speed yet and the moving frames keep their own report; a gap
+    # stays a gap and does not end the stillness
+    assert got[:3] == [0.0, 1.0, 2.0] and np.isnan(got[3]) and got[4] == 3.0 and got[5] == 7.0
+
+
 def test_truth_oracle_is_perfect_when_the_detector_misses_nobody():
     scores = oracle_scores("indoor-2cam", 2, "ideal", 7, 60, 0.5, ("truth", "none", "hold"))
     assert scores["gt"] > 0 and scores["fp"] == 0 and scores["id_switches"] == 0
