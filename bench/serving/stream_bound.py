@@ -140,7 +140,7 @@ def _still_means(frames: list[dict[str, np.ndarray]], fps: float) -> None:
             if moved is None or np.linalg.norm(xy - moved) * fps >= STILL_SPEED_MPS:
                 since[track] = []
             if np.isfinite(out[p]).all():
-                since.setdefault(track, []).append(out[p].copy())
+                since[track].append(out[p].copy())
                 out[p] = np.mean(since[track], axis=0)
         frame["reported"] = out
 
