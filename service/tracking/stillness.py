@@ -34,15 +34,6 @@ left (within the gate), the crouch became a new track, and a false box read lyin
 phantom fired a fall (``bench/results/falls.md``). Lone views keep the wide bound: their range
 is poorly known.
 
-Once the person has left, their measurements at the place are forgotten (all but the recent
-ones): they no longer say where the person is, and left in the window they made the person
-still at the place again as soon as the recent span held too few fixes to say otherwise. In
-the lounge's daily life a person who had stood still walked 1.15 m off, seen by both cameras,
-and squatted; after a second unseen, one two-camera fix 0.8 m from the place (within
-``leave_m``) made the window's median, still at the place, their still place again, the track
-was held back there, and a two-camera pair read lying beside it fired a fall
-(``bench/results/falls.md``). The price: stillness at the new spot takes ``after_s`` again.
-
 Times are the measurements' timestamps (no clock); the rule is in seconds and metres, so it
 means the same at any frame rate.
 """
@@ -96,27 +87,17 @@ class StillMemory:
         self.place = self._judge(rule)
 
     def _judge(self, rule: StillRule) -> np.ndarray | None:
-        place, left = self._at_place(rule)
-        if left:  # their time at the place no longer says where they are (module docstring)
-            while self.times[0] < self.times[-1] - rule.recent_s - 1e-9:
-                self.times.popleft()
-                self.points.popleft()
-                self.views.popleft()
-        return place
-
-    def _at_place(self, rule: StillRule) -> tuple[np.ndarray | None, bool]:
-        """The still place (None: not still), and whether the person has left it."""
         if self.times[-1] - self.times[0] < rule.after_s - 1e-9:
-            return None, False
+            return None
         points = np.asarray(self.points)
         median = np.median(points, axis=0)
         near = np.linalg.norm(points - median, axis=1) <= rule.radius_m
         if near.mean() < rule.share:
-            return None, False
+            return None
         is_recent = np.asarray(self.times) >= self.times[-1] - rule.recent_s - 1e-9
         recent = points[is_recent]
         left = np.linalg.norm(np.median(recent, axis=0) - median) > rule.leave_m
         seen = recent[np.asarray(self.views)[is_recent] >= 2]  # fixes of two cameras or more
         if len(seen) >= 2:
             left = left or np.linalg.norm(np.median(seen, axis=0) - median) > rule.leave_seen_m
-        return (None, True) if left else (median, False)
+        return None if left else median
