@@ -11,11 +11,12 @@ sofa (:class:`service.outputs.zones.ZoneTracker`). On top of the profile's misse
 this person for at most ~0.4 s: the table hides only the shins), ``--dropouts-per-hour`` blackouts
 of up to ``--longest-dropout`` s where no camera reports them (a seated person half hidden by
 a sofa back or a blanket is lost for seconds by real detectors). Scored: the share of time
-the zone's count is right (1), the number of ids served on the sitter (each frame the served
-track nearest them, within ``SITTER_M``: 1 means no id change; a false track passing by while
-theirs is served is not theirs) and of all served ids (the rest are the detector's false boxes
-tracked elsewhere in the room), the number of enter/leave events, and the longest detector
-dropout. Time is the frame timestamps (no clock).
+the zone's count is right (1), how often the sitter's own id changed (:func:`id_changes`: each
+frame the served track nearest them, within ``SITTER_M``, serves them; their own ids are those
+that served them for ``SITTER_ID_S`` in all), the number of ids that ever served them (a false
+track nearer than theirs for one frame counts here) and of all served ids (the rest are the
+detector's false boxes tracked elsewhere in the room), the number of enter/leave events, and
+the longest detector dropout. Time is the frame timestamps (no clock).
 
 Usage::
 
@@ -26,7 +27,9 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import itertools
 import platform
+from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -47,6 +50,7 @@ RESULTS = Path(__file__).resolve().parents[1] / "results"
 SOFA_ZONE = [[1.3, 2.9], [3.7, 2.9], [3.7, 4.0], [1.3, 4.0]]
 NOISE_M = 0.05
 SITTER_M = 1.0  # a served track this close to the sitter is theirs
+SITTER_ID_S = 1.0  # ... if it was, in all, for this long (a false track passing by is not)
 
 
 def sitter_scene(minutes: float, fps: float, seed: int) -> Scene:
@@ -65,6 +69,19 @@ def blackouts(seconds: float, per_hour: float, longest_s: float, seed: int) -> n
     count = round(per_hour * seconds / 3600.0)
     start = np.sort(rng.uniform(10.0, max(seconds - longest_s, 11.0), count))
     return np.stack([start, start + rng.uniform(1.0, longest_s, count)], axis=1)
+
+
+def id_changes(serving: Sequence[int | None], frame_s: float, min_s: float = SITTER_ID_S) -> int:
+    """How often the sitter's own id changed, from the id serving them each frame (``None``:
+    nobody within ``SITTER_M``). Their own ids are those that served them for ``min_s`` in all:
+    a false track nearer than theirs for a frame or two does not change who they are, and
+    counting it (the former "sitter's ids") reported id changes that were none."""
+    time: dict[int, float] = {}
+    for ident in serving:
+        if ident is not None:
+            time[ident] = time.get(ident, 0.0) + frame_s
+    own = [i for i in serving if i is not None and time[i] >= min_s - 1e-9]
+    return sum(a != b for a, b in itertools.pairwise(own))
 
 
 def still_presence(
@@ -88,6 +105,7 @@ def still_presence(
     right = judged = events = 0
     ids: set[int] = set()
     sitter_ids: set[int] = set()
+    serving: list[int | None] = []  # per judged frame: the id serving the sitter
     gap = longest = 0.0
     for i in range(frames):
         t = i / scene.fps
@@ -120,7 +138,8 @@ def still_presence(
         sitter = obs.world[0, :2]
         near = [(float(np.hypot(tr.x - sitter[0], tr.y - sitter[1])), tr.id) for tr in tracks]
         near = [n for n in near if n[0] <= SITTER_M]
-        if near:  # the nearest served track within SITTER_M serves the sitter
+        serving.append(min(near)[1] if near else None)  # the nearest within SITTER_M
+        if near:
             sitter_ids.add(min(near)[1])
         judged += 1
         right += int(zones.states["sofa"].count == 1)
@@ -128,6 +147,7 @@ def still_presence(
         "occupied_pct": 100.0 * right / max(judged, 1),
         "ids": float(len(ids)),
         "sitter_ids": float(len(sitter_ids)),
+        "sitter_id_changes": float(id_changes(serving, 1.0 / scene.fps)),
         "events": float(events),
         "longest_dropout_s": longest,
     }
@@ -193,9 +213,9 @@ def main(argv: list[str] | None = None) -> int:
         f"{args.dropouts_per_hour:g} dropouts an hour of 1-{args.longest_dropout:g} s where no "
         "camera reports the person. Target: the zone occupied ≥ 99.5 % of the time, 1 id.",
         "",
-        "| tracker | positions | zone count right % | sitter's ids | served ids "
-        "| enter/leave events | longest dropout s |",
-        "|---|---|---|---|---|---|---|",
+        "| tracker | positions | zone count right % | sitter's id changes | sitter's ids "
+        "| served ids | enter/leave events | longest dropout s |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     holes = blackouts(args.minutes * 60, args.dropouts_per_hour, args.longest_dropout, args.seed)
     runtimes: dict[str, MomRuntime | None] = {"true + 5 cm noise": None}
@@ -207,8 +227,9 @@ def main(argv: list[str] | None = None) -> int:
         for source, runtime in runtimes.items():
             scene = sitter_scene(args.minutes, args.fps, args.seed)
             r = still_presence(scene, frames, options, holes, runtime=runtime)
-            cells = (f"{r['occupied_pct']:.2f}", f"{r['sitter_ids']:.0f}", f"{r['ids']:.0f}",
-                     f"{r['events']:.0f}", f"{r['longest_dropout_s']:.1f}")  # fmt: skip
+            cells = (f"{r['occupied_pct']:.2f}", f"{r['sitter_id_changes']:.0f}",
+                     f"{r['sitter_ids']:.0f}", f"{r['ids']:.0f}", f"{r['events']:.0f}",
+                     f"{r['longest_dropout_s']:.1f}")  # fmt: skip
             lines.append(f"| {name} | {source} | " + " | ".join(cells) + " |")
             print(lines[-1], flush=True)
     if args.walking:
