@@ -44,8 +44,9 @@ place once the person has left (a body on the floor, whose two-camera fixes swin
 off for a few frames, then needed a fresh ``after_s`` to be still again, and the lounge's lying
 person's posture was right 80 % of the time instead of 94 %), and holding a person who left
 away until all their recent measurements, lone views too, are back within the radius (two
-falls of the lounge were lost: a track held where a faller had lain, released by its lone
-views, no longer took the odd lone views of the faller's next fall nearby). The place a person
+falls of seed set 1401 were lost: the track held where the faller had lain before, no longer
+taken back there by lone views, changed which track took the body of their next fall nearby).
+The place a person
 left is kept (:attr:`StillMemory.left`) until the window's median lies elsewhere; the tracker
 uses it to give the id back to a person who reappears there (:mod:`service.tracking.tracker`).
 
