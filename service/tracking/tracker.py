@@ -747,8 +747,8 @@ class Tracker:
         release a hold), it was dropped there 1.5 s later, and when the sitter reappeared 3 s
         after that a new id started on the sofa (the seated hour on the AMD machine, 1665 s:
         ``bench/results/still_presence_chain.md``). Not chosen: a narrower gate for the
-        two-camera fix that releases a hold. That pair lay 0.95 m from the place, just inside
-        the 1 m gate, and a person who got up during a dropout may be seen anywhere."""
+        two-camera fix that releases a hold. That pair lay just inside the 1 m gate (1.01 m
+        from the sitter), and a person who got up during a dropout may be seen anywhere."""
         if self.hold_still_s <= 0 or self._time is None:
             return
         now = self._time
