@@ -46,9 +46,9 @@ person's posture was right 80 % of the time instead of 94 %), and holding a pers
 away until all their recent measurements, lone views too, are back within the radius (two
 falls of seed set 1401 were lost: the track held where the faller had lain before, no longer
 taken back there by lone views, changed which track took the body of their next fall nearby).
-The place a person
-left is kept (:attr:`StillMemory.left`) until the window's median lies elsewhere; the tracker
-uses it to give the id back to a person who reappears there (:mod:`service.tracking.tracker`).
+The place a person left is kept (:attr:`StillMemory.left`) until the window's median lies
+elsewhere; the tracker uses it to give the id back to a person who reappears there
+(:mod:`service.tracking.tracker`).
 
 Times are the measurements' timestamps (no clock); the rule is in seconds and metres, so it
 means the same at any frame rate.
