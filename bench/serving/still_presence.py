@@ -104,7 +104,6 @@ def still_presence(
     dropouts = np.zeros((0, 2)) if dropouts is None else dropouts
     right = judged = events = 0
     ids: set[int] = set()
-    sitter_ids: set[int] = set()
     serving: list[int | None] = []  # per judged frame: the id serving the sitter
     gap = longest = 0.0
     for i in range(frames):
@@ -139,14 +138,12 @@ def still_presence(
         near = [(float(np.hypot(tr.x - sitter[0], tr.y - sitter[1])), tr.id) for tr in tracks]
         near = [n for n in near if n[0] <= SITTER_M]
         serving.append(min(near)[1] if near else None)  # the nearest within SITTER_M
-        if near:
-            sitter_ids.add(min(near)[1])
         judged += 1
         right += int(zones.states["sofa"].count == 1)
     return {
         "occupied_pct": 100.0 * right / max(judged, 1),
         "ids": float(len(ids)),
-        "sitter_ids": float(len(sitter_ids)),
+        "sitter_ids": float(len({i for i in serving if i is not None})),
         "sitter_id_changes": float(id_changes(serving, 1.0 / scene.fps)),
         "events": float(events),
         "longest_dropout_s": longest,

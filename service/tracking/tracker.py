@@ -306,8 +306,8 @@ class Tracker:
         )
         self._tracks: list[_State] = []
         self._next_id = 1
-        # (id, place, when dropped) of still people whose tracks ended (:meth:`_returning_id`)
-        self._lost_places: list[tuple[int, np.ndarray, float]] = []
+        # id -> (place, when dropped) of still people whose tracks ended (:meth:`_returning_id`)
+        self._lost_places: dict[int, tuple[np.ndarray, float]] = {}
         self._time: float | None = None
         self._previous_time: float | None = None  # of the update before the latest
 
@@ -752,14 +752,15 @@ class Tracker:
         if self.hold_still_s <= 0 or self._time is None:
             return
         now = self._time
-        self._lost_places = [
-            lost for lost in self._lost_places if now - lost[2] <= self.hold_still_s
-        ]
+        self._lost_places = {
+            ident: lost
+            for ident, lost in self._lost_places.items()
+            if now - lost[1] <= self.hold_still_s
+        }
         for tr in dropped:
             place = tr.still.place if tr.still.place is not None else tr.still.left
             if tr.confirmed and tr.multi_view and place is not None:
-                self._lost_places = [lost for lost in self._lost_places if lost[0] != tr.id]
-                self._lost_places.append((tr.id, place.copy(), now))
+                self._lost_places[tr.id] = (place.copy(), now)
 
     def _returning_id(self, z: np.ndarray, t: float) -> int:
         """The id of a new track at ``z``: that of a still person whose track ended within
@@ -770,7 +771,7 @@ class Tracker:
         alive = {tr.id for tr in self._tracks}
         near = [
             (float(np.linalg.norm(z - place)), ident)
-            for ident, place, dropped in self._lost_places
+            for ident, (place, dropped) in self._lost_places.items()
             if ident not in alive
             and t - dropped <= self.hold_still_s
             and np.linalg.norm(z - place) <= self.still_rule.radius_m
