@@ -11,9 +11,10 @@ Per frame set (time ``t``, one :class:`~models.detector.base.Detections` per cam
 0. **postures**: a seated or lying person's box is replaced by the box a standing person at the
    same place would give (the model was set up on standing people), and every box gets a
    posture that the track carries, smoothed, into the snapshot (:mod:`service.tracking.posture`;
-   ``postures=False``: boxes as detected); after the association, a compact box read seated is
-   read as a body on the floor where only that keeps a tracked person in place
-   (:mod:`service.tracking.posture_continuity`);
+   ``postures=False``: boxes as detected); after the association, a person whose cameras all
+   see a compact box is read as a body on the floor where only that makes the views agree
+   (:mod:`service.tracking.posture_views`), and a compact box read seated as one where only
+   that keeps a tracked person in place (:mod:`service.tracking.posture_continuity`);
 1. **associate** the boxes of all cameras into people (:mod:`service.tracking.association`), with
    the tracker's served tracks predicted to ``t`` as anchors (a tracked person's fragments fold
    into one association; ``track_anchors=False``: the boxes alone); each association says
@@ -69,6 +70,7 @@ from service.tracking.posture import (
 from service.tracking.posture import normalise as normalise_postures
 from service.tracking.posture_agreement import agree as agree_postures
 from service.tracking.posture_continuity import reread_lying
+from service.tracking.posture_views import lying_by_views
 from service.tracking.recurring_boxes import RecurringBoxes
 from service.tracking.view_bias import ViewBias
 
@@ -150,6 +152,7 @@ class Chain:
             )
             if box_postures is not None:  # one posture per person (its boxes' vote)
                 found = agree_postures(found, detected, box_postures, area, runtime)
+                found = lying_by_views(found, detected, box_postures, area, runtime)
                 found = reread_lying(
                     found, detected, box_postures, area, runtime, anchors + self._stood_at(t)
                 )

@@ -20,8 +20,8 @@ foot pixel looks). Per box, ``ratio`` = box height / expected height at its bott
   middle is seen below the box's centre. Until 2026-12-06 the centre was used. Lone views of
   the lying bodies of the fall bench's lounge (seeds 601-608), each localized alone: those read
   lying 0.41 m off (median; p90 0.55 m) from the centre, 0.22 m (p90 0.31 m) from 0.7 down;
-  their compact lengthwise boxes (read sitting; converted as lying in an association another
-  view votes lying, :mod:`service.tracking.posture_agreement`) 0.33 m and 0.18 m (from 0.6-0.8
+  their compact lengthwise boxes (read sitting; converted as lying where only that makes an
+  association's views agree, :mod:`service.tracking.posture_views`) 0.33 m and 0.18 m (from 0.6-0.8
   down, flat ones 0.19-0.27 m, compact ones 0.18-0.20 m). The re-read of a lone compact box
   (:mod:`service.tracking.posture_continuity`) keeps the centre its bounds were measured on. It
   is a figure of simulated bodies, to be checked on
