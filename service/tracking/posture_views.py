@@ -13,7 +13,7 @@ seat, away from each camera). A squat sits between.
 
 Measured on the simulated lounge with the true association (each person's own two boxes, both
 read sitting or lying by their shape, each localized alone; fall scenes of seeds 1-12 and
-3 × 20 min of daily life, none of the fall bench's seeds; ``bench/results/falls.md``):
+3 × 20 min of daily life, none of the fall bench's seeds; ``bench/results/posture_views.md``):
 
 | held posture | frames | seated readings apart, 5/50/95 % | lying readings apart, 5/50/95 % |
 |:--|--:|--:|--:|
