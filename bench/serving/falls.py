@@ -193,6 +193,26 @@ def room_scene(room: Room, scripts: tuple[tuple[Segment, ...], ...], fps: float,
     return Scene(config, seed=seed)
 
 
+def fall_scene(room: Room, seed: int, fps: float) -> tuple[Scene, list[Fall], int]:
+    """The fall scene of ``seed``: someone who falls three times (:func:`fall_script`) while
+    someone sits on the room's first seat; its falls and frame count."""
+    route, falls = fall_script(room, np.random.default_rng([seed, 31]))
+    seated = tuple((Segment(p, p, 3600.0, "sitting", FACING[f]),) for p, f in room.seats[:1])
+    scene = room_scene(room, (tuple(route), *seated), fps, seed)
+    return scene, falls, int(sum(s.seconds for s in route) * fps)
+
+
+def daily_scene(room: Room, seed: int, chunk: int, seconds: float, fps: float) -> Scene:
+    """Hour ``chunk`` (``seconds`` long) of the daily life of ``seed``: three people, each with
+    a seat of their own while there are seats (:func:`daily_script`)."""
+    rng = np.random.default_rng([seed, chunk, 41])
+    scripts = tuple(
+        tuple(daily_script(room, rng, seconds, p if p < len(room.seats) else None))
+        for p in range(3)
+    )
+    return room_scene(room, scripts, fps, seed * 100 + chunk)
+
+
 def chain_snapshots(runtime: MomRuntime, scene: Scene, frames: int) -> Snapshots:
     """The served people of ``frames`` frames through the serving chain."""
     chain = Chain(Tracker(fps_hint=scene.fps, **RECOMMENDED))
@@ -332,11 +352,8 @@ def falls_in_time(runtime: Model, room: Room, seeds: range, fps: float, run: Run
     }
     latencies: dict[str, list[float]] = {name: [] for name in variants}
     for seed in seeds:
-        rng = np.random.default_rng([seed, 31])
-        route, falls = fall_script(room, rng)
-        seated = tuple((Segment(p, p, 3600.0, "sitting", FACING[f]),) for p, f in room.seats[:1])
-        scene = room_scene(room, (tuple(route), *seated), fps, seed)
-        served = run(runtime, scene, int(sum(s.seconds for s in route) * fps))
+        scene, falls, frames = fall_scene(room, seed, fps)
+        served = run(runtime, scene, frames)
         seen = [detected_down(scene, fall) for fall in falls]
         for name, rules in variants.items():
             late, wrong = match_falls(fall_events(served, rules), falls, rules)
@@ -394,13 +411,8 @@ def false_falls(runtime: Model, room: Room, hours: float, fps: float, seed: int,
     chunks = max(1, math.ceil(hours))
     seconds = hours * 3600.0 / chunks
     for chunk in range(chunks):
-        rng = np.random.default_rng([seed, chunk, 41])
-        people = 3
-        scripts = tuple(
-            tuple(daily_script(room, rng, seconds, p if p < len(room.seats) else None))
-            for p in range(people)
-        )
-        scene = room_scene(room, scripts, fps, seed * 100 + chunk)
+        scene = daily_scene(room, seed, chunk, seconds, fps)
+        people = len(scene.walkers.heights)
         frames = int(seconds * fps)
         served = run(runtime, scene, frames)
         for name, rules in variants.items():

@@ -29,8 +29,6 @@ from bench.report import command_line
 from bench.serving import falls as fb
 from models.mom.runtime import MomRuntime
 from models.simulate import Scene
-from models.simulate.presets import FACING
-from models.simulate.script import Segment
 from service.tracking.posture import LYING, SITTING, box_postures, standing_boxes
 from service.tracking.posture_views import AGREE_M, APART_M
 
@@ -72,27 +70,6 @@ def spreads(runtime: MomRuntime, scene: Scene, frames: int, step: int) -> np.nda
     return np.array(rows, dtype=np.float64).reshape(-1, 4)
 
 
-def fall_scene(seed: int) -> tuple[Scene, int]:
-    """The fall bench's scene of ``seed`` (someone falls three times, someone sits) and its
-    frame count."""
-    room = fb.ROOMS["lounge"]
-    route, _ = fb.fall_script(room, np.random.default_rng([seed, 31]))
-    sofa = tuple((Segment(p, p, 3600.0, "sitting", FACING[f]),) for p, f in room.seats[:1])
-    scene = fb.room_scene(room, (tuple(route), *sofa), 10.0, seed)
-    return scene, int(sum(segment.seconds for segment in route) * 10.0)
-
-
-def daily_scene(seed: int, seconds: float) -> Scene:
-    """``seconds`` of the fall bench's daily life (three people), its own ``seed``."""
-    room = fb.ROOMS["lounge"]
-    rng = np.random.default_rng([seed, 0, 41])
-    scripts = tuple(
-        tuple(fb.daily_script(room, rng, seconds, p if p < len(room.seats) else None))
-        for p in range(3)
-    )
-    return fb.room_scene(room, scripts, 5.0, seed * 100)
-
-
 def table(falls: np.ndarray, daily: np.ndarray) -> list[str]:
     """The spreads by held posture, and what the rule takes of each."""
     out = [
@@ -131,12 +108,15 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     runtime = fb.room_model("lounge")
     assert isinstance(runtime, MomRuntime)
-    falls = np.concatenate(
-        [spreads(runtime, *fall_scene(s), step=2) for s in range(1, args.fall_seeds + 1)]
-    )
+    room = fb.ROOMS["lounge"]
+    scenes = [fb.fall_scene(room, seed, 10.0) for seed in range(1, args.fall_seeds + 1)]
+    falls = np.concatenate([spreads(runtime, scene, frames, 2) for scene, _, frames in scenes])
     seconds = args.daily_minutes * 60.0
     daily = np.concatenate(
-        [spreads(runtime, daily_scene(s, seconds), int(seconds * 5.0), 2) for s in (1, 2, 3)]
+        [
+            spreads(runtime, fb.daily_scene(room, seed, 0, seconds, 5.0), int(seconds * 5.0), 2)
+            for seed in (1, 2, 3)
+        ]
     )
     text = [
         "# Two views of a compact person: seated and lying readings",

@@ -11,34 +11,28 @@ each box) land together. A seated person is the other way round: the seated read
 and the lying ones land 1.1-2.8 m apart (the floor point 0.7 down a seated box is beyond the
 seat, away from each camera). A squat sits between.
 
-Measured on the simulated lounge with the true association (each person's own two boxes, both
-read sitting or lying by their shape, each localized alone; fall scenes of seeds 1-12 and
-3 × 20 min of daily life, none of the fall bench's seeds; ``bench/results/posture_views.md``):
-
-| held posture | frames | seated readings apart, 5/50/95 % | lying readings apart, 5/50/95 % |
-|:--|--:|--:|--:|
-| lying | 1433 | 1.97 / 2.40 / 2.81 m | 0.11 / 0.25 / 0.39 m |
-| crouching (daily life) | 403 | 0.36 / 1.13 / 1.56 m | 0.61 / 0.79 / 1.38 m |
-| sitting | 15588 | 0.18 / 0.94 / 2.29 m | 1.14 / 2.36 / 2.83 m |
-
-The rule (lying readings within ``AGREE_M``, seated ones beyond ``APART_M``) takes 92 % of the
-lying frames, all 104 of those no box read lying (the missed falls' case: their seated readings
-are 2.3 m apart or more, 95 %), none of the crouch frames of daily life and none of its 12137
-two-view frames. With the seated readings 1.5 m apart it took 98.5 % of the lying frames, but in
-the fall bench's sets 1301 and 1501 a squat between the two cameras, near their wall, seen from
-both sides, agreed as lying (0.34-0.46 m) with its seated readings 1.7 m apart: two false falls. An
-association whose boxes read lying and sitting (voted lying) is converted wholly as lying by the
-same test: otherwise its seated boxes keep their seated conversion and pull the body towards
-their cameras.
+Measured on the simulated lounge with the true association (each person's own two boxes, each
+localized alone; scenes none of the fall bench's seeds; ``bench/results/posture_views.md``, by
+``bench.serving.posture_views``): a lying body's seated readings land 2-2.8 m apart and its
+lying readings within 0.4 m (5-95 %); a squat's seated readings within 1.6 m, its lying ones
+0.6 m apart or more; a sitter's lying readings 1.1 m apart or more. The rule (lying readings
+within ``AGREE_M``, seated ones ``APART_M`` apart or more) takes 92 % of the lying frames, every
+one of those no box read lying (the missed falls' case), and none of daily life's two-view
+frames, squats and sitters alike. With the seated bound at 1.5 m it took 98.5 % of the lying
+frames, but in the fall bench's sets 1301 and 1501 a squat between the two cameras, near their
+wall, seen from both sides, agreed as lying (0.34-0.46 m) with its seated readings 1.7 m apart:
+two false falls (``bench/results/falls.md``). An association whose boxes read lying and sitting
+(voted lying) is converted wholly as lying by the same test: otherwise its seated boxes keep
+their seated conversion and pull the body towards their cameras.
 
 Rejected: the converse, a lying vote read seated when its lying readings land 0.8 m apart or
 more (a body's never did beyond 0.6 m; 7 of daily life's 10 two-view frames with a box of a squat
 or a sit-down read lying did): a falling body's first lying reads land apart too, and falls were
 reported later (set 601: two of 24 beyond 3 s); a ratio of the two spreads (seated ≥ 2 × lying
-took 19 % of the crouch frames); the
-box centre as the lying floor point here (its readings of a lying body land 0.53 m apart,
-median: the centre is too far up a body seen obliquely). A lone view has no second reading to
-agree with: :mod:`service.tracking.posture_continuity` judges it by where the track was.
+took 19 % of the crouch frames); the box centre as the lying floor point here (its readings of
+a lying body land 0.53 m apart, median: the centre is too far up a body seen obliquely). A lone
+view has no second reading to agree with: :mod:`service.tracking.posture_continuity` judges it
+by where the track was.
 """
 
 from __future__ import annotations
@@ -82,8 +76,8 @@ def lying_by_views(
         world = np.asarray(runtime.localize(np.concatenate([seated, lying])), np.float64)[:, :2]
         if not np.isfinite(world).all():
             continue
-        seated_apart = _min_apart(world[: len(cameras)])
-        lying_apart = _max_apart(world[len(cameras) :])
+        seated_apart = float(_pairwise(world[: len(cameras)]).min())
+        lying_apart = float(_pairwise(world[len(cameras) :]).max())
         if not (lying_apart <= AGREE_M and seated_apart >= APART_M):
             continue
         rows = np.full_like(lying[0], np.nan)
@@ -135,13 +129,6 @@ def _lone_rows(
 
 
 def _pairwise(points: np.ndarray) -> np.ndarray:
+    """The distances between every two of ``points`` [N, 2]."""
     upper = np.triu_indices(len(points), 1)
     return np.linalg.norm(points[:, None] - points[None], axis=-1)[upper]
-
-
-def _min_apart(points: np.ndarray) -> float:
-    return float(_pairwise(points).min())
-
-
-def _max_apart(points: np.ndarray) -> float:
-    return float(_pairwise(points).max())
