@@ -164,6 +164,21 @@ class BoxPostures:
         total = sum(sum(v) for v in votes.values())
         return label, round(sum(votes[label]) / max(total, 1e-9) * float(np.mean(votes[label])), 3)
 
+    def low(
+        self, detection_index: Sequence[int | None], detected: Sequence[Detections]
+    ) -> dict[int, np.ndarray] | None:
+        """An association's boxes as ``detected`` (before the posture stage), by camera, when
+        every one of them reads sitting or lying; else None (the posture steps after the
+        association judge only such people)."""
+        boxes: dict[int, np.ndarray] = {}
+        for k, i in enumerate(detection_index):
+            if i is None or k >= len(detected) or i >= len(detected[k].boxes):
+                continue
+            if str(self.labels[k][i]) not in (SITTING, LYING):
+                return None
+            boxes[k] = np.asarray(detected[k].boxes[i], np.float64)
+        return boxes
+
 
 def classify(ratio: np.ndarray, aspect: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Labels [N] and confidences [N] from height ratios and aspects (module docstring)."""

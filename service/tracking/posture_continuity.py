@@ -131,15 +131,11 @@ def _from_the_top(
     """The association's boxes as detected, by camera, when none of them reads standing and at
     least one was converted from its top (read sitting, or lying by its keypoints: its
     replacement is the seated one); else None."""
-    boxes: dict[int, np.ndarray] = {}
+    boxes = postures.low(association.detection_index, detected)
+    if not boxes:
+        return None
     from_top = False
-    for k, i in enumerate(association.detection_index):
-        if i is None or k >= len(detected) or i >= len(detected[k].boxes):
-            continue
-        if str(postures.labels[k][i]) not in (SITTING, LYING):
-            return None
-        box = np.asarray(detected[k].boxes[i], np.float64)
-        boxes[k] = box
+    for k, box in boxes.items():
         seated = standing_boxes(box[None], np.array([SITTING], dtype=object), area, k)[0]
         from_top |= bool(np.allclose(association.boxes[k], seated, atol=0.5))
-    return boxes if boxes and from_top else None
+    return boxes if from_top else None

@@ -105,17 +105,11 @@ def _compact_views(
 ) -> dict[int, np.ndarray] | None:
     """The association's boxes as detected, by camera, when there are two or more, each reads
     sitting or lying and at least one sitting (all lying: already converted so); else None."""
-    boxes: dict[int, np.ndarray] = {}
-    labels = set()
-    for k, i in enumerate(association.detection_index):
-        if i is None or k >= len(detected) or i >= len(detected[k].boxes):
-            continue
-        label = str(postures.labels[k][i])
-        if label not in (SITTING, LYING):
-            return None
-        labels.add(label)
-        boxes[k] = np.asarray(detected[k].boxes[i], np.float64)
-    return boxes if len(boxes) >= 2 and SITTING in labels else None
+    boxes = postures.low(association.detection_index, detected)
+    if boxes is None or len(boxes) < 2:
+        return None
+    labels = {str(postures.labels[k][association.detection_index[k]]) for k in boxes}
+    return boxes if SITTING in labels else None
 
 
 def _lone_rows(
