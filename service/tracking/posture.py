@@ -124,7 +124,7 @@ SEATED_RATIO = 0.78  # box height / a standing person's there: below, not standi
 SEATED_ASPECT = 0.45  # ... and at least this wide per unit height (an occluded walker's
 # visible upper half is short too, but narrow)
 LYING_RATIO = 0.33  # below, lying whatever the width (a squat is 0.4-0.6: module docstring)
-LYING_FLAT_ASPECT = 1.3  # wider than 99 % of seated and crouch boxes (module docstring)
+LYING_FLAT_ASPECT = 1.3  # wider than 98.8 % of crouch boxes, 99.7 % of seated ones (docstring)
 LYING_SURE_ASPECT = 1.0  # a lying box's confidence grows with its width beyond this
 LYING_MIN_WIDTH = 0.15  # of a standing person's height there: narrower, no body on the floor
 SEATED_TOP = 0.64  # a seated head's top over the expected standing height (module docstring)
