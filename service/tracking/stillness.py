@@ -125,24 +125,21 @@ class StillMemory:
         near = np.linalg.norm(points - median, axis=1) <= rule.radius_m
         if near.mean() < rule.share:
             return None
-        is_recent = np.asarray(self.times) >= self.times[-1] - rule.recent_s - 1e-9
+        times, views = np.asarray(self.times), np.asarray(self.views)
+        is_recent = times >= times[-1] - rule.recent_s - 1e-9
         recent = points[is_recent]
-        seen = recent[np.asarray(self.views)[is_recent] >= 2]  # fixes of two cameras or more
+        seen = recent[views[is_recent] >= 2]  # fixes of two cameras or more
         left = np.linalg.norm(np.median(recent, axis=0) - median) > rule.leave_m
         # two fixes to leave (one mispaired fix must not end a sitter's stillness), one to
         # stay away once left (module docstring)
         if len(seen) >= (2 if self.left is None else 1):
             left = left or np.linalg.norm(np.median(seen, axis=0) - median) > rule.leave_seen_m
         self.left = median if left else None
-        return None if left else self._settled(rule, median)
-
-    def _settled(self, rule: StillRule, median: np.ndarray) -> np.ndarray:
-        """Where the still person is now: the median of the two-camera fixes of the last
-        ``settled_s`` when there are ``settled_fixes`` of them within ``radius_m`` of the
-        window's ``median``, else that median (module docstring)."""
-        times, views = np.asarray(self.times), np.asarray(self.views)
+        if left:
+            return None
+        # the place: where two cameras put the person in the last seconds (module docstring)
         settled = (times >= times[-1] - rule.settled_s - 1e-9) & (views >= 2)
         if settled.sum() < rule.settled_fixes:
             return median
-        here = np.median(np.asarray(self.points)[settled], axis=0)
+        here = np.median(points[settled], axis=0)
         return here if np.linalg.norm(here - median) <= rule.radius_m else median
