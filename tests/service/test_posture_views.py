@@ -54,17 +54,17 @@ def _associated(box0: list[float], box1: list[float]) -> tuple:
     return detected, found, postures
 
 
-# Compact boxes (70 px: 0.35 of a standing height, 84 px wide) read sitting. Seated, a box's
+# Compact boxes (70 px: 0.35 of a standing height, 100 px wide) read sitting. Seated, a box's
 # top is a head 128 px (0.64 of a standing height) above the feet; lying, the floor under the
 # body's middle is 0.7 down the box (49 px below its top).
 # A body lying at (5.26, 3.5): camera 0's lying reading is row 263 (x 5.26), column 350 (y 3.5);
 # camera 1's row 175 (y 3.5), column 526 (x 5.26). Their seated readings, (6.84, 3.5) and
 # (5.26, 5.08), are 2.23 m apart.
-LYING_0 = [308.0, 214.0, 392.0, 284.0]
-LYING_1 = [484.0, 126.0, 568.0, 196.0]
+LYING_0 = [300.0, 214.0, 400.0, 284.0]
+LYING_1 = [476.0, 126.0, 576.0, 196.0]
 # A person seated at (6.84, 3.5): camera 1's box with its feet row (top + 128) at 175 (y 3.5),
 # column 684 (x 6.84); its lying reading is row 96 (y 1.92), 2.23 m from camera 0's.
-SEATED_1 = [642.0, 47.0, 726.0, 117.0]
+SEATED_1 = [634.0, 47.0, 734.0, 117.0]
 
 
 def test_two_compact_views_that_agree_only_as_lying_are_a_body_on_the_floor() -> None:
@@ -101,7 +101,7 @@ def test_a_mixed_vote_is_converted_wholly_as_lying_when_the_views_agree_so() -> 
     "box0, box1",
     [
         (LYING_0, [476.0, 20.0, 576.0, 202.0]),  # camera 1 sees a standing person: not compact
-        (LYING_0, [484.0, 164.0, 568.0, 234.0]),  # lying readings 0.76 m apart: a squat's
+        (LYING_0, [476.0, 164.0, 576.0, 234.0]),  # lying readings 0.76 m apart: a squat's
         # agreeing as lying, but the seated readings only 1.84 m apart: a squat seen from both
         # sides near the cameras' wall (the fall bench's set 1301 had one)
         ([300.0, 200.0, 400.0, 290.0], [476.0, 112.0, 576.0, 202.0]),
