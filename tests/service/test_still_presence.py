@@ -259,6 +259,14 @@ def test_the_place_is_where_two_cameras_put_the_person_in_the_last_seconds() -> 
     for i in range(1, 11):  # the same shift seen by one camera: its range is poorly known
         lone.remember(8.0 + i * 0.2, np.array([1.4, 1.0]), rule, 1)
     assert lone.place is not None and np.allclose(lone.place, [1.0, 1.0])
+    swung = StillMemory()
+    for i in range(40):
+        swung.remember(i * 0.2, np.array([1.0, 1.0]), rule, 2)
+    for i in range(1, 8):  # 1.4 s of two-camera fixes 0.6 m off, then back: still at the place
+        swung.remember(8.0 + i * 0.2, np.array([1.6, 1.0]), rule, 2)
+    for i in range(1, 4):  # the last 2 s's fixes lie mostly beyond the radius: not the place
+        swung.remember(9.4 + i * 0.2, np.array([1.0, 1.0]), rule, 2)
+    assert swung.place is not None and np.allclose(swung.place, [1.0, 1.0])
 
 
 def test_a_still_track_one_camera_loses_is_held_where_two_last_put_it() -> None:
