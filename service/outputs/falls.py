@@ -40,6 +40,12 @@ Rules (per track id; :class:`FallRules`, settings ``falls.*``)
    no fall. Nor does a donor still on the body: one seen lying within ``ON_THE_BODY_S`` and
    nearer where it stood than the new track is keeps its candidate (the new track is a second
    track of the body; taking the fall over, it fired past the 3 s in one of the 96 falls).
+   The candidate is dropped when two cameras then see the donor standing or sitting: its
+   person is up, and the lying track was a ghost beside them. In the lounge's daily life through
+   the chain a person sat down (their standing reads unsure on the way), a pair of two cameras'
+   boxes read lying a metre away became a new track, and its fall fired while both cameras read
+   the sitter seated (``bench/results/falls.md``). One camera's seated read is no such evidence:
+   a body on the floor seen lengthwise reads seated.
    **1c. A candidate whose track is lost** (the tracker gave the body to another track, often
    one held nearby from before, which rule 1b never lets take over: it was not born lying)
    goes to the nearest track within ``handover_m`` that reads lying in a snapshot no camera
@@ -220,6 +226,7 @@ class _Person:
     stood_path: list[tuple[float, float, float]] = field(default_factory=list)  # (t, x, y) of
     # the seen standing reads of the last max_drop_s
     drop_path: tuple[tuple[float, float], ...] = ()  # ... before the candidate began (stayed_m)
+    donor: int | None = None  # the track whose drop rule 1b handed this candidate (its id)
 
     def stood_at(self, t: float, span_s: float) -> tuple[tuple[float, float], ...]:
         """Where the seen standing reads of the ``span_s`` before ``t`` were."""
@@ -271,6 +278,7 @@ class FallDetector:
             and _measured(q)
             and _confidence(q) >= self.rules.min_confidence
         ]
+        self._drop_ghosts()
         for p in people:
             pid = int(p["id"])
             person = self._people.get(pid)
@@ -339,7 +347,7 @@ class FallDetector:
                 free = p.lying_since is None and p.fallen_at is None and not p.handed_over
                 if free and quick:
                     p.lying_since, p.down_s, p.drop_x, p.drop_y = t, 0.0, p.stood_x, p.stood_y
-                    p.drop_path = p.stood_at(t, rules.max_drop_s)
+                    p.drop_path, p.donor = p.stood_at(t, rules.max_drop_s), None
                 elif free and p.last_standing is None and self._take_over(pid, p, t):
                     p.lying_since, p.down_s = t, 0.0
                 elif p.lying_since is None:
@@ -350,7 +358,7 @@ class FallDetector:
                         p.handed_over = False  # a track that gave its fall away takes it back
                         p.lying_since, p.down_s = donor.lying_since, donor.down_s
                         p.drop_x, p.drop_y = donor.drop_x, donor.drop_y
-                        p.drop_path = donor.drop_path
+                        p.drop_path, p.donor = donor.drop_path, donor.donor
                         donor.handed_over, donor.lying_since = True, None
             if p.lying_since is not None and p.down_at is not None:
                 p.down_s += t - p.down_at
@@ -375,6 +383,14 @@ class FallDetector:
         if p.down_s >= rules.lying_s - 1e-9 and sure:
             events.append(self._fall(pid, p, t))
         return events
+
+    def _drop_ghosts(self) -> None:
+        """Rule 1b's donor up: a candidate whose donor two cameras see standing or sitting
+        now is dropped (module docstring)."""
+        upright = {other for other, _, _ in self._upright}
+        for p in self._people.values():
+            if p.lying_since is not None and p.donor is not None and p.donor in upright:
+                p.lying_since = p.donor = None
 
     def _beside_upright(self, pid: int, p: _Person, person: Mapping[str, Any]) -> bool:
         """Rule 2's lone view: ``person`` is read lying by one camera alone within
@@ -421,7 +437,7 @@ class FallDetector:
         rules = self.rules
         if rules.handover_m <= 0:
             return False
-        donor = self._nearest(
+        donor_id = self._nearest_id(
             (math.hypot(d.stood_x - p.x, d.stood_y - p.y), other)
             for other, d in self._people.items()
             if other != pid
@@ -436,8 +452,9 @@ class FallDetector:
             and (d.upright_at is None or d.upright_at <= p.born)
             and not _still_on_the_body(d, p, t)
         )
-        if donor is None:
+        if donor_id is None:
             return False
+        donor = self._people[donor_id]
         p.drop_x, p.drop_y = donor.stood_x, donor.stood_y
         p.drop_path = (
             donor.drop_path
@@ -445,6 +462,7 @@ class FallDetector:
             else donor.stood_at(t, rules.max_drop_s)
         )
         donor.handed_over, donor.lying_since = True, None
+        p.donor = donor_id
         return True
 
     def _lost_candidate(self, pid: int, p: _Person, t: float) -> _Person | None:
@@ -456,7 +474,7 @@ class FallDetector:
         rules = self.rules
         if rules.handover_m <= 0:
             return None
-        return self._nearest(
+        nearest = self._nearest_id(
             (math.hypot(d.x - p.x, d.y - p.y), other)
             for other, d in self._people.items()
             if other != pid
@@ -469,11 +487,12 @@ class FallDetector:
             and t - d.measured <= rules.max_drop_s
             and math.hypot(d.drop_x - p.x, d.drop_y - p.y) <= rules.reach_m
         )
+        return None if nearest is None else self._people[nearest]
 
-    def _nearest(self, gaps: Iterable[tuple[float, int]]) -> _Person | None:
-        """The person of the smallest (gap, id) within ``handover_m``, or None."""
+    def _nearest_id(self, gaps: Iterable[tuple[float, int]]) -> int | None:
+        """The id of the smallest (gap, id) within ``handover_m``, or None."""
         near = [(gap, other) for gap, other in gaps if gap <= self.rules.handover_m]
-        return self._people[min(near)[1]] if near else None
+        return min(near)[1] if near else None
 
     def _zones_at(self, p: _Person) -> list[str]:
         return [z.name for z in self.zones if z.contains(p.x, p.y)]

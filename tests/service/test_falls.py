@@ -355,6 +355,32 @@ def test_a_track_lost_while_going_down_hands_its_fall_over_and_a_sure_stander_do
 
 
 @pytest.mark.parametrize(
+    "donor_cameras, expected",
+    [
+        ([0, 1], []),  # two cameras see the old track's person sitting: up, the body a ghost
+        ([0], [(FALL, 2)]),  # one camera's seated read: a lengthwise view of the body itself
+    ],
+)
+def test_a_fall_handed_to_a_new_track_is_dropped_when_its_donor_is_seen_up_by_two_cameras(
+    donor_cameras: list[int], expected: list[tuple[str, int]]
+) -> None:
+    """The lounge's daily life through the chain: a person sat down (their track's standing
+    reads unsure as they went down), and a pair of boxes read lying a metre away became a new
+    track, which rule 1b gave the sitter's drop; the sitter's track went on reading seated in
+    both cameras, and the ghost's fall fired."""
+    detector = FallDetector()
+    t, events = _snapshots(detector, 3.0, [_stand(1)], 1000.0)
+    wobbly = {**_stand(1), "posture_confidence": 0.55, "cameras": [0, 1]}
+    t, more = _snapshots(detector, 0.3, [wobbly], t)
+    events += more
+    t, more = _snapshots(detector, 0.4, [_seen(_lie(2, 2.9), [0, 1])], t)
+    events += more
+    seated = {**_stand(1, 2.0), "posture": "sitting", "cameras": donor_cameras}
+    t, more = _snapshots(detector, 3.0, [seated, _seen(_lie(2, 2.9), [0, 1])], t)
+    assert [(e["type"], e["id"]) for e in events + more] == expected
+
+
+@pytest.mark.parametrize(
     "lying_cameras, other_cameras, other_x, other_posture, expected",
     [
         ([0], [0, 1], 2.9, "standing", []),  # a lone view beside someone both cameras see up
