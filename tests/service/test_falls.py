@@ -113,12 +113,14 @@ def test_a_coasting_track_s_carried_standing_is_no_evidence_of_a_quick_drop():
 
 def test_a_track_standing_for_a_moment_is_not_known_to_stand():
     """A track born standing one snapshot before reading lying (a mispaired or false box) is no
-    quick drop; a second of standing is."""
+    quick drop, nor one that stood 1.2 s (a ghost pair of two cameras' boxes in the lounge's
+    daily life through the chain); two seconds of standing is."""
+    for moment in (0.1, 1.2):
+        clock = Clock()
+        clock.hold(moment, "standing").hold(10, "lying")
+        assert clock.events == []
     clock = Clock()
-    clock.hold(0.1, "standing").hold(10, "lying")
-    assert clock.events == []
-    clock = Clock()
-    clock.hold(1.2, "standing").hold(10, "lying")
+    clock.hold(2.0, "standing").hold(10, "lying")
     assert clock.types() == [FALL]
     up = Clock()  # got up from a chair and fell half a second later: upright all along
     up.hold(3, "standing").hold(5, "sitting").hold(0.5, "standing").hold(10, "lying")
@@ -523,7 +525,7 @@ def test_a_drop_is_from_a_sure_standing_read(
     at the sofa made it a fall: a drop must come within ``max_drop_s`` of a sure standing read."""
     clock = Clock()
     clock.hold(5, "sitting", confidence=1.0, cameras=[0, 1])
-    clock.hold(1.2, "standing", confidence=standing_confidence, cameras=[0])
+    clock.hold(1.8, "standing", confidence=standing_confidence, cameras=[0])
     clock.hold(0.6, "standing", cameras=[])  # held at the still place, its posture carried
     clock.hold(3, "lying", confidence=0.95, cameras=[0])
     assert clock.types() == expected

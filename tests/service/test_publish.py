@@ -88,9 +88,9 @@ def test_zone_and_fall_events_share_one_numbering_and_listeners_get_the_fall_sta
             calls.extend(events)
 
     monitor.add_listener(Listener())
-    for i in range(60):  # stands in the zone for 1.5 s (min_standing_s: 1 s), then lies there
+    for i in range(60):  # stands in the zone for 1.7 s (min_standing_s: 1.5 s), then lies there
         someone = person(4, 1.0, 1.0)
-        someone["posture"] = "standing" if i < 45 else "lying"
+        someone["posture"] = "standing" if i < 52 else "lying"
         monitor.offer(snap(i + 1, 100 + i / 30, [someone]))
     assert [(e["type"], e["seq"]) for e in calls] == [("enter", 1)]
     for i in range(60, 120):
