@@ -17,9 +17,10 @@ Rules (per track id; :class:`FallRules`, settings ``falls.*``)
    then fed a lying association, raised false falls; so did tracks born a moment before,
    standing for one snapshot, and a ghost pair of two cameras' boxes read standing for 1.2 s
    where nobody stood, then read lying by one camera (``bench/results/falls.md``: 1 s until
-   2026-12-07; 1.5 s lost none of the simulated falls, 2 s one of 240). Lying down on purpose goes through
-   sitting for longer than that (onto a sofa, a bed, the floor), and a track that was never seen
-   standing (someone already lying when the daemon starts) is never a candidate. The drop must
+   2026-12-07; 1.5 s lost none of the simulated falls, 2 s one of 240). Lying down on
+   purpose goes through sitting for longer than that (onto a sofa, a bed, the floor), and a
+   track that was never seen standing (someone already lying when the daemon starts) is never
+   a candidate. The drop must
    also come within ``max_drop_s`` of a *sure* standing read (posture confidence at least
    ``min_confidence``): a sitter's track left at the sofa when its person walked off read
    standing only unsurely (0.42-0.72), was held there, and a false box read lying at the sofa
