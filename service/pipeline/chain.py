@@ -119,6 +119,8 @@ class Chain:
         self.track_anchors = track_anchors
         # per track id: when and where it last read standing for sure (:meth:`_stood_at`)
         self._stood: dict[int, tuple[float, np.ndarray]] = {}
+        # per track id: when an association last fed it (a stood place's ``unseen_s``)
+        self._fed: dict[int, float] = {}
 
     def new_model(self) -> None:
         """Forget what was learned about the former model's localizer (lone-view offsets)."""
@@ -220,10 +222,12 @@ class Chain:
         camera's line of sight, but the first such reads are often only 0.5-0.8 m off, under
         the rule's jump, and they drag the track; each later read is then near the dragged
         track and the body was never read lying (a miss of the simulated lounge's falls,
-        ``bench/results/falls.md``). Where the person last stood does not move."""
+        ``bench/results/falls.md``). Where the person last stood does not move. Each place is
+        as stale as its track (``unseen_s``: since an association last fed it), so the reading
+        drops it with the track (its ``HELD_S``)."""
         return [
-            TrackAnchor(xy.copy(), np.zeros((2, 2)))
-            for when, xy in self._stood.values()
+            TrackAnchor(xy.copy(), np.zeros((2, 2)), unseen_s=t - self._fed.get(i, when))
+            for i, (when, xy) in self._stood.items()
             if t - when <= STOOD_S
         ]
 
@@ -242,11 +246,14 @@ class Chain:
             label, sure = track.posture = (
                 smoother.update(track.id, t, *seen) if seen else smoother.current(track.id)
             )
+            if seen:
+                self._fed[track.id] = t
             if seen and seen[0] == label == STANDING and sure >= STOOD_SURE:
                 self._stood[track.id] = (t, np.array([track.x, track.y], np.float64))
         alive = {track.id for track in tracks} | set(self.tracker_ids())
         smoother.forget(alive)
         self._stood = {i: place for i, place in self._stood.items() if i in alive}
+        self._fed = {i: when for i, when in self._fed.items() if i in alive}
 
     def tracker_ids(self) -> list[int]:
         """Ids the tracker still holds (served or not): their postures are kept."""

@@ -40,7 +40,18 @@ simulated lounge's daily life such a held track was a phantom (a duplicate of a 
 person's track, dragged off them and held unseen for 2.2 s), and the re-read fed it a lying
 body: a false fall (``bench/results/falls.md``). A faller's track unseen for a second while they
 go down still anchors the body; 0.5 s instead of 1.5 s took a second false fall away and made a
-fall 5.8 s late (its faller's track unseen for 1.1 s).
+fall 5.8 s late (its faller's track unseen for 1.1 s). Nor is where such a track last stood
+(the chain gives each place the time since an association last fed its track): in held-out
+daily life a sitter got up and walked off, their track was held at the sofa where it had just
+read standing, and 1.8 s later a false box read sitting was re-read lying there, a false fall.
+
+A box narrower than ``MIN_WIDTH`` (0.2) of a standing person's height at its place is not
+re-read: a body on the floor is at least as wide in the image as its shoulders seen end-on
+(:data:`~service.tracking.posture.LYING_MIN_WIDTH`, whose 0.15 is for a box read lying by its
+shape and leaves room for a child). Of the held bodies' boxes read sitting in the simulated
+lounge, 0.75 % of the lying ones and none of the crouches' are narrower; a held-out daily-life
+false fall was a false box 0.17-0.20 of the height wide, re-read lying beside a track dragged
+off a person sitting down (``bench/results/falls.md``).
 
 Measured on held bodies of the simulated lounge with the true position standing in for the
 track's (seeds 1-8 of the fall bench and 2 × 20 min of its daily life, each box localized alone;
@@ -70,6 +81,7 @@ GAP_M = 1.0  # ... nearer by at least this much
 SURE_GAP_M = 0.5  # beyond GAP_M, the lying read's confidence grows to 1 over this
 CENTRE = 0.5  # the lying reading's floor point: the box centre (module docstring)
 HELD_S = 1.5  # a track unseen longer is no anchor (docstring: measured, not the tracker's)
+MIN_WIDTH = 0.2  # of a standing person's height there: narrower, no body seen end-on (docstring)
 
 
 def reread_lying(
@@ -128,14 +140,19 @@ def _from_the_top(
     postures: BoxPostures,
     area: SetupArea,
 ) -> dict[int, np.ndarray] | None:
-    """The association's boxes as detected, by camera, when none of them reads standing and at
-    least one was converted from its top (read sitting, or lying by its keypoints: its
-    replacement is the seated one); else None."""
+    """The association's boxes as detected, by camera, when none of them reads standing or is
+    narrower than ``MIN_WIDTH`` and at least one was converted from its top (read sitting, or
+    lying by its keypoints: its replacement is the seated one); else None."""
     boxes = postures.low(association.detection_index, detected)
     if not boxes:
         return None
     from_top = False
     for k, box in boxes.items():
+        region = area.cameras[k] if k < len(area.cameras) else None
+        bottom = np.array([[0.5 * (box[0] + box[2]), box[3]]])
+        expected = None if region is None else region.expected_height(bottom)
+        if expected is not None and box[2] - box[0] < MIN_WIDTH * float(expected[0]):
+            return None
         seated = standing_boxes(box[None], np.array([SITTING], dtype=object), area, k)[0]
         from_top |= bool(np.allclose(association.boxes[k], seated, atol=0.5))
     return boxes if from_top else None

@@ -93,6 +93,21 @@ def test_the_seated_reading_stays_unless_only_lying_keeps_the_track(
     assert postures.labels[0][0] == SITTING
 
 
+@pytest.mark.parametrize("width_px, lying", [(42.0, True), (38.0, False)])
+def test_a_box_narrower_than_a_body_seen_end_on_is_not_read_lying(
+    width_px: float, lying: bool
+) -> None:
+    """A short box (0.35 of a standing height) reads sitting at 0.21 or 0.19 of a standing
+    height wide; its seated reading is 1.96 m beyond the track, its lying one 0.1 m. A body on
+    the floor is at least as wide as its shoulders seen end-on: 0.19 is something else (the
+    held-out daily life's false box), and the seated reading stays."""
+    detected, found, postures = _seen([[349.0 - width_px / 2, 220.0, 349.0 + width_px / 2, 290.0]])
+    assert postures.labels[0].tolist() == [SITTING]
+    (read,) = reread_lying(found, detected, postures, _area(), _OneCamera(), [_anchor(5.0, 3.5)])
+    assert read.world[0] == pytest.approx(5.1 if lying else 6.96)
+    assert postures.labels[0][0] == (LYING if lying else SITTING)
+
+
 class _OneCameraRoom(_OneCamera):
     """:class:`_OneCamera` as the chain's model: its set-up area (a 9 m floor) and image."""
 
@@ -141,3 +156,32 @@ def test_a_track_dragged_by_seated_reads_is_read_lying_from_where_it_stood() -> 
         ends.append((tracks[0].x, tracks[0].posture[0]))
     assert 4.7 < ends[0][0] < 5.3 and ends[0][1] == LYING
     assert ends[1][0] > 5.5 and ends[1][1] == SITTING
+
+
+def test_where_a_track_stood_is_anchored_with_how_long_the_track_is_unseen() -> None:
+    """A person stands at x 5 m for 3 s, sits down there for 1 s, then no camera sees them in
+    four frame sets: at the next, the place they stood (1.5 s before) is kept, unseen for 0.5 s,
+    so the re-read drops it with the track once the track is unseen longer than ``HELD_S`` (the
+    held-out daily life's
+    false fall: a track held where a sitter had stood up and walked off anchored a false box
+    read lying 1.8 s later)."""
+    from service.pipeline.chain import Chain
+    from service.tracking.tracker import RECOMMENDED, Tracker
+    from tests.service.test_posture import _each_box
+
+    standing = [300.0, 50.0, 380.0, 250.0]  # x 5 m
+    seated = [300.0, 122.0, 390.0, 212.0]  # its head 0.64 of a standing height above x 5 m
+    runtime = _OneCameraRoom()
+    chain = Chain(
+        Tracker(fps_hint=10, **RECOMMENDED),
+        associate=_each_box,  # type: ignore[arg-type]
+        view_bias=None,
+    )
+    frames = [[standing]] * 30 + [[seated]] * 10 + [[]] * 4
+    for i, boxes in enumerate(frames):
+        detected = [Detections(np.array(boxes, np.float32).reshape(-1, 4), np.ones(len(boxes)))]
+        _, tracks = chain(i / 10, detected, runtime, [True], i)  # type: ignore[arg-type]
+    assert tracks[0].posture is not None and tracks[0].posture[0] == SITTING
+    (stood,) = chain._stood_at(4.4)
+    assert stood.xy == pytest.approx([5.0, 3.4], abs=0.05)
+    assert stood.unseen_s == pytest.approx(0.5)
