@@ -20,13 +20,20 @@ Rules (per track id; :class:`FallRules`, settings ``falls.*``)
    2026-12-07; 1.5 s lost none of the simulated falls, 2 s one of 240). Lying down on
    purpose goes through sitting for longer than that (onto a sofa, a bed, the floor), and a
    track that was never seen standing (someone already lying when the daemon starts) is never
-   a candidate. The drop must
-   also come within ``max_drop_s`` of a *sure* standing read (posture confidence at least
-   ``min_confidence``): a sitter's track left at the sofa when its person walked off read
-   standing only unsurely (0.42-0.72), was held there, and a false box read lying at the sofa
-   made it a fall (the lounge's daily life through the chain, ``bench/results/falls.md``). The
-   price: someone who falls while getting up, before their standing reads sure, is no candidate
-   (the simulated falls are from standing: none lost).
+   a candidate. No camera seeing the track for longer than ``upright_unseen_s`` (2 s) ends its
+   upright streak: the tracker holds a still person's track at their place for seconds after
+   they leave, and a false box that then feeds it standing is not a person who has stood
+   there all along. In held-out daily life of the lounge such a held track, fed a false box
+   read standing, then a sitter's box re-read lying beside it, raised a false fall 0.8 s after
+   it was seen again (``bench/results/falls.md``; 2-5 s lost none of the simulated falls, 1 s
+   one of 120 fresh ones). The price: someone no camera saw for 2 s who falls within 1.5 s of
+   being seen again is no candidate. The drop must also come within ``max_drop_s`` of a *sure*
+   standing read (posture confidence at least ``min_confidence``): a sitter's track left at the
+   sofa when its person walked off read standing only unsurely (0.42-0.72), was held there, and
+   a false box read lying at the sofa made it a fall (the lounge's daily life through the
+   chain, ``bench/results/falls.md``). The price: someone who falls while getting up, before
+   their standing reads sure, is no candidate (the simulated falls are from standing: none
+   lost).
    **1b. A fall the tracker handed to a new track** (``handover_m``, 1.5 m; 0: off): a person
    falling is what a tracker loses most easily (the body's boxes change shape and place within
    a second, a lone camera's view of it is read seated metres away), and the body on the floor
@@ -197,6 +204,7 @@ class FallRules:
     lying_gap_s: float = 5.0
     beside_m: float = 1.2
     stayed_m: float = 0.5
+    upright_unseen_s: float = 2.0
 
 
 @dataclass
@@ -309,6 +317,8 @@ class FallDetector:
         # a track no camera sees now (coasting: ``cameras`` empty) carries its last posture,
         # which is no evidence of what the person does now (rule 1)
         seen = _measured(person)
+        if seen and p.measured is not None and t - p.measured > rules.upright_unseen_s:
+            p.upright_since = None  # back after a long coast: its standing starts a new streak
         if seen:
             p.measured = t
         posture = person.get("posture") if seen else None

@@ -126,6 +126,13 @@ class FallSettings(BaseModel):
         description="A fall starts only after the person was seen standing this long "
         "(seconds; a track born a moment before is not yet known to be standing).",
     )
+    upright_unseen_s: float = Field(
+        _FALL.upright_unseen_s,
+        gt=0,
+        le=600,
+        description="... and no camera seeing them for longer than this starts that anew "
+        "(seconds; a track held where its person was is not known to be standing there).",
+    )
     lying_gap_s: float = Field(
         _FALL.lying_gap_s,
         gt=0,

@@ -127,6 +127,21 @@ def test_a_track_standing_for_a_moment_is_not_known_to_stand():
     assert up.types() == [FALL]
 
 
+def test_a_track_held_unseen_is_not_known_to_stand_when_seen_again():
+    """The tracker holds a still person's track for seconds after they leave; a false box
+    feeding it standing for 0.8 s, then a box read lying beside it, was a held-out false fall
+    of the lounge's daily life through the chain. A track unseen longer than upright_unseen_s
+    (2 s) starts its upright streak anew; one unseen for 1.5 s keeps it."""
+    held = Clock()
+    held.hold(10, "standing", cameras=[0, 1]).hold(5, "standing", cameras=[])
+    held.hold(0.8, "standing", cameras=[0]).hold(10, "lying", cameras=[0])
+    assert held.events == []
+    moment = Clock()
+    moment.hold(10, "standing", cameras=[0, 1]).hold(1.5, "standing", cameras=[])
+    moment.hold(0.8, "standing", cameras=[0]).hold(10, "lying", cameras=[0])
+    assert moment.types() == [FALL]
+
+
 def test_lying_down_slowly_is_not_a_fall():
     clock = Clock()
     clock.hold(5, "standing").hold(4, "sitting").hold(60, "lying")  # sits, then lies down
