@@ -318,7 +318,7 @@ class FallDetector:
         # which is no evidence of what the person does now (rule 1)
         seen = _measured(person)
         if seen and p.measured is not None and t - p.measured > rules.upright_unseen_s:
-            p.upright_since = None  # back after a long coast: its standing starts a new streak
+            p.upright_since = p.stood_from = None  # back after a long coast: a new streak
         if seen:
             p.measured = t
         posture = person.get("posture") if seen else None

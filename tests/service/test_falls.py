@@ -136,6 +136,11 @@ def test_a_track_held_unseen_is_not_known_to_stand_when_seen_again():
     held.hold(10, "standing", cameras=[0, 1]).hold(5, "standing", cameras=[])
     held.hold(0.8, "standing", cameras=[0]).hold(10, "lying", cameras=[0])
     assert held.events == []
+    sat = Clock()  # seen sitting first, then standing: the streak starts at that standing
+    sat.hold(10, "standing", cameras=[0, 1]).hold(5, "standing", cameras=[])
+    sat.hold(0.3, "sitting", cameras=[0]).hold(0.8, "standing", cameras=[0])
+    sat.hold(10, "lying", cameras=[0])
+    assert sat.events == []
     moment = Clock()
     moment.hold(10, "standing", cameras=[0, 1]).hold(1.5, "standing", cameras=[])
     moment.hold(0.8, "standing", cameras=[0]).hold(10, "lying", cameras=[0])

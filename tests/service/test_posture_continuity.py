@@ -162,9 +162,8 @@ def test_where_a_track_stood_is_anchored_with_how_long_the_track_is_unseen() -> 
     """A person stands at x 5 m for 3 s, sits down there for 1 s, then no camera sees them in
     four frame sets: at the next, the place they stood (1.5 s before) is kept, unseen for 0.5 s,
     so the re-read drops it with the track once the track is unseen longer than ``HELD_S`` (the
-    held-out daily life's
-    false fall: a track held where a sitter had stood up and walked off anchored a false box
-    read lying 1.8 s later)."""
+    held-out daily life's false fall: a track held where a sitter had stood up and walked off
+    anchored a false box read lying 1.8 s later)."""
     from service.pipeline.chain import Chain
     from service.tracking.tracker import RECOMMENDED, Tracker
     from tests.service.test_posture import _each_box
