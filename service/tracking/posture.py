@@ -203,6 +203,15 @@ def classify(ratio: np.ndarray, aspect: np.ndarray) -> tuple[np.ndarray, np.ndar
     return labels, np.where(no_body, 0.0, sure)
 
 
+def standing_height_at(boxes: np.ndarray, area: SetupArea | None, camera: int) -> np.ndarray | None:
+    """The height [M] px a person standing at each box's bottom centre would have in camera
+    ``camera`` (boxes [M, 4]); None without that camera's height model."""
+    boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
+    region = None if area is None or camera >= len(area.cameras) else area.cameras[camera]
+    bottom = np.stack([0.5 * (boxes[:, 0] + boxes[:, 2]), boxes[:, 3]], 1)
+    return None if region is None else region.expected_height(bottom)
+
+
 def standing_boxes(
     boxes: np.ndarray,
     labels: np.ndarray,
@@ -258,9 +267,7 @@ def box_postures(
     ``unknown`` without a height model). With their COCO-17 ``keypoints`` [M, 17, 3], a box
     that reads sitting with the shoulders below the hips reads lying (:func:`head_down`)."""
     boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
-    region = None if area is None or camera >= len(area.cameras) else area.cameras[camera]
-    bottom = np.stack([0.5 * (boxes[:, 0] + boxes[:, 2]), boxes[:, 3]], 1)
-    expected = None if region is None else region.expected_height(bottom)
+    expected = standing_height_at(boxes, area, camera)
     if expected is None or not len(boxes):
         return np.full(len(boxes), UNKNOWN, dtype=object), np.zeros(len(boxes))
     height = np.maximum(boxes[:, 3] - boxes[:, 1], 1e-6)
@@ -336,9 +343,7 @@ def cut_off(
     sight at the border is narrow and counts as cut: its box says nothing sure either."""
     boxes = np.asarray(boxes, np.float64).reshape(-1, 4)
     cut = at_border(boxes, image_size)
-    region = None if area is None or camera >= len(area.cameras) else area.cameras[camera]
-    bottom = np.stack([0.5 * (boxes[:, 0] + boxes[:, 2]), boxes[:, 3]], 1)
-    expected = None if region is None else region.expected_height(bottom)
+    expected = standing_height_at(boxes, area, camera)
     if expected is None:
         return cut
     return cut & (boxes[:, 2] - boxes[:, 0] < WHOLE_BODY_WIDTH * np.asarray(expected, float))

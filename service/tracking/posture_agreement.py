@@ -58,6 +58,7 @@ from service.tracking.posture import (
     BoxPostures,
     camera_postures,
     standing_boxes,
+    standing_height_at,
 )
 
 
@@ -175,10 +176,7 @@ def agreed_rows(
 
 
 def _short(box: np.ndarray, area: SetupArea, camera: int) -> bool:
-    region = area.cameras[camera] if camera < len(area.cameras) else None
-    if region is None:
-        return False
-    expected = region.expected_height(np.array([[0.5 * (box[0, 0] + box[0, 2]), box[0, 3]]]))
+    expected = standing_height_at(box, area, camera)
     if expected is None:
         return False
     return bool(box[0, 3] - box[0, 1] < AGREE_RATIO * float(expected[0]))

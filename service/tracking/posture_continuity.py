@@ -72,7 +72,13 @@ import numpy as np
 from models.detector.base import Detections
 from models.mom.setup_area import SetupArea
 from service.stages import Association, TrackAnchor
-from service.tracking.posture import LYING, SITTING, BoxPostures, standing_boxes
+from service.tracking.posture import (
+    LYING,
+    SITTING,
+    BoxPostures,
+    standing_boxes,
+    standing_height_at,
+)
 from service.tracking.posture_agreement import Relocalizing
 
 JUMP_M = 1.2  # the seated reading this far from the track: no sitting down does that
@@ -148,9 +154,7 @@ def _from_the_top(
         return None
     from_top = False
     for k, box in boxes.items():
-        region = area.cameras[k] if k < len(area.cameras) else None
-        bottom = np.array([[0.5 * (box[0] + box[2]), box[3]]])
-        expected = None if region is None else region.expected_height(bottom)
+        expected = standing_height_at(box, area, k)
         if expected is not None and box[2] - box[0] < MIN_WIDTH * float(expected[0]):
             return None
         seated = standing_boxes(box[None], np.array([SITTING], dtype=object), area, k)[0]
