@@ -105,6 +105,21 @@ class FallSettings(BaseModel):
         description="... on a snapshot whose posture_confidence of lying is at least this "
         "(a sit-down or a crouch misread as lying reads lower).",
     )
+    standing_confidence: float = Field(
+        _FALL.standing_confidence,
+        ge=0,
+        le=1,
+        description="A fall starts only from a standing read at least this sure (a track left "
+        "where a sitter was reads standing unsurely).",
+    )
+    coast_s: float = Field(
+        _FALL.coast_s,
+        ge=0,
+        le=60,
+        description="A snapshot no camera sees the person in, at most this long after a sure "
+        "lying read, counts as one once two cameras have read them lying for sure (seconds; "
+        "the detector often misses a body just down; 0: off).",
+    )
     clear_s: float = Field(
         _FALL.clear_s,
         gt=0,

@@ -76,7 +76,7 @@ from service.tracking.view_bias import ViewBias
 
 STOOD_S = 2.0  # a track's sure standing place is kept this long (:meth:`Chain._stood_at`): a
 # fall's drop (the fall rules' ``max_drop_s``)
-STOOD_SURE = 0.75  # ... a standing posture this sure (the fall rules' ``min_confidence``)
+STOOD_SURE = 0.75  # ... a standing posture this sure (the fall rules' ``standing_confidence``)
 
 OutsideArea = Literal["drop", "flag"]
 OUTSIDE_AREA_POLICIES: tuple[OutsideArea, ...] = ("drop", "flag")
