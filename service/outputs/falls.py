@@ -31,9 +31,9 @@ Rules (per track id; :class:`FallRules`, settings ``falls.*``)
    standing read (posture confidence at least ``standing_confidence``, 0.75): a sitter's track
    left at the sofa when its person walked off read standing only unsurely (0.42-0.72), was
    held there, and a false box read lying at the sofa made it a fall (the lounge's daily life
-   through the chain, ``bench/results/falls.md``). The price: someone who falls while getting up, before
-   their standing reads sure, is no candidate (the simulated falls are from standing: none
-   lost).
+   through the chain, ``bench/results/falls.md``). The price: someone who falls while getting
+   up, before their standing reads sure, is no candidate (the simulated falls are from
+   standing: none lost).
    **1b. A fall the tracker handed to a new track** (``handover_m``, 1.5 m; 0: off): a person
    falling is what a tracker loses most easily (the body's boxes change shape and place within
    a second, a lone camera's view of it is read seated metres away), and the body on the floor
