@@ -127,7 +127,10 @@ Rules (per track id; :class:`FallRules`, settings ``falls.*``)
    within ``max_drop_s``: ``stood_up`` at once, and a new candidate: someone who gets up and
    falls again is a second fall; a seated read of a person standing unsteadily used to keep the
    first fall active through the second, which was never reported: one of the 96 falls of
-   ``bench/results/falls.md``), or when the track has been absent from the snapshots for
+   ``bench/results/falls.md``; "up since the fall" counts from the first standing read after
+   the last lying one: up from the floor through sitting, the streak used to run on from before
+   the first fall, and a second fall two cameras read lying for 4 s had no event, one of 120
+   held-out falls), or when the track has been absent from the snapshots for
    ``lost_s`` (``reason: lost``: the tracker gave the id up; a person lying still is served
    through detector dropouts for the tracker's ``hold_still_s``, so this is rare and long).
    **3b. Up on a new track**: the fall also ends (``stood_up``) when no camera sees its track
@@ -340,7 +343,12 @@ class FallDetector:
         if posture in (STANDING, SITTING):
             p.upright_at = t
         if posture == STANDING:
-            if p.last_standing is None or p.stood_from is None or p.upright_since is None:
+            if (
+                p.last_standing is None
+                or p.stood_from is None
+                or p.upright_since is None
+                or p.lying_at > p.last_standing  # up from the floor (through sitting or not)
+            ):
                 p.stood_from = t  # a new upright streak
             p.last_standing = t
             p.stood_x, p.stood_y = p.x, p.y

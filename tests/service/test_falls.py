@@ -97,6 +97,23 @@ def test_getting_up_and_falling_again_before_clear_s_is_a_second_fall():
     assert short.types() == [FALL]
 
 
+def test_getting_up_through_sitting_and_falling_again_is_a_second_fall():
+    """Up from the floor goes through sitting: the standing streak then starts at the first
+    standing read after the floor, not at the one before the first fall. Counted from there,
+    the first fall was never up since (its candidate for the second drop was refused): a fall
+    of a fresh seed set of the simulated lounge, two cameras reading the body lying for 4 s,
+    had no event (``bench/results/falls.md``)."""
+    clock = Clock(FallDetector(FallRules(clear_s=3.0)))
+    clock.hold(5, "standing").hold(15, "lying")
+    clock.hold(1.5, "sitting").hold(2.5, "standing").hold(15, "lying")
+    assert clock.types() == [FALL, FALL_CLEARED, FALL]
+    assert clock.events[1]["reason"] == "stood_up"
+    short = Clock(FallDetector(FallRules(clear_s=3.0)))  # up for a moment: the same fall
+    short.hold(5, "standing").hold(15, "lying").hold(1.5, "sitting").hold(1.0, "standing")
+    short.hold(15, "lying")
+    assert short.types() == [FALL]
+
+
 def test_a_coasting_track_s_carried_standing_is_no_evidence_of_a_quick_drop():
     """A track that lost its person keeps serving their last posture for a while; through the
     serving chain such a track, fed a lying association seconds later, raised false falls. Only
