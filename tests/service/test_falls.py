@@ -99,10 +99,10 @@ def test_getting_up_and_falling_again_before_clear_s_is_a_second_fall():
 
 def test_getting_up_through_sitting_and_falling_again_is_a_second_fall():
     """Up from the floor goes through sitting: the standing streak then starts at the first
-    standing read after the floor, not at the one before the first fall. Counted from there,
-    the first fall was never up since (its candidate for the second drop was refused): a fall
-    of a fresh seed set of the simulated lounge, two cameras reading the body lying for 4 s,
-    had no event (``bench/results/falls.md``)."""
+    standing read after the floor. It used to run on from before the first fall, so the track
+    was never "up since the fall" and its second drop started no candidate: a fall of a fresh
+    seed set of the simulated lounge, two cameras reading the body lying for 4 s, had no event
+    (``bench/results/falls.md``)."""
     clock = Clock(FallDetector(FallRules(clear_s=3.0)))
     clock.hold(5, "standing").hold(15, "lying")
     clock.hold(1.5, "sitting").hold(2.5, "standing").hold(15, "lying")
