@@ -346,7 +346,7 @@ def test_a_new_lying_track_takes_no_fall_over_from_a_track_that_did_not_drop(
     t, events = _snapshots(detector, 3.0, [_stand(1)], 1000.0)
     t, more = _snapshots(detector, 0.5, before, t)
     events += more
-    t, more = _snapshots(detector, 3.0, [_lie(2, 2.3)], t)
+    t, more = _snapshots(detector, 3.0, [*before, _lie(2, 2.3)], t)
     assert [e for e in events + more if e["id"] == 2] == []
 
 
@@ -381,16 +381,27 @@ def test_a_lying_track_far_from_where_its_person_stood_is_no_fall():
         assert [e["type"] for e in events + more + down] == expected
 
 
-def test_a_track_lost_while_going_down_hands_its_fall_over_and_a_sure_stander_does_not():
-    """The faller's track reads standing less and less surely (its boxes already short) and is
-    lost; the body on the floor becomes track 2."""
-    for last_standing, expected in ((0.55, [(FALL, 2)]), (0.95, [])):
-        detector = FallDetector()
-        t, events = _snapshots(detector, 3.0, [_stand(1)], 1000.0)
-        wobbly = {**_stand(1), "posture_confidence": last_standing}
-        t, more = _snapshots(detector, 0.3, [wobbly], t)
-        t, down = _snapshots(detector, 3.0, [_lie(2, 2.4)], t)
-        assert [(e["type"], e["id"]) for e in events + more + down] == expected
+@pytest.mark.parametrize(
+    "last_seen, expected",
+    [
+        ({"posture_confidence": 0.55}, [(FALL, 2)]),  # standing less and less surely, lost
+        ({}, [(FALL, 2)]),  # lost at a sure standing read: nobody saw it after
+        ({"posture": "sitting"}, []),  # seen seated after its last standing read, then lost
+    ],
+)
+def test_a_track_lost_while_going_down_hands_its_fall_over(
+    last_seen: dict[str, Any], expected: list[tuple[str, int]]
+) -> None:
+    """The faller's track is lost as the person goes down; the body on the floor becomes track
+    2. Lost at a sure standing read counts too since 2026-12-07: in two falls of the fresh seed
+    sets of the simulated lounge a track born a moment before took the body, after the faller's
+    track was last seen standing for sure, and no event came (no false fall more in 144
+    person-hours of daily life: ``bench/results/falls.md``)."""
+    detector = FallDetector()
+    t, events = _snapshots(detector, 3.0, [_stand(1)], 1000.0)
+    t, more = _snapshots(detector, 0.3, [{**_stand(1), **last_seen}], t)
+    t, down = _snapshots(detector, 3.0, [_lie(2, 2.4)], t)
+    assert [(e["type"], e["id"]) for e in events + more + down] == expected
 
 
 @pytest.mark.parametrize(
