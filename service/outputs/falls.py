@@ -498,18 +498,14 @@ class FallDetector:
             if other != pid
             and not d.handed_over
             and d.fallen_at is None
+            and d.last_standing is not None
             # the donor saw the drop: a candidate of its own, its last standing read unsure, or
             # no camera has seen it since that read (lost as the person went down)
             and (
                 d.lying_since is not None
                 or d.stood_sure < rules.standing_confidence
-                or (
-                    d.measured is not None
-                    and d.last_standing is not None
-                    and d.measured <= d.last_standing
-                )
+                or (d.measured is not None and d.measured <= d.last_standing)
             )
-            and d.last_standing is not None
             and d.stood_from is not None
             and t - d.last_standing <= rules.max_drop_s
             and d.last_standing - d.stood_from >= rules.min_standing_s - 1e-9
