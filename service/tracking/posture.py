@@ -84,11 +84,16 @@ squat has the shoulders below the hips. Held bodies of the fall bench's rooms (s
 the box rules read sitting, 5-10 fps): 46 % of the lying bodies' boxes have the cue (the
 others lie feet towards the camera, or the pose is missing: 32 %, short boxes), against
 0.05 % of the sitters' (38 of 83608, gross keypoint errors) and 0.02 % of the squats' (1 of
-4544). Such a box is converted as its shape says (seated, from its top): from its centre, as
-other lying boxes, the simulated lounge's lying person was put 0.46 m off per frame (median)
-against 0.36 m, and from the keypoints' mid-hip 0.42 m (``bench.serving.postures``, 2026-12-04).
-That holds where another view sees the body across; seen by one camera alone, such a box (and
-any compact box read sitting) is converted again from its centre when only that keeps a tracked
+4544). Such a box is converted as any lying box, from ``LYING_FOOT`` down it. Until
+2026-12-07 it was converted as its shape says (seated, from its top), which on 2026-12-04 put
+the lying person 0.36 m off per frame (median) against 0.46 m from the box centre; since the
+lying floor point moved to 0.7 down the box, the lying conversion is far better. Lone views of
+such boxes of the fall bench's bodies (seeds 601-620, each localized alone), seated
+conversion against lying: 1.52 m off (median; every one over 1 m) against 0.08 m (p90 0.15 m);
+with the other camera's box, 0.52 m against 0.09 m. A fallen person whom only that camera saw
+was put 1.2-1.7 m towards it, where no track was, the tracker's ghost check doubted the lone
+view, and no fall came (``bench/results/falls.md``, 2026-12-07 night). A compact box read
+sitting by its shape alone is converted again, from its centre, when only that keeps a tracked
 person in place (:mod:`service.tracking.posture_continuity`, after the association).
 Rejected: the feet-towards-the-camera half by the legs' length in the image against
 the trunk's (hip to ankle 1.2 trunks or more: 15 % of the lying boxes, and 14 % of the
@@ -361,13 +366,7 @@ def camera_postures(
     labels, confidence = box_postures(boxes, area, camera, image_size, keypoints)
     if area is None:
         return labels, confidence, boxes
-    if keypoints is None:
-        return labels, confidence, standing_boxes(boxes, labels, area, camera)
-    # a box read lying by its keypoints is converted as its shape says (sitting: from its top),
-    # which puts a body lying along the line of sight nearer than its centre (module docstring)
-    shape, _ = box_postures(boxes, area, camera, image_size)
-    convert = np.where((labels == LYING) & (shape == SITTING), SITTING, labels)
-    return labels, confidence, standing_boxes(boxes, convert, area, camera)
+    return labels, confidence, standing_boxes(boxes, labels, area, camera)
 
 
 def normalise(

@@ -8,12 +8,14 @@ standing height above the floor, but the top of that box is the far end of a bod
 so the person was put 1.5-2 m beyond where they lay: in the simulated lounge's held-out falls,
 lone views of lying bodies that read sitting were put 1.68 m off (median) by the seated
 conversion and 0.22 m off by the lying one (from the box centre), and those read lying by their
-keypoints 1.72 and 0.46 m (``bench/results/falls.md``). The fallen person then either left
-their track, or dragged it metres away, and the fall was not reported.
+keypoints 1.72 and 0.46 m (``bench/results/falls.md``; since 2026-12-07 night a box read lying
+by its keypoints is converted as lying in the first place, :mod:`service.tracking.posture`). The
+fallen person then either left their track, or dragged it metres away, and the fall was not
+reported.
 
 What tells the two readings apart is where the person was a moment ago: nobody moves a metre
 and more while sitting down, squatting or falling. So an association whose boxes were converted
-from their top (read seated, or lying by the keypoints) is converted again as a body on the
+from their top (read seated) is converted again as a body on the
 floor (:func:`~service.tracking.posture.standing_boxes` with ``lying``), and that reading is
 taken, with the posture ``lying``, when it lands within ``NEAR_M`` of a tracked person's
 predicted position or of where a track last stood for sure in the last 2 s (both given as
@@ -55,11 +57,11 @@ off a person sitting down (``bench/results/falls.md``).
 
 Measured on held bodies of the simulated lounge with the true position standing in for the
 track's (seeds 1-8 of the fall bench and 2 × 20 min of its daily life, each box localized alone;
-``bench/results/falls.md``): the rule takes 85 % of the lone views of
-lying bodies read lying by their keypoints and 69 % of those read sitting, 0.3 % of the squats'
-boxes and none of the sitters'. Rejected: a lower ``JUMP_M`` (1.0 m with ``NEAR_M`` 0.6 and no
-margin took 4 % of the squats' boxes, each a step towards a false fall: a squat goes down as fast
-as a fall).
+``bench/results/falls.md``): the rule takes 69 % of the lone views of lying bodies read
+sitting (and took 85 % of those read lying by their keypoints, converted from their top until
+2026-12-07), 0.3 % of the squats' boxes and none of the sitters'. Rejected: a lower
+``JUMP_M`` (1.0 m with ``NEAR_M`` 0.6 and no margin took 4 % of the squats' boxes, each a step
+towards a false fall: a squat goes down as fast as a fall).
 """
 
 from __future__ import annotations
@@ -147,8 +149,8 @@ def _from_the_top(
     area: SetupArea,
 ) -> dict[int, np.ndarray] | None:
     """The association's boxes as detected, by camera, when none of them reads standing or is
-    narrower than ``MIN_WIDTH`` and at least one was converted from its top (read sitting, or
-    lying by its keypoints: its replacement is the seated one); else None."""
+    narrower than ``MIN_WIDTH`` and at least one was converted from its top (read sitting: its
+    replacement is the seated one); else None."""
     boxes = postures.low(association.detection_index, detected)
     if not boxes:
         return None

@@ -127,10 +127,10 @@ def test_normalise_reads_the_keypoints_of_the_detections() -> None:
     points = _pose(280.0, 240.0, 220.0, 205.0)[None].astype(np.float32)
     det = Detections(box, np.ones(1, np.float32), points)
     fixed, postures = posture.normalise([det], _area(), np.array([[640, 480]]))
-    # lying, but converted as the box's shape says (seated: from its top), which puts such a
-    # body nearer than its centre would (module docstring)
+    # lying, and converted as lying (LYING_FOOT down the box), not as its shape says (seated,
+    # from its top), which put a lone view of such a body 1.5 m off (module docstring)
     assert postures.of([0])[0] == LYING
-    assert fixed[0].boxes[0, 3] == pytest.approx(200.0 + posture.SEATED_TOP * STANDING_PX)
+    assert fixed[0].boxes[0, 3] == pytest.approx(200.0 + posture.LYING_FOOT * 90.0)
 
 
 def test_seated_and_lying_boxes_become_standing_ones() -> None:
