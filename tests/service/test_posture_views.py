@@ -126,3 +126,17 @@ def test_a_lone_view_is_left_to_the_continuity_reading() -> None:
     (read,) = lying_by_views(alone, detected, postures, _area(), _TwoCameras())
     assert read is alone[0]
     assert postures.labels[0][0] == SITTING
+
+
+def test_a_squat_whose_feet_agree_better_than_its_lying_readings_stays_seated() -> None:
+    """Seen from both sides near the cameras' wall, a squat's lying readings can agree (0.31 m
+    here) while its seated ones land 2 m apart, as a body's do; but its boxes' bottoms are its
+    feet, and those agree better still (0.25 m)."""
+    squat_0 = [310.0, 193.0, 390.0, 259.0]  # 66 px tall: feet at (5.18, 3.5)
+    squat_1 = [460.0, 118.0, 540.0, 184.0]  # feet at (5.0, 3.68)
+    detected, found, postures = _associated(squat_0, squat_1)
+    assert [postures.labels[k][0] for k in (0, 1)] == [SITTING, SITTING]
+    before = found[0].world.copy()
+    (read,) = lying_by_views(found, detected, postures, _area(), _TwoCameras())
+    assert read.world == pytest.approx(before)
+    assert postures.of(read.detection_index)[0] == SITTING
