@@ -34,8 +34,8 @@ are the box's bottom, ``FEET``) lands on the squat, while a body on the floor sh
 its near end, and the cameras' near ends are different parts of it. So the lying reading is
 taken only where the views' lying readings agree at least as well as their feet readings. On
 the bodies of the fall bench's seeds 1801-1808 through the chain, 96 % of the frames the two
-bounds took pass (their feet readings 0.8 m apart, median; lying ones 0.23 m); of that squat's
-16 frames, 8.
+bounds took pass (their feet readings 0.8 m apart, median; lying ones 0.23 m); of the 16 frames
+of squats they took in that hour, 8.
 
 Rejected: the converse, a lying vote read seated when its lying readings land 0.8 m apart or
 more (a body's never did beyond 0.6 m; 7 of daily life's 10 two-view frames with a box of a squat
