@@ -87,13 +87,14 @@ def lying_by_views(
         seated = _lone_rows(boxes, SITTING, area, len(association.boxes))
         lying = _lone_rows(boxes, LYING, area, len(association.boxes))
         feet = _lone_rows(boxes, LYING, area, len(association.boxes), FEET)
-        world = np.asarray(runtime.localize(np.concatenate([seated, lying, feet])), np.float64)
-        if not np.isfinite(world[:, :2]).all():
+        readings = np.concatenate([seated, lying, feet])
+        world = np.asarray(runtime.localize(readings), np.float64)[:, :2]
+        if not np.isfinite(world).all():
             continue
-        n_cams = len(cameras)
-        seated_apart = float(_pairwise(world[:n_cams, :2]).min())
-        lying_apart = float(_pairwise(world[n_cams : 2 * n_cams, :2]).max())
-        feet_apart = float(_pairwise(world[2 * n_cams :, :2]).max())
+        views = len(cameras)
+        seated_apart = float(_pairwise(world[:views]).min())
+        lying_apart = float(_pairwise(world[views : 2 * views]).max())
+        feet_apart = float(_pairwise(world[2 * views :]).max())
         if not (lying_apart <= AGREE_M and seated_apart >= APART_M and feet_apart >= lying_apart):
             continue
         rows = np.full_like(lying[0], np.nan)
