@@ -143,7 +143,8 @@ class TrackAnchor:
     camera's predicted box centre of the track and its std (``ViewMemory.predict``), for the
     association's per-camera box continuity. ``unseen_s``: seconds from the last frame set a
     camera saw the track in to the time it is predicted to, for the lone-view continuity
-    reading (``service.tracking.posture_continuity``).
+    reading (``service.tracking.posture_continuity``). ``track_id``: the track it anchors
+    (None: unknown), so that reading tells one person's anchors from another's.
     """
 
     xy: np.ndarray
@@ -151,6 +152,7 @@ class TrackAnchor:
     image_x: np.ndarray | None = None
     image_std: np.ndarray | None = None
     unseen_s: float = 0.0
+    track_id: int | None = None
 
 
 class Reprojecting(Protocol):

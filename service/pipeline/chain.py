@@ -226,7 +226,9 @@ class Chain:
         as stale as its track (``unseen_s``: since an association last fed it), so the reading
         drops it with the track (its ``HELD_S``)."""
         return [
-            TrackAnchor(xy.copy(), np.zeros((2, 2)), unseen_s=t - self._fed.get(i, when))
+            TrackAnchor(
+                xy.copy(), np.zeros((2, 2)), unseen_s=t - self._fed.get(i, when), track_id=i
+            )
             for i, (when, xy) in self._stood.items()
             if t - when <= STOOD_S
         ]

@@ -47,6 +47,16 @@ fall 5.8 s late (its faller's track unseen for 1.1 s). Nor is where such a track
 daily life a sitter got up and walked off, their track was held at the sofa where it had just
 read standing, and 1.8 s later a false box read sitting was re-read lying there, a false fall.
 
+Nor is an association re-read whose seated reading lies within ``NEAR_M`` of another tracked
+person (an anchor of another track: :class:`~service.stages.TrackAnchor`'s ``track_id``; one of
+unknown track counts as another's): that box continues them, and its lying reading beside
+someone else's track is the wrong person on the floor. In held-out daily life of the simulated
+lounge (seed 4301), a person on a chair seen by one camera read seated 0.06-0.23 m from their
+own track and lying 1.2 m off, 0.4 m from the track of a person on the sofa: re-read, it was a
+false fall there (``bench/results/falls.md``). A body on the floor reads seated 1.5-2 m along its
+camera's line of sight, where another person is seldom tracked. The faller's own track, dragged
+towards its seated reads, is no one else's: the place it stood still anchors the lying reading.
+
 A box narrower than ``MIN_WIDTH`` (0.2) of a standing person's height at its place is not
 re-read: a body on the floor is at least as wide in the image as its shoulders seen end-on
 (:data:`~service.tracking.posture.LYING_MIN_WIDTH`, whose 0.15 is for a box read lying by its
@@ -128,6 +138,7 @@ def reread_lying(
             and seated > JUMP_M
             and seated - near[track] > GAP_M
             and not (others < NEAR_M).any()
+            and not _someone_else_there(where[n], tracked, anchors, track)
         ):
             continue
         covariance = np.asarray(runtime.covariance(rows[None]), np.float64)[0]
@@ -140,6 +151,21 @@ def reread_lying(
             postures.labels[k][index] = LYING
             postures.confidence[k][index] = round(sure, 3)
     return out
+
+
+def _someone_else_there(
+    seated: np.ndarray, tracked: np.ndarray, anchors: Sequence[TrackAnchor], track: int
+) -> bool:
+    """Whether the seated reading ``seated`` lies within ``NEAR_M`` of an anchor of another
+    track than anchor ``track``'s (anchors of unknown track count as another's): that reading
+    continues a tracked person (module docstring)."""
+    owner = anchors[track].track_id
+    near = np.linalg.norm(tracked - seated, axis=1) < NEAR_M
+    return any(
+        near[i] and (owner is None or a.track_id != owner)
+        for i, a in enumerate(anchors)
+        if i != track
+    )
 
 
 def _from_the_top(

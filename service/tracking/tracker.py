@@ -413,7 +413,9 @@ class Tracker:
             image_x, image_std = tr.views.predict(cameras, float(t), LABEL_STD_H, LABEL_GROWTH_HPS)
             unseen = max(0.0, float(t) - tr.last_seen)
             out.append(
-                TrackAnchor(mean.copy(), motion.cov[:2, :2].copy(), image_x, image_std, unseen)
+                TrackAnchor(
+                    mean.copy(), motion.cov[:2, :2].copy(), image_x, image_std, unseen, tr.id
+                )
             )
         return out
 

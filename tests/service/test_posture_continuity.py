@@ -56,8 +56,8 @@ def _seen(boxes: list[list[float]]) -> Seen:
     return detected, found, postures
 
 
-def _anchor(x: float, y: float, unseen_s: float = 0.0) -> TrackAnchor:
-    return TrackAnchor(np.array([x, y]), 0.04 * np.eye(2), unseen_s=unseen_s)
+def _anchor(x: float, y: float, unseen_s: float = 0.0, track_id: int | None = None) -> TrackAnchor:
+    return TrackAnchor(np.array([x, y]), 0.04 * np.eye(2), unseen_s=unseen_s, track_id=track_id)
 
 
 def test_a_compact_box_where_a_person_stood_is_a_body_on_the_floor() -> None:
@@ -82,6 +82,9 @@ def test_a_compact_box_where_a_person_stood_is_a_body_on_the_floor() -> None:
         ([], []),  # nobody tracked near: a new person, judged by the box alone
         ([_anchor(5.0, 3.5)], [[300.0, 50.0, 380.0, 250.0]]),  # a standing person is there
         ([_anchor(5.0, 3.5, unseen_s=2.0)], []),  # a track only the still hold keeps: stale
+        # someone else is tracked where it reads seated: their box, not a body beside another
+        ([_anchor(5.0, 3.5, track_id=1), _anchor(6.4, 3.5, track_id=2)], []),
+        ([_anchor(5.0, 3.5), _anchor(6.4, 3.5)], []),  # tracks unknown: another's, to be safe
     ],
 )
 def test_the_seated_reading_stays_unless_only_lying_keeps_the_track(
@@ -91,6 +94,16 @@ def test_the_seated_reading_stays_unless_only_lying_keeps_the_track(
     read = reread_lying(found, detected, postures, _area(), _OneCamera(), anchors)
     assert read[0].world[0] == pytest.approx(6.56)
     assert postures.labels[0][0] == SITTING
+
+
+def test_a_body_is_read_lying_where_its_own_track_was_dragged_to_the_seated_reading() -> None:
+    """The same person's track, dragged by the first seated reads to where the box reads
+    seated, is no one else: the place it stood anchors the lying reading."""
+    detected, found, postures = _seen([COMPACT])
+    anchors = [_anchor(6.4, 3.5, track_id=7), _anchor(5.0, 3.5, track_id=7)]
+    (read,) = reread_lying(found, detected, postures, _area(), _OneCamera(), anchors)
+    assert read.world == pytest.approx([4.9, 3.5])
+    assert postures.of(read.detection_index)[0] == LYING
 
 
 @pytest.mark.parametrize("width_px, lying", [(42.0, True), (38.0, False)])
@@ -184,3 +197,5 @@ def test_where_a_track_stood_is_anchored_with_how_long_the_track_is_unseen() -> 
     (stood,) = chain._stood_at(4.4)
     assert stood.xy == pytest.approx([5.0, 3.4], abs=0.05)
     assert stood.unseen_s == pytest.approx(0.5)
+    (held,) = chain.tracker.anchors(4.4)  # type: ignore[attr-defined]
+    assert stood.track_id == held.track_id == tracks[0].id  # one person's two anchors
